@@ -1,0 +1,351 @@
+//! Bilateral symmetry: the vertex mirror map, symmetric shape pairs (eyeBlinkLeft and
+//! eyeBlinkRight) and mirror antagonists (jawLeft and jawRight). SPEC section 0 and the
+//! antagonist rule of section 1.
+//!
+//! A symmetric pair moves mirrored regions and is posed together; a mirror antagonist is a
+//! mirror pair that moves the *same* region in opposite directions and can never be posed
+//! together. Both satisfy the mirror test, so the region overlap (IoU of the binary
+//! blendshapes) and the sign of the cosine tell them apart.
+
+use serde::Serialize;
+
+use super::neighbours::PointTree;
+use crate::rig::{norm, RigView};
+
+/// For each vertex, the vertex nearest its mirror image across `axis = 0`, if within `tol`.
+#[derive(Clone, Debug, Serialize)]
+pub struct MirrorMap {
+    /// The lateral axis (0 = X) whose sign the mirror flips.
+    pub axis: usize,
+    pub partner: Vec<Option<u32>>,
+    pub unmatched: Vec<u32>,
+}
+
+impl MirrorMap {
+    /// `tol_fraction` is relative to the bounding-box diagonal (SPEC: 1e-3).
+    pub fn new(points: &[[f32; 3]], axis: usize, tol_fraction: f64) -> Self {
+        let tol = tol_fraction * crate::rig::bbox_diagonal(points);
+        let tree = PointTree::new(points);
+        let partner: Vec<Option<u32>> = points
+            .iter()
+            .map(|p| {
+                let mut q = p.map(f64::from);
+                q[axis] = -q[axis];
+                let (m, d) = tree.nearest(q);
+                (d <= tol).then_some(m as u32)
+            })
+            .collect();
+        let unmatched = (0..points.len() as u32).filter(|&v| partner[v as usize].is_none()).collect();
+        Self { axis, partner, unmatched }
+    }
+
+    /// `M(D)[n] = S D[m(n)]`: the field mirrored across the plane (S flips the lateral
+    /// component). Unmatched vertices get zero.
+    pub fn mirror_field(&self, field: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        self.partner
+            .iter()
+            .map(|m| match m {
+                Some(m) => {
+                    let mut d = field[*m as usize];
+                    d[self.axis] = -d[self.axis];
+                    d
+                }
+                None => [0.0; 3],
+            })
+            .collect()
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct SymmetryParams {
+    /// Mirror test: `||M(D_i) - D_j|| / max(||D_i||, ||D_j||)` below this (SPEC: 0.25).
+    pub pair_tolerance: f64,
+    /// A mirror pair whose binary blendshapes overlap above this IoU, with a negative
+    /// cosine, is an antagonist pair (SPEC section 1: 0.6).
+    pub antagonist_iou: f64,
+    /// Threshold of the binary blendshapes used for the IoU (SPEC: mu = 0.3).
+    pub mu: f64,
+    /// Pair shapes by name (Left/Right, _L/_R, .L/.R, _l/_r) where geometry finds no partner.
+    pub use_names: bool,
+}
+
+impl Default for SymmetryParams {
+    fn default() -> Self {
+        Self { pair_tolerance: 0.25, antagonist_iou: 0.6, mu: 0.3, use_names: true }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PairSource {
+    Geometry,
+    Name,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ShapePair {
+    pub first: usize,
+    pub second: usize,
+    pub mirror_error: f64,
+    pub source: PairSource,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Antagonist {
+    pub first: usize,
+    pub second: usize,
+    pub iou: f64,
+    pub cosine: f64,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Symmetry {
+    pub pairs: Vec<ShapePair>,
+    pub antagonists: Vec<Antagonist>,
+    /// Shapes that are their own mirror image (jawOpen): they pair with nobody.
+    pub self_symmetric: Vec<usize>,
+    /// Geometric pairs whose names say otherwise (e.g. `browDownLeft` with `eyeBlinkRight`).
+    pub name_conflicts: Vec<(usize, usize)>,
+}
+
+impl Symmetry {
+    /// The partner of shape `k` in a symmetric pair, if any.
+    pub fn partner_of(&self, k: usize) -> Option<usize> {
+        self.pairs.iter().find_map(|p| match (p.first == k, p.second == k) {
+            (true, _) => Some(p.second),
+            (_, true) => Some(p.first),
+            _ => None,
+        })
+    }
+}
+
+/// Finds symmetric pairs (greedy by smallest mirror error), mirror antagonists, and falls
+/// back to names for shapes geometry leaves unpaired. Inert shapes take part in nothing.
+pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) -> Symmetry {
+    let k_count = rig.n_shapes();
+    let inert = rig.inert_shapes();
+    let live: Vec<usize> = (0..k_count).filter(|k| !inert.contains(k)).collect();
+    let norms: Vec<f64> = (0..k_count).map(|k| field_norm(rig.delta(k))).collect();
+    let mirrored: Vec<Vec<[f32; 3]>> = (0..k_count)
+        .map(|k| if inert.contains(&k) { Vec::new() } else { map.mirror_field(rig.delta(k)) })
+        .collect();
+    let mirror_error = |i: usize, j: usize| {
+        difference_norm(&mirrored[i], rig.delta(j)) / norms[i].max(norms[j])
+    };
+    let active: Vec<Vec<u32>> = (0..k_count).map(|k| rig.active_vertices(k, params.mu)).collect();
+
+    let mut out = Symmetry::default();
+    out.self_symmetric =
+        live.iter().copied().filter(|&k| mirror_error(k, k) < params.pair_tolerance).collect();
+
+    let mut candidates = Vec::new();
+    for (a, &i) in live.iter().enumerate() {
+        for &j in &live[a + 1..] {
+            if out.self_symmetric.contains(&i) || out.self_symmetric.contains(&j) {
+                continue;
+            }
+            let e = mirror_error(i, j);
+            if e < params.pair_tolerance {
+                candidates.push((e, i, j));
+            }
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut used = vec![false; k_count];
+    for (e, i, j) in candidates {
+        if used[i] || used[j] {
+            continue;
+        }
+        used[i] = true;
+        used[j] = true;
+        let iou = intersection_over_union(&active[i], &active[j]);
+        let cosine = cosine(rig.delta(i), rig.delta(j));
+        if iou > params.antagonist_iou && cosine < 0.0 {
+            out.antagonists.push(Antagonist { first: i, second: j, iou, cosine });
+        } else {
+            let named = name_partner(&rig.names[i]).is_some_and(|n| n == rig.names[j]);
+            if !named && (name_partner(&rig.names[i]).is_some() || name_partner(&rig.names[j]).is_some()) {
+                out.name_conflicts.push((i, j));
+            }
+            out.pairs.push(ShapePair { first: i, second: j, mirror_error: e, source: PairSource::Geometry });
+        }
+    }
+
+    if params.use_names {
+        for &i in &live {
+            let Some(other) = name_partner(&rig.names[i]) else { continue };
+            let Some(j) = rig.names.iter().position(|n| *n == other) else { continue };
+            if j <= i || used[i] || used[j] || inert.contains(&j) {
+                continue;
+            }
+            let iou = intersection_over_union(&active[i], &active[j]);
+            let cosine = cosine(rig.delta(i), rig.delta(j));
+            used[i] = true;
+            used[j] = true;
+            if iou > params.antagonist_iou && cosine < 0.0 {
+                out.antagonists.push(Antagonist { first: i, second: j, iou, cosine });
+            } else {
+                out.pairs.push(ShapePair { first: i, second: j, mirror_error: mirror_error(i, j), source: PairSource::Name });
+            }
+        }
+    }
+    out
+}
+
+/// The name a mirror partner would carry: `Left`<->`Right` anywhere (last occurrence), or a
+/// `_L/_R`, `.L/.R`, `_l/_r`, `.l/.r` suffix.
+pub fn name_partner(name: &str) -> Option<String> {
+    for (a, b) in [("Left", "Right"), ("Right", "Left"), ("left", "right"), ("right", "left")] {
+        if let Some(at) = name.rfind(a) {
+            return Some(format!("{}{}{}", &name[..at], b, &name[at + a.len()..]));
+        }
+    }
+    for (a, b) in [("_L", "_R"), ("_R", "_L"), (".L", ".R"), (".R", ".L"), ("_l", "_r"), ("_r", "_l"), (".l", ".r"), (".r", ".l")] {
+        if let Some(stem) = name.strip_suffix(a) {
+            return Some(format!("{stem}{b}"));
+        }
+    }
+    None
+}
+
+/// Intersection over union of two sorted index sets; 0 when both are empty.
+pub fn intersection_over_union(a: &[u32], b: &[u32]) -> f64 {
+    let (mut i, mut j, mut common) = (0, 0, 0usize);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                common += 1;
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    let union = a.len() + b.len() - common;
+    if union == 0 { 0.0 } else { common as f64 / union as f64 }
+}
+
+/// Cosine of two flattened delta fields; 0 when either is zero.
+pub fn cosine(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let dot: f64 = a.iter().zip(b).map(|(p, q)| (0..3).map(|c| p[c] as f64 * q[c] as f64).sum::<f64>()).sum();
+    let (na, nb) = (field_norm(a), field_norm(b));
+    if na == 0.0 || nb == 0.0 { 0.0 } else { dot / (na * nb) }
+}
+
+pub fn field_norm(field: &[[f32; 3]]) -> f64 {
+    field.iter().map(|d| norm(d).powi(2)).sum::<f64>().sqrt()
+}
+
+fn difference_norm(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (0..3).map(|c| (p[c] as f64 - q[c] as f64).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        .sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A mirrored grid of 2 x 7 x 5 vertices (x in -3..3), with shapes whose true relations
+    /// are known: a bump on each side (a symmetric pair, named misleadingly for one of them),
+    /// a central bump (self-symmetric), a sideways shift of the centre in each direction
+    /// (mirror antagonists), and an inert shape.
+    fn mirrored_rig() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<String>) {
+        let mut pts = Vec::new();
+        for x in -3..=3 {
+            for y in 0..5 {
+                for z in 0..2 {
+                    pts.push([x as f32, y as f32, z as f32 * 0.5 + 0.01 * (y * y) as f32]);
+                }
+            }
+        }
+        let n = pts.len();
+        let bump = |cx: f32, dir: [f32; 3]| -> Vec<[f32; 3]> {
+            pts.iter()
+                .map(|p| {
+                    let w = (-((p[0] - cx).powi(2) + (p[1] - 2.0).powi(2))).exp();
+                    dir.map(|c| c * w)
+                })
+                .collect()
+        };
+        let shapes = [
+            ("smileLeft", bump(2.0, [0.3, 0.5, 0.1])),
+            ("wrinkle", bump(-2.0, [-0.3, 0.5, 0.1])),
+            ("jawOpen", bump(0.0, [0.0, -1.0, 0.2])),
+            ("jawLeft", bump(0.0, [1.0, 0.0, 0.0])),
+            ("jawRight", bump(0.0, [-1.0, 0.0, 0.0])),
+            ("nothing", vec![[0.0; 3]; n]),
+        ];
+        let names = shapes.iter().map(|s| s.0.to_string()).collect();
+        let deltas = shapes.into_iter().flat_map(|s| s.1).collect();
+        (pts, deltas, names)
+    }
+
+    #[test]
+    fn mirror_map_matches_every_vertex_of_a_mirrored_grid() {
+        let (pts, _, _) = mirrored_rig();
+        let map = MirrorMap::new(&pts, 0, 1e-3);
+        assert!(map.unmatched.is_empty());
+        for (v, m) in map.partner.iter().enumerate() {
+            let m = m.unwrap() as usize;
+            assert_eq!(pts[m][0], -pts[v][0]);
+            assert_eq!(pts[m][1..], pts[v][1..]);
+        }
+        // A vertex moved off its mirror position is reported.
+        let mut moved = pts.clone();
+        moved[0][1] += 0.3;
+        assert_eq!(MirrorMap::new(&moved, 0, 1e-3).unmatched.len(), 2);
+    }
+
+    #[test]
+    fn finds_true_pairs_antagonists_and_self_symmetric_shapes() {
+        let (pts, deltas, names) = mirrored_rig();
+        let tris = [];
+        let rig = RigView::new(&pts, &deltas, &tris, &names).unwrap();
+        let map = MirrorMap::new(&pts, 0, 1e-3);
+        let sym = find_symmetry(&rig, &map, &SymmetryParams::default());
+        assert_eq!(sym.pairs.len(), 1);
+        assert_eq!((sym.pairs[0].first, sym.pairs[0].second), (0, 1));
+        assert_eq!(sym.pairs[0].source, PairSource::Geometry);
+        assert!(sym.pairs[0].mirror_error < 1e-6);
+        assert_eq!(sym.name_conflicts, vec![(0, 1)]);
+        assert_eq!(sym.self_symmetric, vec![2]);
+        assert_eq!(sym.antagonists.len(), 1);
+        let a = &sym.antagonists[0];
+        assert_eq!((a.first, a.second), (3, 4));
+        assert!(a.iou > 0.99 && a.cosine < -0.99);
+        assert_eq!(sym.partner_of(1), Some(0));
+        assert_eq!(sym.partner_of(5), None);
+    }
+
+    #[test]
+    fn names_pair_what_geometry_cannot() {
+        let (pts, mut deltas, mut names) = mirrored_rig();
+        let n = pts.len();
+        // Break the geometric mirror of shape 1 and give the pair matching names.
+        for d in &mut deltas[n..2 * n] {
+            d[2] *= -4.0;
+        }
+        names[0] = "smile_L".into();
+        names[1] = "smile_R".into();
+        let tris = [];
+        let rig = RigView::new(&pts, &deltas, &tris, &names).unwrap();
+        let map = MirrorMap::new(&pts, 0, 1e-3);
+        let sym = find_symmetry(&rig, &map, &SymmetryParams::default());
+        let pair = sym.pairs.iter().find(|p| p.first == 0).unwrap();
+        assert_eq!((pair.second, pair.source), (1, PairSource::Name));
+        let off = find_symmetry(&rig, &map, &SymmetryParams { use_names: false, ..Default::default() });
+        assert!(off.pairs.is_empty());
+    }
+
+    #[test]
+    fn name_partners() {
+        assert_eq!(name_partner("eyeBlinkLeft").as_deref(), Some("eyeBlinkRight"));
+        assert_eq!(name_partner("brow_R").as_deref(), Some("brow_L"));
+        assert_eq!(name_partner("lid.l").as_deref(), Some("lid.r"));
+        assert_eq!(name_partner("jawOpen"), None);
+    }
+}

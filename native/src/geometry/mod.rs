@@ -1,0 +1,5 @@
+//! Geometry shared by the three tools.
+
+pub mod mirror;
+pub mod neighbours;
+pub mod topology;

@@ -1,0 +1,101 @@
+//! Mesh connectivity from the triangle list: unique edges, vertex neighbours, connected
+//! components.
+
+/// Unique undirected edges `(a, b)` with `a < b`, sorted.
+pub fn unique_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
+/// Vertex adjacency lists (compressed rows): neighbours of `v` are
+/// `targets[offsets[v]..offsets[v + 1]]`.
+pub struct Adjacency {
+    pub offsets: Vec<usize>,
+    pub targets: Vec<u32>,
+}
+
+impl Adjacency {
+    pub fn from_triangles(n_vertices: usize, triangles: &[[u32; 3]]) -> Self {
+        let edges = unique_edges(triangles);
+        let mut degree = vec![0usize; n_vertices + 1];
+        for &(a, b) in &edges {
+            degree[a as usize + 1] += 1;
+            degree[b as usize + 1] += 1;
+        }
+        for v in 0..n_vertices {
+            degree[v + 1] += degree[v];
+        }
+        let offsets = degree;
+        let mut fill = offsets.clone();
+        let mut targets = vec![0u32; offsets[n_vertices]];
+        for &(a, b) in &edges {
+            targets[fill[a as usize]] = b;
+            fill[a as usize] += 1;
+            targets[fill[b as usize]] = a;
+            fill[b as usize] += 1;
+        }
+        Self { offsets, targets }
+    }
+
+    pub fn neighbours(&self, v: usize) -> &[u32] {
+        &self.targets[self.offsets[v]..self.offsets[v + 1]]
+    }
+}
+
+/// Connected component label per vertex (0..count), and the count. A vertex in no triangle
+/// is a component of its own.
+pub fn connected_components(n_vertices: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, usize) {
+    let mut parent: Vec<u32> = (0..n_vertices as u32).collect();
+    fn find(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            parent[v as usize] = parent[parent[v as usize] as usize];
+            v = parent[v as usize];
+        }
+        v
+    }
+    for t in triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2])] {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb) as usize] = ra.min(rb);
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; n_vertices];
+    let mut count = 0;
+    for v in 0..n_vertices {
+        let root = find(&mut parent, v as u32) as usize;
+        if label[root] == u32::MAX {
+            label[root] = count;
+            count += 1;
+        }
+        label[v] = label[root];
+    }
+    (label, count as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_pieces_and_a_loose_vertex() {
+        let tris = [[0, 1, 2], [1, 2, 3], [4, 5, 6]];
+        let (label, count) = connected_components(8, &tris);
+        assert_eq!(count, 3);
+        assert_eq!(&label[..4], &[0, 0, 0, 0]);
+        assert_eq!(&label[4..7], &[1, 1, 1]);
+        assert_eq!(label[7], 2);
+        let adj = Adjacency::from_triangles(8, &tris);
+        let mut n1 = adj.neighbours(1).to_vec();
+        n1.sort();
+        assert_eq!(n1, vec![0, 2, 3]);
+        assert_eq!(unique_edges(&tris).len(), 8);
+    }
+}

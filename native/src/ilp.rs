@@ -1,0 +1,213 @@
+//! The one place that builds good_lp models, runs HiGHS and maps its statuses: 0/1 programs
+//! for expression packing (maximum-weight independent sets, colourings) and landmark layouts
+//! (weighted set cover).
+
+use good_lp::solvers::highs::highs;
+use good_lp::{
+    variable, Expression, ProblemVariables, ResolutionError, Solution, SolutionStatus, SolverModel,
+    Variable,
+};
+use serde::Serialize;
+
+use crate::error::{ShapesmithError, ShapesmithResult};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sense {
+    Maximise,
+    Minimise,
+}
+
+/// `lower <= sum(coefficient * x_variable) <= upper`.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub terms: Vec<(usize, f64)>,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+/// Optimise `objective . x` over x in {0, 1}^n subject to the rows.
+#[derive(Clone, Debug)]
+pub struct BinaryProgram {
+    pub sense: Sense,
+    pub objective: Vec<f64>,
+    pub rows: Vec<Row>,
+}
+
+impl BinaryProgram {
+    pub fn new(sense: Sense, objective: Vec<f64>) -> Self {
+        Self { sense, objective, rows: Vec::new() }
+    }
+
+    pub fn n_variables(&self) -> usize {
+        self.objective.len()
+    }
+
+    pub fn at_most(&mut self, terms: Vec<(usize, f64)>, upper: f64) {
+        self.rows.push(Row { terms, lower: f64::NEG_INFINITY, upper });
+    }
+
+    pub fn at_least(&mut self, terms: Vec<(usize, f64)>, lower: f64) {
+        self.rows.push(Row { terms, lower, upper: f64::INFINITY });
+    }
+
+    pub fn equal(&mut self, terms: Vec<(usize, f64)>, value: f64) {
+        self.rows.push(Row { terms, lower: value, upper: value });
+    }
+
+    /// The objective of a 0/1 assignment, and whether it satisfies every row (to 1e-9).
+    pub fn evaluate(&self, x: &[bool]) -> (f64, bool) {
+        let objective = self.objective.iter().zip(x).filter(|p| *p.1).map(|p| p.0).sum();
+        let feasible = self.rows.iter().all(|row| {
+            let s: f64 = row.terms.iter().filter(|t| x[t.0]).map(|t| t.1).sum();
+            s >= row.lower - 1e-9 && s <= row.upper + 1e-9
+        });
+        (objective, feasible)
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct IlpOptions {
+    /// Seconds; `None` solves to proven optimality however long it takes.
+    pub time_limit: Option<f64>,
+}
+
+/// How far the returned solution is known to be from the optimum.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolveStatus {
+    /// Proven optimal (HiGHS closed the gap).
+    Optimal,
+    /// Stopped inside HiGHS's gap tolerance: feasible, possibly not optimal.
+    GapLimit,
+    /// Stopped by the time limit: feasible, not proven optimal.
+    TimeLimit,
+}
+
+impl SolveStatus {
+    pub fn is_optimal(self) -> bool {
+        self == SolveStatus::Optimal
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct IlpSolution {
+    pub x: Vec<bool>,
+    pub objective: f64,
+    pub status: SolveStatus,
+}
+
+/// Solves the program with HiGHS (gaps set to zero so that "optimal" means proven optimal).
+/// Errors: [`ShapesmithError::Infeasible`] when no 0/1 point satisfies the rows,
+/// [`ShapesmithError::Solver`] for anything else HiGHS reports.
+pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<IlpSolution> {
+    if program.n_variables() == 0 {
+        let feasible = program.rows.iter().all(|r| r.lower <= 0.0 && r.upper >= 0.0);
+        return if feasible {
+            Ok(IlpSolution { x: Vec::new(), objective: 0.0, status: SolveStatus::Optimal })
+        } else {
+            Err(ShapesmithError::Infeasible("a constraint cannot be met with no variables".into()))
+        };
+    }
+    let mut vars = ProblemVariables::new();
+    let x: Vec<Variable> = (0..program.n_variables()).map(|_| vars.add(variable().binary())).collect();
+    let linear = |terms: &mut dyn Iterator<Item = (usize, f64)>| -> Expression {
+        terms.fold(Expression::from(0.0), |e, (i, c)| e + c * x[i])
+    };
+    let objective = linear(&mut program.objective.iter().copied().enumerate());
+    let unsolved = match program.sense {
+        Sense::Maximise => vars.maximise(objective),
+        Sense::Minimise => vars.minimise(objective),
+    };
+    let mut model = highs(unsolved);
+    model.set_verbose(false);
+    model = model.set_threads(1).set_option("mip_rel_gap", 0.0).set_option("mip_abs_gap", 0.0);
+    if let Some(limit) = options.time_limit {
+        model = model.set_time_limit(limit);
+    }
+    for row in &program.rows {
+        let expr = linear(&mut row.terms.iter().copied());
+        if row.lower == row.upper {
+            model = model.with(expr.eq(row.lower));
+            continue;
+        }
+        if row.lower.is_finite() {
+            model = model.with(expr.clone().geq(row.lower));
+        }
+        if row.upper.is_finite() {
+            model = model.with(expr.leq(row.upper));
+        }
+    }
+    let solution = model.solve().map_err(|e| match e {
+        ResolutionError::Infeasible => {
+            ShapesmithError::Infeasible("the 0/1 program has no feasible solution".into())
+        }
+        other => ShapesmithError::Solver(format!("HiGHS failed: {other}")),
+    })?;
+    let status = match solution.status() {
+        SolutionStatus::Optimal => SolveStatus::Optimal,
+        SolutionStatus::GapLimit => SolveStatus::GapLimit,
+        SolutionStatus::TimeLimit => SolveStatus::TimeLimit,
+    };
+    let values: Vec<bool> = x.iter().map(|&v| solution.value(v) > 0.5).collect();
+    let (objective, feasible) = program.evaluate(&values);
+    if !feasible {
+        return Err(ShapesmithError::Solver("HiGHS returned a point that violates a constraint".into()));
+    }
+    Ok(IlpSolution { x: values, objective, status })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn brute_force(p: &BinaryProgram) -> Option<f64> {
+        let n = p.n_variables();
+        let mut best: Option<f64> = None;
+        for mask in 0u32..(1 << n) {
+            let x: Vec<bool> = (0..n).map(|i| mask >> i & 1 == 1).collect();
+            let (obj, ok) = p.evaluate(&x);
+            if ok {
+                best = Some(match (best, p.sense) {
+                    (None, _) => obj,
+                    (Some(b), Sense::Maximise) => b.max(obj),
+                    (Some(b), Sense::Minimise) => b.min(obj),
+                });
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn random_programs_match_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for trial in 0..40 {
+            let n = rng.random_range(1..11);
+            let sense = if trial % 2 == 0 { Sense::Maximise } else { Sense::Minimise };
+            let mut p = BinaryProgram::new(sense, (0..n).map(|_| rng.random_range(0.1..2.0)).collect());
+            for _ in 0..rng.random_range(0..8) {
+                let terms: Vec<(usize, f64)> =
+                    (0..n).filter(|_| rng.random_bool(0.4)).map(|i| (i, 1.0)).collect();
+                match sense {
+                    Sense::Maximise => p.at_most(terms, 1.0),
+                    Sense::Minimise => p.at_least(terms, 1.0),
+                }
+            }
+            match (solve_binary(&p, &IlpOptions::default()), brute_force(&p)) {
+                (Ok(sol), Some(best)) => {
+                    assert_eq!(sol.status, SolveStatus::Optimal);
+                    assert!((sol.objective - best).abs() < 1e-9, "trial {trial}: {} vs {best}", sol.objective);
+                }
+                (Err(ShapesmithError::Infeasible(_)), None) => {}
+                (got, want) => panic!("trial {trial}: solver {got:?}, brute force {want:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn infeasible_is_reported_as_such() {
+        let mut p = BinaryProgram::new(Sense::Minimise, vec![1.0, 1.0]);
+        p.at_least(vec![(0, 1.0), (1, 1.0)], 3.0);
+        assert!(matches!(solve_binary(&p, &IlpOptions::default()), Err(ShapesmithError::Infeasible(_))));
+    }
+}

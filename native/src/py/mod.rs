@@ -1,0 +1,22 @@
+//! The `shapesmith_native` Python module: a thin layer that extracts arrays under the GIL,
+//! runs the core inside `py.detach`, and converts results back. No numerics here.
+
+mod analysis;
+mod arrays;
+mod errors;
+mod landmarks;
+mod packing;
+mod transfer;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn shapesmith_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    analysis::register(m)?;
+    packing::register(m)?;
+    landmarks::register(m)?;
+    transfer::register(m)?;
+    Ok(())
+}
