@@ -1,0 +1,30 @@
+"""Shapesmith: expression packing, landmark layouts and shape-key transfer for face rigs.
+
+Each module registers itself; this list is the order (properties before the UI that draws them).
+"""
+
+import importlib
+
+_MODULE_NAMES = (
+    "preferences",
+    "properties",
+    "operators.analyze_rig",
+    "operators.symmetry_pairs",
+    "ui.panels",
+)
+
+_modules = []
+
+
+def register():
+    _modules.clear()
+    for name in _MODULE_NAMES:
+        module = importlib.import_module(f"{__package__}.{name}")
+        module.register()
+        _modules.append(module)
+
+
+def unregister():
+    for module in reversed(_modules):
+        module.unregister()
+    _modules.clear()

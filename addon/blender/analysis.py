@@ -1,0 +1,61 @@
+"""Analyze Rig as a plain function: the operator and `scripts/batch.py analyze` both call it."""
+
+import time
+
+from .. import native
+from .mesh_arrays import read_rig
+
+
+def analyze_object(obj, axis=0, pair_by_name=True):
+    """Reads the rig, runs the native analysis, returns its report (a dict) with the
+    shape-key warnings and timings added. Writes nothing."""
+    started = time.perf_counter()
+    rig = read_rig(obj)
+    read = time.perf_counter()
+    report = native.module().analyze_rig(
+        rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis, use_names=pair_by_name
+    )
+    report["warnings"] = rig.warnings
+    report["seconds"] = {"read": read - started, "native": time.perf_counter() - read}
+    return report
+
+
+def store_analysis(obj, report):
+    """Keeps the summary and the pairs on the object, where the user reviews and edits them
+    (replacing any earlier analysis)."""
+    props = obj.shapesmith
+    summary = props.analysis
+    summary.done = True
+    summary.vertices = report["vertices"]
+    summary.triangles = report["triangles"]
+    summary.shapes = report["shapes"]
+    summary.unmatched_vertices = len(report["unmatched_vertices"])
+    summary.degenerate_triangles = len(report["degenerate_triangles"])
+    summary.inert = ", ".join(report["inert"])
+    summary.self_symmetric = ", ".join(report["self_symmetric"])
+    props.pairs.clear()
+    for pair in report["symmetric_pairs"]:
+        item = props.pairs.add()
+        item.first, item.second = pair["first"], pair["second"]
+        item.source = pair["source"].upper()
+        item.mirror_error = pair["mirror_error"]
+    props.active_pair = 0
+    props.antagonists.clear()
+    for pair in report["antagonists"]:
+        item = props.antagonists.add()
+        item.first, item.second = pair["first"], pair["second"]
+        item.source = "GEOMETRY"
+
+
+def summary_lines(report):
+    """A short human-readable summary (for the batch log and the demo)."""
+    lines = [
+        f"{report['vertices']} vertices, {report['triangles']} triangles, {report['shapes']} shape keys",
+        f"inert shapes: {', '.join(report['inert']) or 'none'}",
+        f"unmatched mirror vertices: {len(report['unmatched_vertices'])}",
+        f"degenerate triangles: {len(report['degenerate_triangles'])}",
+        f"symmetric pairs ({len(report['symmetric_pairs'])}): "
+        + ", ".join(f"{p['first']}/{p['second']}" for p in report["symmetric_pairs"]),
+        "antagonists: " + (", ".join(f"{p['first']}/{p['second']}" for p in report["antagonists"]) or "none"),
+    ]
+    return lines + [f"warning: {w}" for w in report["warnings"]]

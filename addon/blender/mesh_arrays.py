@@ -1,0 +1,88 @@
+"""Shape keys <-> numpy through `foreach_get`/`foreach_set`: the one place that reads a rig
+out of Blender. Every check that can fail happens before anything is written."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class MeshDataError(ValueError):
+    """The object cannot be used as a rig as it is; the message says what to change."""
+
+
+@dataclass
+class Rig:
+    """A rig as plain arrays: neutral (N, 3), deltas (K, N, 3) against the reference key,
+    triangles (T, 3) from `loop_triangles`, shape key names; float32/int32, C-contiguous."""
+
+    neutral: np.ndarray
+    deltas: np.ndarray
+    triangles: np.ndarray
+    names: list
+    warnings: list = field(default_factory=list)
+
+
+def check_mesh(obj, need_shape_keys=True):
+    """Raises MeshDataError unless `obj` is a mesh in Object Mode with usable faces (and
+    shape keys beyond the Basis when asked)."""
+    if obj is None:
+        raise MeshDataError("no object given: select a mesh")
+    if obj.type != "MESH":
+        raise MeshDataError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
+    if obj.mode == "EDIT":
+        raise MeshDataError(f"'{obj.name}' is in Edit Mode: switch to Object Mode first")
+    mesh = obj.data
+    if len(mesh.vertices) == 0 or len(mesh.polygons) == 0:
+        raise MeshDataError(f"'{obj.name}' has no faces")
+    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    ngons = np.flatnonzero(sizes > 4)
+    if len(ngons):
+        raise MeshDataError(
+            f"'{obj.name}' has {len(ngons)} n-gon(s) (faces with more than 4 corners, e.g. face {ngons[0]}): "
+            "triangulate or quadrangulate them first"
+        )
+    if need_shape_keys:
+        keys = mesh.shape_keys
+        if keys is None or len(keys.key_blocks) < 2:
+            raise MeshDataError(f"'{obj.name}' has no shape keys besides the Basis")
+
+
+def read_positions(obj):
+    """Vertex positions of the mesh itself (its Basis), float32 (N, 3)."""
+    mesh = obj.data
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def read_triangles(obj):
+    mesh = obj.data
+    mesh.calc_loop_triangles()
+    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    return tris.reshape(-1, 3)
+
+
+def read_rig(obj):
+    """The object's rig: deltas of every shape key against the reference key (SPEC 0: a key
+    relative to another key is still taken against the reference, with a warning)."""
+    check_mesh(obj, need_shape_keys=True)
+    keys = obj.data.shape_keys
+    reference = keys.reference_key
+    n = len(obj.data.vertices)
+    neutral = np.empty(n * 3, dtype=np.float32)
+    reference.data.foreach_get("co", neutral)
+    neutral = neutral.reshape(n, 3)
+    blocks = [kb for kb in keys.key_blocks if kb != reference]
+    deltas = np.empty((len(blocks), n, 3), dtype=np.float32)
+    warnings = []
+    buffer = np.empty(n * 3, dtype=np.float32)
+    for k, block in enumerate(blocks):
+        block.data.foreach_get("co", buffer)
+        deltas[k] = buffer.reshape(n, 3) - neutral
+        if block.relative_key != reference and block.relative_key != block:
+            warnings.append(
+                f"shape key '{block.name}' is relative to '{block.relative_key.name}'; it is taken against '{reference.name}'"
+            )
+    return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], warnings)

@@ -1,0 +1,44 @@
+"""Analyze Rig: counts, inert shapes, unmatched mirror vertices, symmetric pairs and
+antagonists of the active mesh, stored on it for review."""
+
+import bpy
+
+from ..blender.analysis import analyze_object, store_analysis
+from .base import expected_errors, poll_mesh
+
+
+class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
+    bl_idname = "shapesmith.analyze_rig"
+    bl_label = "Analyze Rig"
+    bl_description = "Check the active mesh's shape keys and find symmetric pairs and antagonists"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return poll_mesh(cls, context)
+
+    def execute(self, context):
+        obj = context.active_object
+        settings = context.scene.shapesmith
+        try:
+            report = analyze_object(obj, axis=int(settings.symmetry_axis), pair_by_name=settings.pair_by_name)
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        store_analysis(obj, report)
+        for warning in report["warnings"]:
+            self.report({"WARNING"}, warning)
+        self.report(
+            {"INFO"},
+            f"{report['shapes']} shapes: {len(report['symmetric_pairs'])} pairs, "
+            f"{len(report['antagonists'])} antagonists, {len(report['inert'])} inert",
+        )
+        return {"FINISHED"}
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_OT_analyze_rig)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_OT_analyze_rig)

@@ -1,0 +1,34 @@
+"""Add-on preferences: limits that apply to every tool."""
+
+import bpy
+
+
+class SHAPESMITH_AP_preferences(bpy.types.AddonPreferences):
+    bl_idname = __package__
+
+    solver_time_limit: bpy.props.FloatProperty(
+        name="Solver Time Limit",
+        description="Seconds each 0/1 program may take (0: solve to proven optimality); a result "
+        "stopped by the limit is reported as not proven optimal",
+        default=0.0,
+        min=0.0,
+        unit="TIME_ABSOLUTE",
+    )
+
+    def draw(self, context):
+        self.layout.prop(self, "solver_time_limit")
+
+
+def get(context=None):
+    """The preferences, or None when the add-on is loaded without its preferences (tests)."""
+    context = context or bpy.context
+    addon = context.preferences.addons.get(__package__)
+    return addon.preferences if addon else None
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_AP_preferences)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_AP_preferences)

@@ -1,0 +1,100 @@
+"""The Shapesmith tab in the 3D View sidebar: one panel per tool under a Rig panel."""
+
+import bpy
+
+from .. import native
+
+
+class SHAPESMITH_UL_pairs(bpy.types.UIList):
+    """Shape pairs, editable in place: each name is picked from the mesh's shape keys."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        keys = context.active_object.data.shape_keys
+        row = layout.row(align=True)
+        if keys is None:
+            row.label(text=f"{item.first} / {item.second}")
+            return
+        row.prop_search(item, "first", keys, "key_blocks", text="")
+        row.prop_search(item, "second", keys, "key_blocks", text="")
+        row.label(text=item.source.title())
+
+
+class ShapesmithPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Shapesmith"
+
+
+class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Rig"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.label(text=native.STATUS, icon="CHECKMARK" if native.STATUS.startswith("native core ") else "ERROR")
+        settings = context.scene.shapesmith
+        row = layout.row(align=True)
+        row.prop(settings, "symmetry_axis", expand=True)
+        layout.prop(settings, "pair_by_name")
+        layout.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
+        obj = context.active_object
+        if obj is None or obj.type != "MESH":
+            return
+        summary = obj.shapesmith.analysis
+        if not summary.done:
+            return
+        box = layout.box()
+        col = box.column(align=True)
+        col.label(text=f"{summary.vertices} vertices, {summary.triangles} triangles")
+        col.label(text=f"{summary.shapes} shape keys")
+        col.label(text=f"Inert: {summary.inert or 'none'}")
+        col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}")
+        if summary.degenerate_triangles:
+            col.label(text=f"Degenerate triangles: {summary.degenerate_triangles}", icon="ERROR")
+        layout.label(text=f"Symmetric Pairs ({len(obj.shapesmith.pairs)})")
+        row = layout.row()
+        row.template_list("SHAPESMITH_UL_pairs", "pairs", obj.shapesmith, "pairs", obj.shapesmith, "active_pair", rows=4)
+        col = row.column(align=True)
+        col.operator("shapesmith.add_pair", icon="ADD", text="")
+        col.operator("shapesmith.remove_pair", icon="REMOVE", text="")
+        if obj.shapesmith.antagonists:
+            box = layout.box()
+            box.label(text="Antagonists (never posed together)")
+            for pair in obj.shapesmith.antagonists:
+                box.label(text=f"{pair.first} / {pair.second}")
+
+
+class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Pack Expressions"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        self.layout.label(text="Not available yet: arrives with the Pack Expressions tool", icon="INFO")
+
+
+class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Landmarks"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        self.layout.label(text="Not available yet: arrives with the Place Landmarks tool", icon="INFO")
+
+
+class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Transfer"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        self.layout.label(text="Not available yet: arrives with the Transfer Shape Keys tool", icon="INFO")
+
+
+_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_pack, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)
