@@ -36,7 +36,7 @@ def test_analyze_rig_finds_the_arkit_pairs_geometrically(sample):
     assert props.analysis.shapes == 52 and props.analysis.vertices == len(template.data.vertices)
     found = {frozenset((p.first, p.second)) for p in props.pairs}
     expected = true_pairs(names)
-    assert len(expected) == 23
+    assert len(expected) == 18
     assert found == expected, f"missing {expected - found}, wrong {found - expected}"
     assert all(p.source == "GEOMETRY" for p in props.pairs)
     assert {frozenset((p.first, p.second)) for p in props.antagonists} == ANTAGONISTS
@@ -50,7 +50,7 @@ def test_pairs_survive_save_and_reload(sample, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     after = [(p.first, p.second) for p in bpy.data.objects["Template"].shapesmith.pairs]
-    assert after == before and len(after) == 23
+    assert after == before and len(after) == 18
 
 
 def test_pairs_can_be_edited_by_hand(sample):
@@ -58,9 +58,9 @@ def test_pairs_can_be_edited_by_hand(sample):
     bpy.ops.shapesmith.analyze_rig()
     assert bpy.ops.shapesmith.add_pair() == {"FINISHED"}
     assert template.shapesmith.pairs[-1].source == "USER"
-    assert len(template.shapesmith.pairs) == 24
+    assert len(template.shapesmith.pairs) == 19
     assert bpy.ops.shapesmith.remove_pair() == {"FINISHED"}
-    assert len(template.shapesmith.pairs) == 23
+    assert len(template.shapesmith.pairs) == 18
 
 
 def test_a_mesh_without_shape_keys_is_refused_and_left_unchanged(sample):
@@ -126,7 +126,7 @@ def test_batch_analyze_writes_name_pairs(sample_path, tmp_path):
     assert all(isinstance(p, list) and len(p) == 2 for p in report["symmetric_pairs"] + report["antagonists"])
     assert pairs == true_pairs(report_names(sample_path))
     assert {frozenset(p) for p in report["antagonists"]} == ANTAGONISTS
-    assert "symmetric pairs (23)" in proc.stdout
+    assert "symmetric pairs (18)" in proc.stdout
     assert file_digest(sample_path) == digest
 
 
