@@ -10,6 +10,10 @@ _MODULE_NAMES = (
     "properties",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
+    "operators.place_landmarks",
+    "operators.score_layout",
+    "operators.export_landmarks",
+    "operators.render_landmarks",
     "ui.panels",
 )
 

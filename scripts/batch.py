@@ -3,7 +3,7 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze (see `-- COMMAND --help`). Every command but `sample` needs the
+Commands: sample, analyze, landmarks (see `-- COMMAND --help`). Every command but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
 on stderr; input files are never written (results go to --output/--json).
 """
@@ -129,9 +129,68 @@ def run_analyze(args):
     write_json(args.json, report)
 
 
+def add_landmarks_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--epsilon", type=float, default=0.5, help="candidate threshold in (0, 1] (default 0.5)")
+    parser.add_argument("--alpha", type=float, default=0.5, help="visibility against displacement (default 0.5)")
+    parser.add_argument("--gamma", type=float, default=0.5, help="quality against count; 0 = fewest (default 0.5)")
+    parser.add_argument("--rays", type=int, default=64, help="visibility rays per vertex and pose (default 64)")
+    parser.add_argument("--symmetric", action="store_true", help="mirror-symmetric layout")
+    parser.add_argument("--axis", choices="XYZ", default="X", help="symmetry axis (default X)")
+    parser.add_argument("--max-per-shape", type=int, default=2, help="multi-cover rounds (default 2)")
+    parser.add_argument("--radius", type=float, default=0.03, help="exclusion radius / bbox diagonal (default 0.03)")
+    cameras = parser.add_mutually_exclusive_group()
+    cameras.add_argument("--scene-cameras", action="store_true", help="visibility from the scene's cameras")
+    cameras.add_argument("--camera-collection", help="visibility from the cameras in this collection")
+    parser.add_argument("--score-group", help="also score the layout of this vertex group")
+    parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--csv", help="write one row per landmark here")
+    parser.add_argument("--picture", help="render a front view with the landmarks to this PNG")
+    parser.add_argument("--output", help="save the file with the layout (empties, vertex group) here")
+
+
+def run_landmarks(args):
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    from importlib import import_module
+
+    landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
+    obj = find_object(args.object)
+    scene = bpy.context.scene
+    source = "SCENE" if args.scene_cameras else "COLLECTION" if args.camera_collection else "HEMISPHERE"
+    collection = None
+    if args.camera_collection:
+        collection = bpy.data.collections.get(args.camera_collection)
+        if collection is None:
+            raise BatchError(f"no collection named '{args.camera_collection}' in the file")
+    cameras = landmarks.camera_positions(obj, source, scene, collection)
+    params = dict(epsilon=args.epsilon, alpha=args.alpha, gamma=args.gamma, rays=args.rays, symmetric=args.symmetric,
+                  max_per_shape=args.max_per_shape, radius=args.radius)
+    score = landmarks.score_group(obj, args.score_group) if args.score_group else None
+    document = landmarks.place_landmarks(obj, cameras=cameras, axis="XYZ".index(args.axis), **params)
+    landmarks.build_layout(obj, document, scene)
+    for line in landmarks.summary_lines(document):
+        print(line)
+    if score is not None:
+        document["score"] = score
+        print(f"score of '{args.score_group}' ({score['landmarks']} vertices): mean {score['mean']:.2e}, "
+              f"max {score['max']:.2e} of the bbox diagonal")
+    document.update(input=os.path.abspath(args.input))
+    write_json(args.json, document)
+    if args.csv:
+        landmarks.write_csv(args.csv, document)
+    if args.picture:
+        picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
+        picture.render_landmarks(obj, os.path.abspath(args.picture))
+    if args.output:
+        save_copy(args.output)
+
+
 COMMANDS = {
     "sample": (add_sample_args, run_sample, "build sample.blend from the MakeHuman assets"),
     "analyze": (add_analyze_args, run_analyze, "analyze a rig's shape keys"),
+    "landmarks": (add_landmarks_args, run_landmarks, "place landmarks, score and export the layout"),
 }
 
 

@@ -76,7 +76,46 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Place Landmarks tool", icon="INFO")
+        layout = self.layout
+        settings = context.scene.shapesmith.landmarks
+        col = layout.column(align=True)
+        for name in ("epsilon", "alpha", "gamma", "max_per_shape", "radius"):
+            col.prop(settings, name)
+        layout.prop(settings, "camera_source")
+        if settings.camera_source == "HEMISPHERE":
+            layout.prop(settings, "rays")
+        elif settings.camera_source == "COLLECTION":
+            layout.prop(settings, "camera_collection")
+        layout.prop(settings, "symmetric", text=f"Symmetric (across {'XYZ'[int(context.scene.shapesmith.symmetry_axis)]} = 0)")
+        layout.operator("shapesmith.place_landmarks", icon="EMPTY_DATA")
+        obj = context.active_object
+        if obj is None or obj.type != "MESH":
+            return
+        result = obj.shapesmith.landmarks
+        if result.done:
+            box = layout.box()
+            col = box.column(align=True)
+            col.label(text=f"{result.count} landmarks, {result.rounds} round(s)")
+            col.label(text="Proven optimal" if result.optimal else "Not proven optimal",
+                      icon="CHECKMARK" if result.optimal else "ERROR")
+            col.label(text=f"Error: mean {result.mean_error:.2%}, max {result.max_error:.2%} of diagonal")
+            if result.uncovered:
+                col.label(text=f"Uncovered: {result.uncovered}", icon="ERROR")
+            if result.inert:
+                col.label(text=f"Inert: {result.inert}")
+            box.label(text=result.mesh_note, icon="INFO")
+            row = box.row(align=True)
+            row.operator("shapesmith.export_landmarks", text="JSON", icon="EXPORT").file_format = "JSON"
+            row.operator("shapesmith.export_landmarks", text="CSV", icon="EXPORT").file_format = "CSV"
+            box.operator("shapesmith.render_landmarks", icon="RENDER_STILL")
+        box = layout.box()
+        box.label(text="Score a tracked layout")
+        box.prop_search(settings, "score_group", obj, "vertex_groups")
+        box.operator("shapesmith.score_layout", icon="DRIVER_DISTANCE")
+        score = obj.shapesmith.landmark_score
+        if score.done:
+            box.label(text=f"'{score.group}' ({score.landmarks} vertices): "
+                           f"mean {score.mean_error:.2%}, max {score.max_error:.2%}")
 
 
 class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):

@@ -1,0 +1,275 @@
+"""Place Landmarks and Score Layout as plain functions: the operators and
+`scripts/batch.py landmarks` both call them (SPEC section 2).
+
+`place_landmarks` reads the rig and returns a JSON-ready layout document without writing
+anything; `build_layout` then replaces the object's previous layout (empties parented to their
+vertices in a `Landmarks` collection, and a `Landmarks` vertex group) in one go.
+"""
+
+import csv
+import json
+import time
+
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+from .. import native
+from .mesh_arrays import MeshDataError, read_rig
+
+COLLECTION_NAME = "Landmarks"
+VERTEX_GROUP_NAME = "Landmarks"
+# An empty's display size as a fraction of the head's bounding-box diagonal: visible, yet
+# small enough that neighbouring landmarks (a few % of the diagonal apart) do not merge.
+EMPTY_SIZE = 0.012
+# Reconstruction noise per coordinate, relative to the diagonal (SPEC: 0.2%, as a tracker).
+SCORE_NOISE = 0.002
+
+
+def settings_params(settings):
+    """The native keyword arguments for a scene's Landmarks settings."""
+    return dict(
+        epsilon=settings.epsilon,
+        alpha=settings.alpha,
+        gamma=settings.gamma,
+        rays=settings.rays,
+        symmetric=settings.symmetric,
+        max_per_shape=settings.max_per_shape,
+        radius=settings.radius,
+    )
+
+
+def camera_positions(obj, source, scene=None, collection=None):
+    """World positions of the chosen camera objects in `obj`'s local space (the rig's frame),
+    float32 (C, 3); None for hemisphere visibility. Raises MeshDataError when none is found."""
+    if source == "HEMISPHERE":
+        return None
+    if source == "SCENE":
+        cameras, where = [o for o in scene.objects if o.type == "CAMERA"], f"scene '{scene.name}'"
+    elif collection is None:
+        raise MeshDataError("choose a camera collection, or use hemisphere visibility")
+    else:
+        cameras, where = [o for o in collection.all_objects if o.type == "CAMERA"], f"collection '{collection.name}'"
+    if not cameras:
+        raise MeshDataError(f"no camera objects in {where}: add cameras or use hemisphere visibility")
+    to_local = obj.matrix_world.inverted_safe()
+    return np.array([(to_local @ cam.matrix_world.translation)[:] for cam in cameras], dtype=np.float32)
+
+
+def mesh_parts(obj):
+    """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
+    teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
+    not refused."""
+    mesh = obj.data
+    loop_edges = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("edge_index", loop_edges)
+    boundary = int(np.count_nonzero(np.bincount(loop_edges, minlength=len(mesh.edges)) == 1))
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    edges = edges.reshape(-1, 2)
+    # Connected components by min-label propagation with pointer jumping.
+    labels = np.arange(len(mesh.vertices))
+    while True:
+        low = np.minimum(labels[edges[:, 0]], labels[edges[:, 1]])
+        merged = labels.copy()
+        np.minimum.at(merged, edges[:, 0], low)
+        np.minimum.at(merged, edges[:, 1], low)
+        merged = merged[merged]
+        if np.array_equal(merged, labels):
+            break
+        labels = merged
+    return {"loose_parts": int(len(np.unique(labels))), "boundary_edges": boundary, "part_of_vertex": labels}
+
+
+def mesh_note(parts, landmark_vertices):
+    """One sentence explaining the mesh's loose parts and holes and how the layout used them."""
+    if parts["loose_parts"] == 1 and parts["boundary_edges"] == 0:
+        return "closed mesh in one piece"
+    used = len({int(parts["part_of_vertex"][v]) for v in landmark_vertices})
+    return (
+        f"{parts['loose_parts']} loose part(s) and {parts['boundary_edges']} open boundary edge(s): "
+        f"every part hides what is behind it and may carry landmarks (here {used} part(s) do); "
+        "holes let visibility rays through"
+    )
+
+
+def place_landmarks(obj, cameras=None, axis=0, **params):
+    """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
+    nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
+    max_per_shape, radius). Raises MeshDataError or the core's errors on bad input."""
+    started = time.perf_counter()
+    rig = read_rig(obj)
+    parts = mesh_parts(obj)
+    read = time.perf_counter()
+    core = native.module()
+    layout = core.place_landmarks(
+        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, **params
+    )
+    vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
+    if not vertices:
+        raise MeshDataError(
+            f"'{obj.name}': no shape key moves any vertex (inert: {', '.join(layout['inert'])}); "
+            "there is nothing to place landmarks for"
+        )
+    placed = time.perf_counter()
+    score = core.score_layout(rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE)
+    scored = time.perf_counter()
+    layout["reconstruction"] = dict(score, noise=SCORE_NOISE)
+    layout["mesh"] = {
+        "vertices": len(rig.neutral),
+        "loose_parts": parts["loose_parts"],
+        "boundary_edges": parts["boundary_edges"],
+        "note": mesh_note(parts, vertices),
+    }
+    layout["object"] = obj.name
+    layout["warnings"] = rig.warnings
+    layout["seconds"] = {
+        "io": read - started,
+        "visibility": layout["seconds"]["visibility"],
+        "solve": layout["seconds"]["solve"],
+        "score": scored - placed,
+    }
+    return layout
+
+
+def remove_layout(obj):
+    """Deletes the object's previous layout: its empties, their collection, and the
+    `Landmarks` vertex group."""
+    collection = obj.shapesmith.landmarks.collection
+    if collection is not None:
+        for empty in list(collection.objects):
+            bpy.data.objects.remove(empty, do_unlink=True)
+        bpy.data.collections.remove(collection)
+    group = obj.vertex_groups.get(VERTEX_GROUP_NAME)
+    if group is not None:
+        obj.vertex_groups.remove(group)
+    obj.shapesmith.landmarks.done = False
+
+
+def bbox_diagonal(obj):
+    corners = np.array([corner[:] for corner in obj.bound_box])
+    return float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
+
+
+def build_layout(obj, document, scene):
+    """Replaces the object's layout with the document's: one empty per landmark, parented to
+    its vertex (so it follows shape keys), named after the strongest shape it serves, with the
+    covered shapes as the custom property `shapes`; a `Landmarks` collection in `scene`; a
+    `Landmarks` vertex group. Returns the collection."""
+    remove_layout(obj)
+    collection = bpy.data.collections.new(COLLECTION_NAME)
+    scene.collection.children.link(collection)
+    size = EMPTY_SIZE * bbox_diagonal(obj)
+    for landmark in document["landmarks"]:
+        vertex = landmark["vertex"]
+        empty = bpy.data.objects.new(f"LM_{landmark['strongest']}_{vertex}", None)
+        empty.empty_display_type = "SPHERE"
+        empty.empty_display_size = size
+        empty.parent = obj
+        empty.parent_type = "VERTEX"
+        empty.parent_vertices = (vertex, vertex, vertex)
+        # The vertex itself is the origin: no offset, whatever the parent's transform.
+        empty.matrix_parent_inverse = Matrix.Identity(4)
+        empty.location = (0.0, 0.0, 0.0)
+        empty["shapes"] = list(landmark["shapes"])
+        empty["vertex"] = vertex
+        empty["visibility"] = landmark["visibility"]
+        empty["round"] = landmark["round"]
+        collection.objects.link(empty)
+    group = obj.vertex_groups.new(name=VERTEX_GROUP_NAME)
+    group.add([landmark["vertex"] for landmark in document["landmarks"]], 1.0, "REPLACE")
+    store_layout(obj, document, collection)
+    return collection
+
+
+def store_layout(obj, document, collection):
+    result = obj.shapesmith.landmarks
+    result.done = True
+    result.collection = collection
+    result.count = len(document["landmarks"])
+    result.optimal = document["optimal"]
+    result.rounds = document["rounds"]
+    result.uncovered = ", ".join(document["uncovered"])
+    result.inert = ", ".join(document["inert"])
+    result.mean_error = document["reconstruction"]["mean"]
+    result.max_error = document["reconstruction"]["max"]
+    result.mesh_note = document["mesh"]["note"]
+    result.document = json.dumps(document)
+
+
+def group_vertices(obj, name):
+    """Indices of the vertices with a non-zero weight in vertex group `name`."""
+    group = obj.vertex_groups.get(name)
+    if group is None:
+        names = ", ".join(g.name for g in obj.vertex_groups) or "none"
+        raise MeshDataError(f"'{obj.name}' has no vertex group '{name}' (groups: {names})")
+    index = group.index
+    vertices = [v.index for v in obj.data.vertices if any(g.group == index and g.weight > 0 for g in v.groups)]
+    if not vertices:
+        raise MeshDataError(f"vertex group '{name}' is empty: assign the vertices you track to it")
+    return vertices
+
+
+def score_group(obj, name):
+    """Reconstruction error of the layout a vertex group describes (same poses and noise as
+    Place Landmarks' own score), relative to the bbox diagonal. Writes nothing."""
+    vertices = group_vertices(obj, name)
+    rig = read_rig(obj)
+    score = native.module().score_layout(rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE)
+    return dict(score, group=name, noise=SCORE_NOISE)
+
+
+def store_score(obj, score):
+    result = obj.shapesmith.landmark_score
+    result.done = True
+    result.group = score["group"]
+    result.landmarks = score["landmarks"]
+    result.mean_error = score["mean"]
+    result.max_error = score["max"]
+
+
+def stored_document(obj):
+    """The object's last layout document, or MeshDataError when it has none."""
+    result = obj.shapesmith.landmarks
+    if not result.done or not result.document:
+        raise MeshDataError(f"'{obj.name}' has no landmark layout yet: run Place Landmarks first")
+    return json.loads(result.document)
+
+
+def write_json(path, document):
+    with open(path, "w") as f:
+        json.dump(document, f, indent=2)
+
+
+CSV_COLUMNS = ("vertex", "x", "y", "z", "strongest", "shapes", "visibility", "round")
+
+
+def write_csv(path, document):
+    """One row per landmark; `shapes` separated by spaces (shape key names have none in
+    practice, and a second delimiter keeps the file one table)."""
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(CSV_COLUMNS)
+        for landmark in document["landmarks"]:
+            x, y, z = landmark["position"]
+            writer.writerow(
+                (landmark["vertex"], x, y, z, landmark["strongest"], " ".join(landmark["shapes"]),
+                 landmark["visibility"], landmark["round"])
+            )
+
+
+def summary_lines(document):
+    """A short human-readable summary (for the batch log and the demo)."""
+    rec = document["reconstruction"]
+    seconds = document["seconds"]
+    lines = [
+        f"{len(document['landmarks'])} landmarks in {document['rounds']} round(s), "
+        f"{'proven optimal' if document['optimal'] else 'NOT proven optimal'}",
+        f"uncovered shapes: {', '.join(document['uncovered']) or 'none'}; inert: {', '.join(document['inert']) or 'none'}",
+        f"reconstruction error (noise {rec['noise']:.1%} of the diagonal, {rec['poses']} poses): "
+        f"mean {rec['mean']:.2e}, max {rec['max']:.2e} of the bbox diagonal",
+        f"mesh: {document['mesh']['note']}",
+        f"seconds: I/O {seconds['io']:.2f}, visibility {seconds['visibility']:.2f} "
+        f"({document['rays_per_second']:.3g} rays/s), solve {seconds['solve']:.2f}, score {seconds['score']:.2f}",
+    ]
+    return lines + [f"warning: {w}" for w in document["warnings"]]

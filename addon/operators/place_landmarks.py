@@ -1,0 +1,54 @@
+"""Place Landmarks: the fewest tracked vertices that catch every shape key with a strongly
+moving, visible landmark; built as empties on the vertices, replacing the previous layout."""
+
+import bpy
+
+from ..blender.landmarks import build_layout, camera_positions, place_landmarks, settings_params
+from .base import expected_errors, poll_mesh
+
+
+class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
+    bl_idname = "shapesmith.place_landmarks"
+    bl_label = "Place Landmarks"
+    bl_description = (
+        "Choose the fewest vertices that move strongly and stay visible in every shape key, and mark "
+        "each with an empty parented to its vertex (replaces the previous layout)"
+    )
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return poll_mesh(cls, context)
+
+    def execute(self, context):
+        obj = context.active_object
+        scene = context.scene
+        settings = scene.shapesmith.landmarks
+        try:
+            cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
+            document = place_landmarks(
+                obj, cameras=cameras, axis=int(scene.shapesmith.symmetry_axis), **settings_params(settings)
+            )
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        build_layout(obj, document, scene)
+        for warning in document["warnings"]:
+            self.report({"WARNING"}, warning)
+        if document["uncovered"]:
+            self.report({"WARNING"}, f"no landmark candidate for: {', '.join(document['uncovered'])}")
+        rec = document["reconstruction"]
+        self.report(
+            {"INFO"},
+            f"{len(document['landmarks'])} landmarks ({'optimal' if document['optimal'] else 'not proven optimal'}); "
+            f"reconstruction error mean {rec['mean']:.2%}, max {rec['max']:.2%} of the head's diagonal",
+        )
+        return {"FINISHED"}
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_OT_place_landmarks)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_OT_place_landmarks)

@@ -1,0 +1,44 @@
+"""Render Landmarks: a front-view PNG of the head with its landmarks drawn."""
+
+import bpy
+from bpy_extras.io_utils import ExportHelper
+
+from ..blender.landmark_picture import render_landmarks
+from .base import expected_errors, poll_mesh
+
+
+class SHAPESMITH_OT_render_landmarks(bpy.types.Operator, ExportHelper):
+    bl_idname = "shapesmith.render_landmarks"
+    bl_label = "Render Picture"
+    bl_description = "Render the head from the front with its landmarks drawn, to a PNG (the .blend is not changed)"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".png"
+    filter_glob: bpy.props.StringProperty(default="*.png", options={"HIDDEN"})
+    resolution: bpy.props.IntProperty(name="Resolution", default=768, min=64, max=4096)
+
+    @classmethod
+    def poll(cls, context):
+        if not poll_mesh(cls, context):
+            return False
+        if not context.active_object.shapesmith.landmarks.done:
+            cls.poll_message_set("Run Place Landmarks first")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            render_landmarks(context.active_object, self.filepath, self.resolution)
+        except (OSError, *expected_errors()) as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"wrote {self.filepath}")
+        return {"FINISHED"}
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_OT_render_landmarks)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_OT_render_landmarks)
