@@ -15,9 +15,9 @@ impl Aabb {
     const EMPTY: Aabb = Aabb { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] };
 
     fn grow_point(&mut self, p: &[f64; 3]) {
-        for a in 0..3 {
-            self.lo[a] = self.lo[a].min(p[a]);
-            self.hi[a] = self.hi[a].max(p[a]);
+        for (a, &x) in p.iter().enumerate() {
+            self.lo[a] = self.lo[a].min(x);
+            self.hi[a] = self.hi[a].max(x);
         }
     }
 
@@ -215,9 +215,8 @@ fn best_split(
     node_bounds: &Aabb,
 ) -> Option<(usize, usize)> {
     let mut best: Option<(f64, usize, usize)> = None;
-    for axis in 0..3 {
-        let lo = centroid_bounds.lo[axis];
-        let extent = centroid_bounds.hi[axis] - lo;
+    for (axis, (&lo, &hi)) in centroid_bounds.lo.iter().zip(&centroid_bounds.hi).enumerate() {
+        let extent = hi - lo;
         if extent <= 0.0 {
             continue;
         }
