@@ -35,7 +35,7 @@ pub struct Visibility {
 /// each of `vertices`.
 ///
 /// Hemisphere mode casts `rays` rays per vertex and pose: a jittered golden-ratio lattice
-/// mapped to cosine-weighted directions (one stratum of `cos^2 theta` per ray), so that the
+/// mapped to cosine-weighted directions (one stratum of `sin^2 theta` per ray), so that the
 /// grazing directions from which a tracker cannot see a point count least. Each (pose,
 /// vertex) draws from its own ChaCha stream of `seed`: results do not depend on the number
 /// of threads. Camera mode counts a camera as seeing the vertex when it lies in front
@@ -175,7 +175,7 @@ fn lower_visibility(current: f64, total: usize, mut escapes: impl Iterator<Item 
 }
 
 /// `rays` cosine-weighted directions around the unit `normal`: a jittered golden-ratio
-/// lattice (one stratum of `cos^2 theta` per ray) drawn from ChaCha stream `stream` of `seed`;
+/// lattice (one stratum of `sin^2 theta` per ray) drawn from ChaCha stream `stream` of `seed`;
 /// the whole sphere when the normal is zero.
 fn hemisphere_directions(normal: &[f64; 3], rays: usize, seed: u64, stream: u64) -> impl Iterator<Item = [f64; 3]> {
     const GOLDEN: f64 = 0.618_033_988_749_894_8;
@@ -275,6 +275,24 @@ mod tests {
         triangles.extend(box_triangles.iter().map(|t| t.map(|v| v + inner as u32)));
         points.extend(box_points);
         (to_rig_arrays(&points), triangles, inner)
+    }
+
+    /// Stopping early gives exactly `min(current, escaped / total)`, and never more rays.
+    #[test]
+    fn early_stop_is_exact() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..500 {
+            let total = rng.random_range(1..40);
+            let outcomes: Vec<bool> = (0..total).map(|_| rng.random_bool(0.6)).collect();
+            let current = [0.0, 1.0, rng.random::<f64>()][rng.random_range(0..3)];
+            let full = outcomes.iter().filter(|&&o| o).count() as f64 / total as f64;
+            let (got, cast) = lower_visibility(current, total, outcomes.iter().copied());
+            assert_eq!(got, current.min(full), "{outcomes:?} from {current}");
+            assert!(cast <= total as u64);
+            if current == 0.0 {
+                assert_eq!(cast, 0);
+            }
+        }
     }
 
     #[test]
