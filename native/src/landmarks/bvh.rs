@@ -15,9 +15,9 @@ impl Aabb {
     const EMPTY: Aabb = Aabb { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] };
 
     fn grow_point(&mut self, p: &[f64; 3]) {
-        for a in 0..3 {
-            self.lo[a] = self.lo[a].min(p[a]);
-            self.hi[a] = self.hi[a].max(p[a]);
+        for (a, &x) in p.iter().enumerate() {
+            self.lo[a] = self.lo[a].min(x);
+            self.hi[a] = self.hi[a].max(x);
         }
     }
 
@@ -36,8 +36,8 @@ impl Aabb {
         e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
     }
 
-    /// Slab test: whether the ray enters the box at some `t` in `[0, t_max]`.
-    fn hit_by(&self, origin: &[f64; 3], inverse_direction: &[f64; 3], t_max: f64) -> bool {
+    /// Slab test: where the ray enters the box, if it does at some `t` in `[0, t_max]`.
+    fn entry(&self, origin: &[f64; 3], inverse_direction: &[f64; 3], t_max: f64) -> Option<f64> {
         let mut t_enter = 0.0f64;
         let mut t_exit = t_max;
         for a in 0..3 {
@@ -47,7 +47,7 @@ impl Aabb {
             t_enter = t_enter.max(t0.min(t1));
             t_exit = t_exit.min(t0.max(t1));
         }
-        t_enter <= t_exit
+        (t_enter <= t_exit).then_some(t_enter)
     }
 }
 
@@ -119,23 +119,40 @@ impl TriangleBvh {
             return false;
         }
         let inverse = direction.map(|d| 1.0 / d);
+        if self.nodes[0].bounds.entry(origin, &inverse, t_max).is_none() {
+            return false;
+        }
+        // Nodes on the stack are known to be hit; the nearer child is visited first.
         let mut stack = [0u32; STACK];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            if !node.bounds.hit_by(origin, &inverse, t_max) {
-                continue;
-            }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
                 if self.triangles[range].iter().any(|tri| ray_meets(tri, origin, direction, t_max)) {
                     return true;
                 }
-            } else {
-                stack[top] = node.first;
-                stack[top + 1] = node.first + 1;
-                top += 2;
+                continue;
+            }
+            let (left, right) = (node.first, node.first + 1);
+            let enter = |child: u32| self.nodes[child as usize].bounds.entry(origin, &inverse, t_max);
+            match (enter(left), enter(right)) {
+                (Some(a), Some(b)) => {
+                    let (near, far) = if a <= b { (left, right) } else { (right, left) };
+                    stack[top] = far;
+                    stack[top + 1] = near;
+                    top += 2;
+                }
+                (Some(_), None) => {
+                    stack[top] = left;
+                    top += 1;
+                }
+                (None, Some(_)) => {
+                    stack[top] = right;
+                    top += 1;
+                }
+                (None, None) => {}
             }
         }
         false
@@ -198,9 +215,8 @@ fn best_split(
     node_bounds: &Aabb,
 ) -> Option<(usize, usize)> {
     let mut best: Option<(f64, usize, usize)> = None;
-    for axis in 0..3 {
-        let lo = centroid_bounds.lo[axis];
-        let extent = centroid_bounds.hi[axis] - lo;
+    for (axis, (&lo, &hi)) in centroid_bounds.lo.iter().zip(&centroid_bounds.hi).enumerate() {
+        let extent = hi - lo;
         if extent <= 0.0 {
             continue;
         }

@@ -50,8 +50,13 @@ pub struct Cover {
     pub status: SolveStatus,
 }
 
+/// Costs go to HiGHS in units of 1/1000 landmark, rounded: an integral objective lets HiGHS
+/// close the gap exactly, where float noise in a fractional one reads as "not proven optimal".
+/// Quality differences below 0.001 become ties.
+pub const COST_UNITS: f64 = 1000.0;
+
 /// Eq. (5): minimise `sum_n cost[n] f_n` s.t. every shape named by some column is covered
-/// at least once, `f` binary; on the reduced columns.
+/// at least once, `f` binary; on the reduced columns, costs in [`COST_UNITS`].
 pub fn solve_cover(columns: &[Column], options: &IlpOptions) -> ShapesmithResult<Cover> {
     let reduced = reduce(columns);
     let mut covering: BTreeMap<usize, Vec<(usize, f64)>> = BTreeMap::new();
@@ -60,7 +65,7 @@ pub fn solve_cover(columns: &[Column], options: &IlpOptions) -> ShapesmithResult
             covering.entry(k).or_default().push((j, 1.0));
         }
     }
-    let mut program = BinaryProgram::new(Sense::Minimise, reduced.iter().map(|c| c.cost).collect());
+    let mut program = BinaryProgram::new(Sense::Minimise, reduced.iter().map(|c| (c.cost * COST_UNITS).round()).collect());
     for terms in covering.into_values() {
         program.at_least(terms, 1.0);
     }

@@ -133,7 +133,7 @@ impl LandmarkParams {
         if self.axis > 2 {
             return Err(invalid!("the symmetry axis must be 0, 1 or 2, got {}", self.axis));
         }
-        if self.time_limit.is_some_and(|t| !(t > 0.0)) {
+        if self.time_limit.is_some_and(|t| t.is_nan() || t <= 0.0) {
             return Err(invalid!("time_limit must be positive seconds or None"));
         }
         match &self.cameras {

@@ -178,7 +178,9 @@ mod tests {
 
     /// A 6 x 6 grid; shape k bumps a different patch of radius 1.5 (k = 0..3), so each shape
     /// has vertices only it moves.
-    fn patch_rig() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<String>) {
+    type Fixture = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<String>);
+
+    fn patch_rig() -> Fixture {
         let side = 6u32;
         let points: Vec<[f32; 3]> = (0..side * side).map(|i| [(i % side) as f32, (i / side) as f32, 0.0]).collect();
         let triangles = (0..side - 1)

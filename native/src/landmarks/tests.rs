@@ -30,9 +30,14 @@ fn index(x: i32, y: i32) -> usize {
     (y * (2 * HALF + 1) + x + HALF) as usize
 }
 
-/// Bumps `(name, centre x, centre y, radius, height)`, one shape each; a zero height makes an
-/// inert shape.
-fn face(bumps: &[(&str, f32, f32, f32, f32)]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<String>) {
+/// `(name, centre x, centre y, radius, height)` of a bump-shaped blendshape.
+type Bump = (&'static str, f32, f32, f32, f32);
+
+/// Neutral, deltas, triangles and names of a procedural rig.
+type Fixture = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<String>);
+
+/// One shape per bump; a zero height makes an inert shape.
+fn face(bumps: &[Bump]) -> Fixture {
     let (points, triangles) = grid();
     let mut deltas = Vec::new();
     for &(_, cx, cy, radius, height) in bumps {
@@ -46,7 +51,7 @@ fn face(bumps: &[(&str, f32, f32, f32, f32)]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, 
 }
 
 /// Two mirror pairs of different strength, a midline shape, a broad shape and an inert one.
-const BUMPS: [(&str, f32, f32, f32, f32); 7] = [
+const BUMPS: [Bump; 7] = [
     ("browUpLeft", -3.0, 9.0, 2.0, 0.5),
     ("browUpRight", 3.2, 9.0, 2.0, 0.4),
     ("smileLeft", -3.0, 3.0, 2.5, 0.6),
@@ -56,7 +61,7 @@ const BUMPS: [(&str, f32, f32, f32, f32); 7] = [
     ("nothing", 0.0, 5.0, 2.0, 0.0),
 ];
 
-fn run(bumps: &[(&str, f32, f32, f32, f32)], params: &LandmarkParams) -> ShapesmithResult<LandmarkLayout> {
+fn run(bumps: &[Bump], params: &LandmarkParams) -> ShapesmithResult<LandmarkLayout> {
     let (points, deltas, triangles, names) = face(bumps);
     let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
     place_landmarks(&rig, params, &NoProgress)

@@ -35,7 +35,7 @@ pub struct Visibility {
 /// each of `vertices`.
 ///
 /// Hemisphere mode casts `rays` rays per vertex and pose: a jittered golden-ratio lattice
-/// mapped to cosine-weighted directions (one stratum of `cos^2 theta` per ray), so that the
+/// mapped to cosine-weighted directions (one stratum of `sin^2 theta` per ray), so that the
 /// grazing directions from which a tracker cannot see a point count least. Each (pose,
 /// vertex) draws from its own ChaCha stream of `seed`: results do not depend on the number
 /// of threads. Camera mode counts a camera as seeing the vertex when it lies in front
@@ -43,6 +43,8 @@ pub struct Visibility {
 ///
 /// A vertex whose posed normal vanishes (no triangle, or triangles that cancel) has no
 /// hemisphere: it is sampled over the whole sphere, and every camera counts as in front.
+/// `rays_cast` counts the rays actually cast: a pose stops casting for a vertex once it
+/// cannot lower that vertex's minimum.
 pub fn worst_case_visibility(
     rig: &RigView,
     shapes: &[usize],
@@ -54,33 +56,70 @@ pub fn worst_case_visibility(
     let mut worst = vec![1.0f64; vertices.len()];
     let mut rays_cast = 0u64;
     let poses: Vec<Option<usize>> = std::iter::once(None).chain(shapes.iter().map(|&k| Some(k))).collect();
-    for (pose_index, pose) in poses.iter().enumerate() {
+    let mut next = Some(PosedMesh::new(rig, poses[0]));
+    for pose_index in 0..poses.len() {
         progress.checkpoint(pose_index as f64 / poses.len() as f64)?;
-        let points = posed_points(rig, *pose);
-        let normals = vertex_normals(&points, rig.triangles);
-        let bvh = TriangleBvh::build(&points, rig.triangles);
-        let per_vertex: Vec<(f64, u64)> = vertices
-            .par_iter()
-            .map(|&v| {
-                let normal = normals[v as usize];
-                let origin: [f64; 3] = std::array::from_fn(|a| points[v as usize][a] + nudge * normal[a]);
-                match sampling {
-                    Sampling::Hemisphere { rays, seed } => {
+        let Some(mesh) = next.take() else { break };
+        // The next pose's BVH builds on one thread while the others trace this one.
+        let (per_vertex, prepared) = rayon::join(
+            || {
+                vertices
+                    .par_iter()
+                    .zip(&worst)
+                    .map(|(&v, &current)| {
                         let stream = pose_index as u64 * rig.n_vertices() as u64 + v as u64;
-                        let free = escaping_rays(&bvh, &origin, &normal, *rays, *seed, stream);
-                        (free as f64 / *rays as f64, *rays as u64)
-                    }
-                    Sampling::Cameras(cameras) => seen_by_cameras(&bvh, &origin, &normal, cameras),
-                }
-            })
-            .collect();
+                        mesh.lower_visibility(v, current, nudge, sampling, stream)
+                    })
+                    .collect::<Vec<(f64, u64)>>()
+            },
+            || poses.get(pose_index + 1).map(|&pose| PosedMesh::new(rig, pose)),
+        );
+        next = prepared;
         for (w, (fraction, cast)) in worst.iter_mut().zip(per_vertex) {
-            *w = w.min(fraction);
+            *w = fraction;
             rays_cast += cast;
         }
     }
     progress.checkpoint(1.0)?;
     Ok(Visibility { worst, rays_cast })
+}
+
+/// One pose: positions, vertex normals and the BVH of its triangles.
+struct PosedMesh {
+    points: Vec<[f64; 3]>,
+    normals: Vec<[f64; 3]>,
+    bvh: TriangleBvh,
+}
+
+impl PosedMesh {
+    fn new(rig: &RigView, shape: Option<usize>) -> Self {
+        let points = posed_points(rig, shape);
+        let normals = vertex_normals(&points, rig.triangles);
+        let bvh = TriangleBvh::build(&points, rig.triangles);
+        Self { points, normals, bvh }
+    }
+
+    /// `min(current, L[v])` for this pose, and the rays it took.
+    fn lower_visibility(&self, v: u32, current: f64, nudge: f64, sampling: &Sampling, stream: u64) -> (f64, u64) {
+        let normal = self.normals[v as usize];
+        let origin: [f64; 3] = std::array::from_fn(|a| self.points[v as usize][a] + nudge * normal[a]);
+        match sampling {
+            Sampling::Hemisphere { rays, seed } => {
+                let directions = hemisphere_directions(&normal, *rays, *seed, stream);
+                lower_visibility(current, *rays, directions.map(|d| !self.bvh.any_hit(&origin, &d, f64::INFINITY)))
+            }
+            Sampling::Cameras(cameras) => {
+                let seen = cameras.iter().map(|camera| {
+                    let to_camera = sub(camera, &origin);
+                    // `t` runs from the vertex (0) to the camera (1): geometry behind the
+                    // camera is ignored.
+                    let in_front = dot(&normal, &to_camera) > 0.0 || dot(&normal, &normal) == 0.0;
+                    in_front && !self.bvh.any_hit(&origin, &to_camera, 1.0)
+                });
+                lower_visibility(current, cameras.len(), seen)
+            }
+        }
+    }
 }
 
 /// `V0 + D_k` in f64 (the neutral for `None`).
@@ -115,49 +154,51 @@ pub fn vertex_normals(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 
     normals
 }
 
-/// How many of `rays` cosine-weighted hemisphere rays from `origin` escape to infinity.
-fn escaping_rays(bvh: &TriangleBvh, origin: &[f64; 3], normal: &[f64; 3], rays: usize, seed: u64, stream: u64) -> usize {
+/// `min(current, escaped / total)` from a lazy sequence of `total` ray outcomes (`true` =
+/// escaped), and how many rays it took. Exact, but stops as soon as enough rays escape that
+/// this pose cannot lower the minimum; a vertex already at 0 casts nothing.
+fn lower_visibility(current: f64, total: usize, mut escapes: impl Iterator<Item = bool>) -> (f64, u64) {
+    // Reaching `needed` escapes means `escaped / total >= current`.
+    let needed = (current * total as f64).ceil() as usize;
+    let mut escaped = 0;
+    for cast in 0..total {
+        if escaped >= needed {
+            return (current, cast as u64);
+        }
+        escaped += escapes.next().unwrap_or(false) as usize;
+    }
+    if escaped >= needed {
+        (current, total as u64)
+    } else {
+        (escaped as f64 / total as f64, total as u64)
+    }
+}
+
+/// `rays` cosine-weighted directions around the unit `normal`: a jittered golden-ratio
+/// lattice (one stratum of `sin^2 theta` per ray) drawn from ChaCha stream `stream` of `seed`;
+/// the whole sphere when the normal is zero.
+fn hemisphere_directions(normal: &[f64; 3], rays: usize, seed: u64, stream: u64) -> impl Iterator<Item = [f64; 3]> {
     const GOLDEN: f64 = 0.618_033_988_749_894_8;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(stream);
     let rotation: f64 = rng.random();
-    let has_normal = dot(normal, normal) > 0.0;
-    let (tangent, bitangent) = tangent_frame(normal);
-    (0..rays)
-        .filter(|&i| {
-            let u = (i as f64 + rng.random::<f64>()) / rays as f64;
-            let phi = std::f64::consts::TAU * (i as f64 * GOLDEN + rotation).fract();
-            let direction: [f64; 3] = if has_normal {
-                // Malley's method: uniform on the disc, lifted to the hemisphere.
-                let (radius, height) = (u.sqrt(), (1.0 - u).sqrt());
-                let (x, y) = (radius * phi.cos(), radius * phi.sin());
-                std::array::from_fn(|a| x * tangent[a] + y * bitangent[a] + height * normal[a])
-            } else {
-                let z = 1.0 - 2.0 * u;
-                let radius = (1.0 - z * z).max(0.0).sqrt();
-                [radius * phi.cos(), radius * phi.sin(), z]
-            };
-            !bvh.any_hit(origin, &direction, f64::INFINITY)
-        })
-        .count()
-}
-
-/// Fraction of cameras in front of the vertex with a free line of sight, and segments cast.
-fn seen_by_cameras(bvh: &TriangleBvh, origin: &[f64; 3], normal: &[f64; 3], cameras: &[[f64; 3]]) -> (f64, u64) {
-    let mut cast = 0u64;
-    let seen = cameras
-        .iter()
-        .filter(|camera| {
-            let to_camera = sub(camera, origin);
-            if dot(normal, &to_camera) <= 0.0 && dot(normal, normal) > 0.0 {
-                return false;
-            }
-            cast += 1;
-            // `t` runs from the vertex (0) to the camera (1): geometry behind it is ignored.
-            !bvh.any_hit(origin, &to_camera, 1.0)
-        })
-        .count();
-    (seen as f64 / cameras.len() as f64, cast)
+    let normal = *normal;
+    let has_normal = dot(&normal, &normal) > 0.0;
+    let (tangent, bitangent) = tangent_frame(&normal);
+    (0..rays).map(move |i| {
+        let u = (i as f64 + rng.random::<f64>()) / rays as f64;
+        let phi = std::f64::consts::TAU * (i as f64 * GOLDEN + rotation).fract();
+        if has_normal {
+            // Malley's method: uniform on the disc, lifted to the hemisphere.
+            let (radius, height) = (u.sqrt(), (1.0 - u).sqrt());
+            let (x, y) = (radius * phi.cos(), radius * phi.sin());
+            std::array::from_fn(|a| x * tangent[a] + y * bitangent[a] + height * normal[a])
+        } else {
+            let z = 1.0 - 2.0 * u;
+            let radius = (1.0 - z * z).max(0.0).sqrt();
+            [radius * phi.cos(), radius * phi.sin(), z]
+        }
+    })
 }
 
 /// Two unit vectors completing the unit `normal` to an orthonormal frame (Duff et al. 2017);
@@ -234,6 +275,24 @@ mod tests {
         triangles.extend(box_triangles.iter().map(|t| t.map(|v| v + inner as u32)));
         points.extend(box_points);
         (to_rig_arrays(&points), triangles, inner)
+    }
+
+    /// Stopping early gives exactly `min(current, escaped / total)`, and never more rays.
+    #[test]
+    fn early_stop_is_exact() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..500 {
+            let total = rng.random_range(1..40);
+            let outcomes: Vec<bool> = (0..total).map(|_| rng.random_bool(0.6)).collect();
+            let current = [0.0, 1.0, rng.random::<f64>()][rng.random_range(0..3)];
+            let full = outcomes.iter().filter(|&&o| o).count() as f64 / total as f64;
+            let (got, cast) = lower_visibility(current, total, outcomes.iter().copied());
+            assert_eq!(got, current.min(full), "{outcomes:?} from {current}");
+            assert!(cast <= total as u64);
+            if current == 0.0 {
+                assert_eq!(cast, 0);
+            }
+        }
     }
 
     #[test]
