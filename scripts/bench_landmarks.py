@@ -16,8 +16,8 @@ import os
 import sys
 import time
 
-import bmesh
 import bpy
+import bmesh  # noqa: I001  (bmesh loads only after bpy)
 import numpy as np
 
 SCRIPTS = os.path.dirname(os.path.abspath(__file__))
@@ -42,17 +42,17 @@ def dense_copy(obj):
     return dense
 
 
-def front_surface_vertex(points, normals, allowed, target_xz, reach=0.003):
+def front_surface_vertex(points, normals, allowed, target_xz, reach=0.003, widen=True, facing=-0.2):
     """The vertex a camera straight in front (looking along +Y) sees at `target_xz`: among
-    allowed front-facing vertices within `reach` in the image plane (widening if none), the
-    frontmost (smallest y)."""
+    allowed vertices facing the camera (normal y below `facing`) within `reach` in the image
+    plane (widening if none and `widen`, else None), the frontmost (smallest y)."""
     distance = np.hypot(points[:, 0] - target_xz[0], points[:, 2] - target_xz[1])
-    usable = allowed & (normals[:, 1] < -0.2)
-    for reach in (reach, 2 * reach, 4 * reach, np.inf):
+    usable = allowed & (normals[:, 1] < facing)
+    for reach in (reach, 2 * reach, 4 * reach, np.inf) if widen else (reach,):
         near = np.flatnonzero(usable & (distance < reach))
         if len(near):
             return int(near[np.argmin(points[near, 1])])
-    raise ValueError("no front-facing vertex")
+    return None
 
 
 def conventional_layout(obj, parts):
@@ -70,14 +70,18 @@ def conventional_layout(obj, parts):
     - Nose: the tip is the frontmost skin vertex; 4 bridge points on the midline from eye level
       to the tip; 5 points at the nostril base (x = (-1, -0.5, 0, 0.5, 1) x half the gap between
       the eyeballs' inner edges) at the subnasale, the most receded midline point just below the tip.
-    - Lips: on the midline profile below the subnasale, the upper lip is the next forward
-      peak, the stomion the next receded point, the lower lip the next forward peak. Mouth
+    - Lips: on the midline profile (sampled every mm) the subnasale is the most receded point
+      within 15 mm below the tip; within the next 8 mm each: the upper lip is the most forward
+      point, the stomion the most receded, the lower lip the most forward. Mouth
       half width w = 0.8 c_x (the mouth is about 80% of the interpupillary distance). Outer
       contour: corners and 5 upper points at x = (+-0.6, +-0.3, 0) w on the upper lip line
       plus 5 lower ones on the lower lip line; inner contour: corners at +-0.85 w and 3 upper,
       3 lower points at x = (-0.4, 0, 0.4) w just above and below the stomion.
-    - Jaw line: the front half of the head seen from the front, 17 rays from (0, c_z - r)
-      sweeping from one side down under the chin to the other; each takes the farthest vertex.
+    - Jaw line: the menton is the last midline profile point below the labiomental fold (the
+      most receded point within 15 mm under the lower lip) before the surface faces more
+      down than forward (the underside of the chin). 17 rays in the image plane from
+      (0, c_z - r), sweeping from one side down to the other, each take the farthest vertex
+      of the head's front half above the menton: the face outline seen from the front.
     Returns (indices, {group: indices})."""
     mesh = obj.data
     n = len(mesh.vertices)
@@ -98,32 +102,35 @@ def conventional_layout(obj, parts):
     cx, cz = float(np.mean([abs(c[0]) for c in centres])), float(np.mean([c[2] for c in centres]))
     pick = lambda x, z, reach=0.003: front_surface_vertex(points, normals, skin, (x, z), reach)  # noqa: E731
     groups = {}
-
-    # Jaw line: the outline of the front half below the eyes.
-    front = skin & (points[:, 1] < 0.5 * (points[skin, 1].min() + points[skin, 1].max()))
-    origin = np.array([0.0, cz - r])
-    rel = points[:, [0, 2]] - origin
-    angle, radius = np.arctan2(-rel[:, 1], rel[:, 0]), np.hypot(rel[:, 0], rel[:, 1])
-    step = np.pi / 16
-    jaw = []
-    for phi in np.linspace(np.pi, 0.0, 17):
-        window = np.flatnonzero(front & (np.abs(angle - phi) < step / 2))
-        jaw.append(int(window[np.argmax(radius[window])]))
-    groups["jaw"] = jaw
-
     groups["brows"] = [pick(side * (cx + r * t), cz + 1.6 * r + 0.3 * r * (1 - (t / 1.2) ** 2))
                        for side in (-1, 1) for t in ((1.2, 0.6, 0.0, -0.6, -1.2) if side < 0 else (-1.2, -0.6, 0.0, 0.6, 1.2))]
 
     tip = int(np.flatnonzero(skin & (normals[:, 1] < -0.2))[np.argmin(points[skin & (normals[:, 1] < -0.2), 1])])
     tip_z = float(points[tip, 2])
-    profile_z = np.arange(tip_z, cz - 5 * r, -0.001)
+    profile_z = np.arange(tip_z, cz - 10 * r, -0.001)
     profile_y = np.array([points[pick(0.0, z, reach=0.0012), 1] for z in profile_z])
-    below = lambda i, forward: i + int(np.argmin(profile_y[i:i + 15] if forward else -profile_y[i:i + 15]))  # noqa: E731
-    subnasale = below(2, forward=False)
-    upper_lip = below(subnasale + 1, forward=True)
-    stomion = below(upper_lip + 1, forward=False)
-    lower_lip = below(stomion + 1, forward=True)
+    below = lambda i, forward, span: i + int(np.argmin(profile_y[i:i + span] * (1 if forward else -1)))  # noqa: E731
+    subnasale = below(2, False, 15)
+    upper_lip = below(subnasale + 1, True, 8)
+    stomion = below(upper_lip + 1, False, 8)
+    lower_lip = below(stomion + 1, True, 8)
     z_sn, z_ul, z_st, z_ll = (float(profile_z[i]) for i in (subnasale, upper_lip, stomion, lower_lip))
+    # Menton: below the labiomental fold (the most receded point within 15 mm under the lower
+    # lip), the last midline point before the surface faces more down than forward.
+    fold = below(lower_lip + 1, False, 15)
+    turned = [normals[v, 2] < normals[v, 1] for v in (pick(0.0, z, reach=0.0012) for z in profile_z[fold:])]
+    menton = fold + int(np.argmax(turned))
+    z_menton = float(profile_z[menton - 1])
+    # Jaw line: the outline of the front half above the menton, seen from the front.
+    front = skin & (points[:, 1] < 0.5 * (points[skin, 1].min() + points[skin, 1].max())) & (points[:, 2] >= z_menton)
+    origin = np.array([0.0, cz - r])
+    rel = points[:, [0, 2]] - origin
+    angle, radius = np.arctan2(-rel[:, 1], rel[:, 0]), np.hypot(rel[:, 0], rel[:, 1])
+    jaw = []
+    for phi in np.linspace(np.pi, 0.0, 17):
+        window = np.flatnonzero(front & (np.abs(angle - phi) < np.pi / 32))
+        jaw.append(int(window[np.argmax(radius[window])]))
+    groups["jaw"] = jaw
     half_nose = 0.5 * (2 * cx - 2 * r)
     groups["nose"] = [pick(0.0, cz + (tip_z - cz) * t) for t in (0.0, 1 / 3, 2 / 3)] + [tip] + \
         [pick(half_nose * t, z_sn) for t in (-1.0, -0.5, 0.0, 0.5, 1.0)]
@@ -138,6 +145,7 @@ def conventional_layout(obj, parts):
     inner = [pick(-0.85 * w, z_st)] + [pick(t * w, z_st + gap) for t in (-0.4, 0.0, 0.4)] + [pick(0.85 * w, z_st)] + \
         [pick(t * w, z_st - gap) for t in (0.4, 0.0, -0.4)]
     groups["lips"] = outer + inner
+    groups = {name: groups[name] for name in ("jaw", "brows", "nose", "eyes", "lips")}
     indices = [v for group in groups.values() for v in group]
     return indices, groups
 
@@ -166,6 +174,7 @@ def main():
     parser.add_argument("--sample", default=os.path.join(cache, "sample-%d.%d.blend" % bpy.app.version[:2]))
     parser.add_argument("--json", default=os.path.join(cache, "bench", "landmarks.json"))
     parser.add_argument("--picture", default=os.path.join(ROOT, "docs", "landmarks_front.png"))
+    parser.add_argument("--conventional-picture", default=os.path.join(ROOT, "docs", "landmarks_conventional68.png"))
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
@@ -219,10 +228,11 @@ def main():
     landmarks.build_layout(template, documents[(template.name, 0.5)], bpy.context.scene)
     os.makedirs(os.path.dirname(os.path.abspath(args.picture)), exist_ok=True)
     picture.render_landmarks(template, os.path.abspath(args.picture))
+    picture.render_vertices(template, conventional, os.path.abspath(args.conventional_picture), colour=(0.1, 0.3, 0.9, 1.0))
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
         json.dump(results, f, indent=2)
-    print(f"\nwrote {args.json} and {args.picture}")
+    print(f"\nwrote {args.json}, {args.picture} and {args.conventional_picture}")
 
 
 if __name__ == "__main__":

@@ -40,14 +40,26 @@ def render_landmarks(obj, path, resolution=768):
     layout = obj.shapesmith.landmarks
     if not layout.done or layout.collection is None or not layout.collection.objects:
         raise MeshDataError(f"'{obj.name}' has no landmark layout yet: run Place Landmarks first")
-    context_scene = bpy.context.scene
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    head = evaluated_world_positions(obj, depsgraph)
-    landmarks = [(np.array(empty.evaluated_get(depsgraph).matrix_world.translation), empty.get("round", 0))
-                 for empty in layout.collection.objects]
+    dots = [(np.array(empty.evaluated_get(depsgraph).matrix_world.translation),
+             ROUND_COLOURS[min(empty.get("round", 0), len(ROUND_COLOURS) - 1)])
+            for empty in layout.collection.objects]
+    return render_points(obj, dots, path, resolution)
+
+
+def render_vertices(obj, vertices, path, colour=ROUND_COLOURS[0], resolution=768):
+    """The same front view with a sphere on each of `vertices` (e.g. a vertex group's layout)."""
+    head = evaluated_world_positions(obj, bpy.context.evaluated_depsgraph_get())
+    return render_points(obj, [(head[v], colour) for v in vertices], path, resolution)
+
+
+def render_points(obj, dots, path, resolution):
+    """The front view of `obj` with a sphere at each (world position, colour) of `dots`."""
+    head = evaluated_world_positions(obj, bpy.context.evaluated_depsgraph_get())
     low, high = head.min(axis=0), head.max(axis=0)
     scale = float(np.max(np.abs(np.array(obj.matrix_world.to_scale()))))
     radius = SPHERE_SIZE * bbox_diagonal(obj) * scale
+    context_scene = bpy.context.scene
 
     scene = bpy.data.scenes.new("Shapesmith Landmark Picture")
     created_objects, created_meshes = [], []
@@ -76,10 +88,10 @@ def render_landmarks(obj, path, resolution=768):
         bmesh.ops.create_icosphere(bm, subdivisions=2, radius=radius)
         bm.to_mesh(sphere)
         bm.free()
-        for position, round_ in landmarks:
+        for position, colour in dots:
             dot = bpy.data.objects.new("Shapesmith Picture Landmark", sphere)
             dot.location = position
-            dot.color = ROUND_COLOURS[min(round_, len(ROUND_COLOURS) - 1)]
+            dot.color = colour
             created_objects.append(dot)
 
         camera_data.type = "ORTHO"
