@@ -1,1 +1,315 @@
-//! (being written)
+//! Compact landmark layouts: Zell & McDonnell, "Compact Facial Landmark Layouts for
+//! Performance Capture", Eurographics 2022 (`zell2022landmarks`). SPEC section 2.
+//!
+//! The fewest vertices such that every shape has a landmark that moves strongly in it and
+//! stays visible: a weighted set cover over candidate vertices, solved to proven optimality,
+//! optionally symmetric and repeated as an adaptive multi-cover. [`score_layout`] judges any
+//! layout by noisy reconstruction.
+//!
+//! | Paper | Here |
+//! |---|---|
+//! | `v_n^0`, `dv_n^k` | `rig.neutral`, `rig.delta(k)` |
+//! | `r_n^k` (Eq. 2) | [`candidates::relative_displacement`] |
+//! | `c_n^k`, `eps` (Eq. 3) | [`candidates::candidate_relation`], [`LandmarkParams::epsilon`] |
+//! | `L_n^k`, `l_n` (Eq. 4) | [`visibility::worst_case_visibility`], [`Landmark::visibility`] |
+//! | `w_n^k`, `alpha` (Eq. 1) | [`cover::vertex_cost`], [`LandmarkParams::alpha`], [`LandmarkParams::gamma`] |
+//! | `f_n` (Eq. 5) | [`cover::solve_cover`] |
+//! | `F`, `max` (Algorithm 1) | [`LandmarkLayout::landmarks`], [`LandmarkParams::max_per_shape`] |
+//!
+//! # Deviations
+//! - Cost `1 + gamma q[n]` with `q[n]` the mean quality over the shapes a vertex covers
+//!   (SPEC): Eq. (1)/(5a) read literally would punish a vertex for covering many shapes.
+//! - Visibility rays are cosine-weighted (the paper samples "all directions"): grazing
+//!   directions, from which no tracker sees a point well, count least. A vertex whose normal
+//!   vanishes is sampled over the whole sphere.
+//! - Symmetric layouts use the worse visibility of the two mirror vertices, since both become
+//!   landmarks; only mutual mirror partners are folded, so the output is exactly symmetric.
+//! - Algorithm 1's "sufficient landmarks" is read with the 10% rule: after the first round a
+//!   shape asks for another landmark only while every landmark it has serves more than
+//!   [`LandmarkParams::share_limit`] of the shapes and it has fewer than `max_per_shape`.
+//! - [`LandmarkParams::min_visibility`] (off by default) removes candidates that some pose
+//!   hides; shapes left without a candidate are reported in `uncovered`.
+
+pub mod bvh;
+pub mod bvls;
+pub mod candidates;
+pub mod cover;
+pub mod score;
+pub mod visibility;
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::error::ShapesmithResult;
+use crate::geometry::mirror::MirrorMap;
+use crate::ilp::{IlpOptions, SolveStatus};
+use crate::invalid;
+use crate::progress::Progress;
+use crate::rig::{norm, RigView};
+use candidates::{candidate_relation, mutual_partners};
+use cover::{adaptive_multi_cover, MultiCoverSettings};
+use visibility::{worst_case_visibility, Sampling};
+
+pub use score::{score_layout, LayoutScore, ScoreParams};
+
+#[derive(Clone, Debug)]
+pub struct LandmarkParams {
+    /// Candidate threshold on the relative displacement, in (0, 1] (Eq. 3; paper 0.3..0.8).
+    pub epsilon: f64,
+    /// Weight of visibility against displacement in a vertex's quality, in [0, 1] (Eq. 1).
+    pub alpha: f64,
+    /// Weight of quality against count in the cost; 0 gives the pure minimum count.
+    pub gamma: f64,
+    /// Hemisphere rays per vertex and pose (ignored with `cameras`).
+    pub rays: usize,
+    /// Known camera positions in the mesh's local space: one visibility segment each.
+    pub cameras: Option<Vec<[f64; 3]>>,
+    pub symmetric: bool,
+    /// Lateral axis of the symmetry plane (0 = local X).
+    pub axis: usize,
+    /// Mirror-map tolerance relative to the bounding-box diagonal (SPEC: 1e-3).
+    pub mirror_tolerance: f64,
+    /// Rounds of the adaptive multi-cover (Algorithm 1); 1 is the single cover of Eq. (5).
+    pub max_per_shape: usize,
+    /// Exclusion radius around landmarks for later rounds, relative to the diagonal.
+    pub radius: f64,
+    /// The 10% rule: a landmark serving more than this fraction of the shapes does not count
+    /// as enough for any of them.
+    pub share_limit: f64,
+    /// Candidates whose worst-case visibility is below this are dropped (0 keeps all).
+    pub min_visibility: f64,
+    pub seed: u64,
+    /// Seconds per HiGHS solve; `None` solves to proven optimality.
+    pub time_limit: Option<f64>,
+}
+
+impl Default for LandmarkParams {
+    fn default() -> Self {
+        Self {
+            epsilon: 0.5,
+            alpha: 0.5,
+            gamma: 0.5,
+            rays: 64,
+            cameras: None,
+            symmetric: false,
+            axis: 0,
+            mirror_tolerance: 1e-3,
+            max_per_shape: 2,
+            radius: 0.03,
+            share_limit: 0.1,
+            min_visibility: 0.0,
+            seed: 0,
+            time_limit: None,
+        }
+    }
+}
+
+impl LandmarkParams {
+    fn validate(&self) -> ShapesmithResult<()> {
+        let unit = |x: f64| (0.0..=1.0).contains(&x);
+        if !(self.epsilon > 0.0 && self.epsilon <= 1.0) {
+            return Err(invalid!("epsilon must be in (0, 1], got {}", self.epsilon));
+        }
+        if !unit(self.alpha) {
+            return Err(invalid!("alpha must be in [0, 1], got {}", self.alpha));
+        }
+        if !(self.gamma.is_finite() && self.gamma >= 0.0) {
+            return Err(invalid!("gamma must be finite and >= 0, got {}", self.gamma));
+        }
+        if !(self.radius.is_finite() && self.radius >= 0.0) {
+            return Err(invalid!("radius must be a finite fraction >= 0 of the diagonal, got {}", self.radius));
+        }
+        if !unit(self.share_limit) || !unit(self.min_visibility) {
+            return Err(invalid!(
+                "share_limit and min_visibility must be in [0, 1], got {} and {}",
+                self.share_limit,
+                self.min_visibility
+            ));
+        }
+        if self.max_per_shape == 0 {
+            return Err(invalid!("max_per_shape must be at least 1"));
+        }
+        if self.axis > 2 {
+            return Err(invalid!("the symmetry axis must be 0, 1 or 2, got {}", self.axis));
+        }
+        if self.time_limit.is_some_and(|t| t.is_nan() || t <= 0.0) {
+            return Err(invalid!("time_limit must be positive seconds or None"));
+        }
+        match &self.cameras {
+            None if self.rays == 0 => Err(invalid!("rays must be at least 1 (or give camera positions)")),
+            Some(cameras) if cameras.is_empty() => {
+                Err(invalid!("cameras is empty: give at least one position, or None for hemisphere visibility"))
+            }
+            Some(cameras) => match cameras.iter().position(|c| c.iter().any(|x| !x.is_finite())) {
+                Some(i) => Err(invalid!("camera {i} has a non-finite position {:?}", cameras[i])),
+                None => Ok(()),
+            },
+            None => Ok(()),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Landmark {
+    pub vertex: u32,
+    /// The neutral position.
+    pub position: [f64; 3],
+    /// Shapes this vertex is a candidate for (`r_k[n] >= eps`), strongest first.
+    pub shapes: Vec<usize>,
+    /// The shape that moves this vertex most (relative to its own maximum); names it.
+    pub strongest: usize,
+    /// Worst-case visibility `l[n]` (Eq. 4).
+    pub visibility: f64,
+    /// 0 for the single cover, 1 for the first backup round, ...
+    pub round: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct LandmarkLayout {
+    /// Sorted by vertex.
+    pub landmarks: Vec<Landmark>,
+    /// Every round proven optimal.
+    pub optimal: bool,
+    pub statuses: Vec<SolveStatus>,
+    /// Non-inert shapes with no candidate vertex (none unless `min_visibility` removed them).
+    pub uncovered: Vec<usize>,
+    pub inert: Vec<usize>,
+    pub rounds: usize,
+    pub seconds_visibility: f64,
+    pub seconds_solve: f64,
+    pub rays_cast: u64,
+}
+
+/// Places landmarks (SPEC section 2): candidates (Eq. 3), worst-case visibility over the
+/// neutral and every shape (Eq. 4), then the adaptive multi-cover of Eq. (5), symmetric on
+/// request. Progress: visibility is the first 80%, the covers the rest.
+pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Progress) -> ShapesmithResult<LandmarkLayout> {
+    rig.validate()?;
+    params.validate()?;
+    if rig.n_shapes() == 0 {
+        return Err(invalid!("the rig has no shape keys: landmarks go where shapes move"));
+    }
+    let inert = rig.inert_shapes();
+    let live: Vec<usize> = (0..rig.n_shapes()).filter(|k| !inert.contains(k)).collect();
+    let mut layout = LandmarkLayout {
+        landmarks: Vec::new(),
+        optimal: true,
+        statuses: Vec::new(),
+        uncovered: Vec::new(),
+        inert,
+        rounds: 0,
+        seconds_visibility: 0.0,
+        seconds_solve: 0.0,
+        rays_cast: 0,
+    };
+    if live.is_empty() {
+        return Ok(layout);
+    }
+    let partners = params
+        .symmetric
+        .then(|| mutual_partners(&MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance)));
+    let mut relation = candidate_relation(rig, &live, params.epsilon, partners.as_deref(), params.axis);
+
+    // Visibility of every candidate, and of its mirror partner when the layout is symmetric.
+    let mut needed = vec![false; rig.n_vertices()];
+    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty()) {
+        needed[n] = true;
+        if let Some(m) = partners.as_ref().and_then(|p| p[n]) {
+            needed[m as usize] = true;
+        }
+    }
+    let vertices: Vec<u32> = (0..rig.n_vertices() as u32).filter(|&n| needed[n as usize]).collect();
+    let sampling = match &params.cameras {
+        Some(cameras) => Sampling::Cameras(cameras),
+        None => Sampling::Hemisphere { rays: params.rays, seed: params.seed },
+    };
+    let started = Instant::now();
+    let seen = worst_case_visibility(rig, &live, &vertices, &sampling, &Stage { inner: progress, start: 0.0, span: 0.8 })?;
+    layout.seconds_visibility = started.elapsed().as_secs_f64();
+    layout.rays_cast = seen.rays_cast;
+    let mut visibility = vec![1.0; rig.n_vertices()];
+    for (&v, &l) in vertices.iter().zip(&seen.worst) {
+        visibility[v as usize] = l;
+    }
+    let effective: Vec<f64> = match &partners {
+        None => visibility.clone(),
+        Some(p) => (0..rig.n_vertices()).map(|n| p[n].map_or(visibility[n], |m| visibility[n].min(visibility[m as usize]))).collect(),
+    };
+    if params.min_visibility > 0.0 {
+        for (n, shapes) in relation.iter_mut().enumerate() {
+            if effective[n] < params.min_visibility {
+                shapes.clear();
+            }
+        }
+    }
+    let mut has_candidate = vec![false; rig.n_shapes()];
+    relation.iter().flatten().for_each(|&(k, _)| has_candidate[k] = true);
+    layout.uncovered = live.iter().copied().filter(|&k| !has_candidate[k]).collect();
+    if layout.uncovered.len() == live.len() {
+        return Err(invalid!(
+            "no vertex is a landmark candidate for any shape: every candidate is seen less than \
+             min_visibility = {} of the time in some pose; lower min_visibility or epsilon (now {})",
+            params.min_visibility,
+            params.epsilon
+        ));
+    }
+
+    let settings = MultiCoverSettings {
+        alpha: params.alpha,
+        gamma: params.gamma,
+        max_per_shape: params.max_per_shape,
+        radius: params.radius * rig.bbox_diagonal(),
+        share_limit: params.share_limit,
+        ilp: IlpOptions { time_limit: params.time_limit },
+    };
+    let chosen = adaptive_multi_cover(
+        &relation,
+        &effective,
+        live.len(),
+        partners.as_deref(),
+        rig.neutral,
+        &settings,
+        &Stage { inner: progress, start: 0.8, span: 0.2 },
+    )?;
+    layout.optimal = chosen.statuses.iter().all(|s| s.is_optimal());
+    layout.rounds = chosen.statuses.len();
+    layout.statuses = chosen.statuses;
+    layout.seconds_solve = chosen.seconds_solve;
+    let maxima: Vec<f64> = (0..rig.n_shapes()).map(|k| rig.max_displacement(k)).collect();
+    layout.landmarks = chosen
+        .landmarks
+        .iter()
+        .map(|&(vertex, round)| {
+            // Report in terms of the rig as it is (not folded), strongest first.
+            let mut strengths: Vec<(usize, f64)> =
+                live.iter().map(|&k| (k, norm(&rig.delta(k)[vertex as usize]) / maxima[k])).collect();
+            strengths.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+            Landmark {
+                vertex,
+                position: rig.neutral[vertex as usize].map(f64::from),
+                shapes: strengths.iter().filter(|s| s.1 >= params.epsilon).map(|s| s.0).collect(),
+                strongest: strengths[0].0,
+                visibility: visibility[vertex as usize],
+                round,
+            }
+        })
+        .collect();
+    Ok(layout)
+}
+
+/// A sub-range `[start, start + span]` of the caller's progress.
+struct Stage<'a> {
+    inner: &'a dyn Progress,
+    start: f64,
+    span: f64,
+}
+
+impl Progress for Stage<'_> {
+    fn report(&self, fraction: f64) -> bool {
+        self.inner.report(self.start + self.span * fraction)
+    }
+}
+
+#[cfg(test)]
+mod tests;

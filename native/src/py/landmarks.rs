@@ -1,7 +1,224 @@
-//! Bindings of the landmarks module (being written).
+//! Bindings of [`crate::landmarks::place_landmarks`] and [`crate::landmarks::score_layout`].
+//! Shapes are reported by name.
 
+use numpy::{PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use serde::Serialize;
 
-pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
-    Ok(())
+use super::arrays;
+use super::errors::py_err;
+use crate::ilp::SolveStatus;
+use crate::invalid;
+use crate::landmarks::{place_landmarks as place, score_layout as score, LandmarkLayout, LandmarkParams, ScoreParams};
+use crate::progress::NoProgress;
+use crate::rig::RigView;
+
+#[derive(Serialize)]
+struct NamedLandmark {
+    vertex: u32,
+    position: [f64; 3],
+    shapes: Vec<String>,
+    strongest: String,
+    visibility: f64,
+    round: usize,
+}
+
+#[derive(Serialize)]
+struct Seconds {
+    visibility: f64,
+    solve: f64,
+}
+
+#[derive(Serialize)]
+struct EchoedParams {
+    epsilon: f64,
+    alpha: f64,
+    gamma: f64,
+    rays: usize,
+    cameras: usize,
+    symmetric: bool,
+    max_per_shape: usize,
+    radius: f64,
+    share_limit: f64,
+    min_visibility: f64,
+    axis: usize,
+    seed: u64,
+    time_limit: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct LayoutReport {
+    landmarks: Vec<NamedLandmark>,
+    optimal: bool,
+    statuses: Vec<SolveStatus>,
+    uncovered: Vec<String>,
+    inert: Vec<String>,
+    rounds: usize,
+    seconds: Seconds,
+    rays_cast: u64,
+    rays_per_second: f64,
+    params: EchoedParams,
+}
+
+fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> LayoutReport {
+    let name = |k: &usize| names[*k].clone();
+    LayoutReport {
+        landmarks: layout
+            .landmarks
+            .iter()
+            .map(|l| NamedLandmark {
+                vertex: l.vertex,
+                position: l.position,
+                shapes: l.shapes.iter().map(name).collect(),
+                strongest: name(&l.strongest),
+                visibility: l.visibility,
+                round: l.round,
+            })
+            .collect(),
+        optimal: layout.optimal,
+        statuses: layout.statuses,
+        uncovered: layout.uncovered.iter().map(name).collect(),
+        inert: layout.inert.iter().map(name).collect(),
+        rounds: layout.rounds,
+        seconds: Seconds { visibility: layout.seconds_visibility, solve: layout.seconds_solve },
+        rays_cast: layout.rays_cast,
+        rays_per_second: if layout.seconds_visibility > 0.0 {
+            layout.rays_cast as f64 / layout.seconds_visibility
+        } else {
+            0.0
+        },
+        params: EchoedParams {
+            epsilon: params.epsilon,
+            alpha: params.alpha,
+            gamma: params.gamma,
+            rays: params.rays,
+            cameras: params.cameras.as_ref().map_or(0, Vec::len),
+            symmetric: params.symmetric,
+            max_per_shape: params.max_per_shape,
+            radius: params.radius,
+            share_limit: params.share_limit,
+            min_visibility: params.min_visibility,
+            axis: params.axis,
+            seed: params.seed,
+            time_limit: params.time_limit,
+        },
+    }
+}
+
+/// place_landmarks(neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
+///                 rays=64, symmetric=False, max_per_shape=2, radius=0.03, cameras=None,
+///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0) -> dict
+///
+/// `cameras`: optional (C, 3) float32 camera positions in the mesh's local space.
+#[pyfunction]
+#[pyo3(signature = (neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
+                    rays=64, symmetric=false, max_per_shape=2, radius=0.03, cameras=None,
+                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0))]
+#[allow(clippy::too_many_arguments)]
+fn place_landmarks<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    epsilon: f64,
+    alpha: f64,
+    gamma: f64,
+    rays: usize,
+    symmetric: bool,
+    max_per_shape: usize,
+    radius: f64,
+    cameras: Option<PyReadonlyArray2<'py, f32>>,
+    axis: usize,
+    seed: u64,
+    time_limit: Option<f64>,
+    share_limit: f64,
+    min_visibility: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let cameras = match &cameras {
+        Some(array) => Some(arrays::points(array, "cameras").map_err(py_err(py))?.iter().map(|c| c.map(f64::from)).collect()),
+        None => None,
+    };
+    let params = LandmarkParams {
+        epsilon,
+        alpha,
+        gamma,
+        rays,
+        cameras,
+        symmetric,
+        axis,
+        max_per_shape,
+        radius,
+        share_limit,
+        min_visibility,
+        seed,
+        time_limit,
+        ..LandmarkParams::default()
+    };
+    let layout = py
+        .detach(|| {
+            let rig = RigView::new(points, delta_rows, &tris, &names)?;
+            place(&rig, &params, &NoProgress)
+        })
+        .map_err(py_err(py))?;
+    arrays::to_python(py, &report(layout, &names, &params))
+}
+
+/// score_layout(neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
+///              extra_poses=None, random_mixes=50) -> dict with mean, max, poses, landmarks
+///
+/// `vertices`: a list or array of vertex indices; `extra_poses`: optional (P, K) float32.
+#[pyfunction]
+#[pyo3(signature = (neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
+                    extra_poses=None, random_mixes=50))]
+#[allow(clippy::too_many_arguments)]
+fn score_layout<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    vertices: Vec<i64>,
+    noise: f64,
+    seed: u64,
+    extra_poses: Option<PyReadonlyArray2<'py, f32>>,
+    random_mixes: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let landmarks: Vec<u32> = vertices
+        .iter()
+        .map(|&v| u32::try_from(v).map_err(|_| invalid!("landmark vertex {v} does not exist: indices start at 0")))
+        .collect::<Result<_, _>>()
+        .map_err(py_err(py))?;
+    let extra_poses = match &extra_poses {
+        None => Vec::new(),
+        Some(array) => {
+            if array.shape()[1] != names.len() {
+                return Err(py_err(py)(invalid!(
+                    "extra_poses must have shape (P, {}) to match the shape names, got {:?}",
+                    names.len(),
+                    array.shape()
+                )));
+            }
+            array.as_array().outer_iter().map(|row| row.iter().map(|&w| f64::from(w)).collect()).collect()
+        }
+    };
+    let params = ScoreParams { noise, seed, extra_poses, random_mixes };
+    let result = py
+        .detach(|| {
+            let rig = RigView::new(points, delta_rows, &tris, &names)?;
+            score(&rig, &landmarks, &params)
+        })
+        .map_err(py_err(py))?;
+    arrays::to_python(py, &result)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(place_landmarks, m)?)?;
+    m.add_function(wrap_pyfunction!(score_layout, m)?)
 }

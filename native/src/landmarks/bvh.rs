@@ -1,0 +1,346 @@
+//! A bounding-volume hierarchy over triangles for occlusion rays: "does anything lie on this
+//! segment?". Binned surface-area-heuristic build, flat node array, stack traversal.
+//!
+//! Generic on purpose (points and triangle indices in, boolean queries out) so that it can
+//! move to `geometry/` and serve transfer's penetration tests as well.
+
+/// Axis-aligned box; `lo > hi` on every axis when empty.
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] };
+
+    fn grow_point(&mut self, p: &[f64; 3]) {
+        for (a, &x) in p.iter().enumerate() {
+            self.lo[a] = self.lo[a].min(x);
+            self.hi[a] = self.hi[a].max(x);
+        }
+    }
+
+    fn grow(&mut self, other: &Aabb) {
+        for a in 0..3 {
+            self.lo[a] = self.lo[a].min(other.lo[a]);
+            self.hi[a] = self.hi[a].max(other.hi[a]);
+        }
+    }
+
+    fn half_area(&self) -> f64 {
+        let e = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
+        if e.iter().any(|&x| x < 0.0) {
+            return 0.0;
+        }
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+
+    /// Slab test: where the ray enters the box, if it does at some `t` in `[0, t_max]`.
+    fn entry(&self, origin: &[f64; 3], inverse_direction: &[f64; 3], t_max: f64) -> Option<f64> {
+        let mut t_enter = 0.0f64;
+        let mut t_exit = t_max;
+        for a in 0..3 {
+            let t0 = (self.lo[a] - origin[a]) * inverse_direction[a];
+            let t1 = (self.hi[a] - origin[a]) * inverse_direction[a];
+            // `min`/`max` drop a NaN (origin on a slab plane of a parallel ray): keep going.
+            t_enter = t_enter.max(t0.min(t1));
+            t_exit = t_exit.min(t0.max(t1));
+        }
+        (t_enter <= t_exit).then_some(t_enter)
+    }
+}
+
+/// An internal node's children are `first` and `first + 1`; a leaf holds the reordered
+/// triangles `first..first + count`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    bounds: Aabb,
+    first: u32,
+    count: u32,
+}
+
+/// Triangle corner `a` and edges `b - a`, `c - a`, as the ray test wants them.
+#[derive(Clone, Copy, Debug)]
+struct PreparedTriangle {
+    a: [f64; 3],
+    ab: [f64; 3],
+    ac: [f64; 3],
+}
+
+pub struct TriangleBvh {
+    nodes: Vec<Node>,
+    triangles: Vec<PreparedTriangle>,
+}
+
+const LEAF_SIZE: usize = 4;
+const BINS: usize = 12;
+/// Deeper nodes become leaves, so that the traversal stack (one slot per level plus one)
+/// never overflows.
+const MAX_DEPTH: usize = 60;
+const STACK: usize = MAX_DEPTH + 4;
+
+impl TriangleBvh {
+    /// Builds the hierarchy; triangle indices must be in range (the rig validated them).
+    pub fn build(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
+        let corners: Vec<[[f64; 3]; 3]> =
+            triangles.iter().map(|t| t.map(|v| points[v as usize])).collect();
+        let bounds: Vec<Aabb> = corners
+            .iter()
+            .map(|c| {
+                let mut b = Aabb::EMPTY;
+                c.iter().for_each(|p| b.grow_point(p));
+                b
+            })
+            .collect();
+        let centroids: Vec<[f64; 3]> = corners
+            .iter()
+            .map(|c| std::array::from_fn(|a| (c[0][a] + c[1][a] + c[2][a]) / 3.0))
+            .collect();
+        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+        let mut nodes = vec![Node { bounds: Aabb::EMPTY, first: 0, count: order.len() as u32 }];
+        if !order.is_empty() {
+            split(&mut nodes, 0, &mut order, 0, 0, &bounds, &centroids);
+        }
+        let triangles = order
+            .iter()
+            .map(|&t| {
+                let [a, b, c] = corners[t as usize];
+                PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) }
+            })
+            .collect();
+        Self { nodes, triangles }
+    }
+
+    /// Whether the ray `origin + t * direction` meets a triangle at some `t` in `(0, t_max)`.
+    /// Both faces count; `direction` need not be normalised (`t` is in its units).
+    pub fn any_hit(&self, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+        if self.triangles.is_empty() {
+            return false;
+        }
+        let inverse = direction.map(|d| 1.0 / d);
+        if self.nodes[0].bounds.entry(origin, &inverse, t_max).is_none() {
+            return false;
+        }
+        // Nodes on the stack are known to be hit; the nearer child is visited first.
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                if self.triangles[range].iter().any(|tri| ray_meets(tri, origin, direction, t_max)) {
+                    return true;
+                }
+                continue;
+            }
+            let (left, right) = (node.first, node.first + 1);
+            let enter = |child: u32| self.nodes[child as usize].bounds.entry(origin, &inverse, t_max);
+            match (enter(left), enter(right)) {
+                (Some(a), Some(b)) => {
+                    let (near, far) = if a <= b { (left, right) } else { (right, left) };
+                    stack[top] = far;
+                    stack[top + 1] = near;
+                    top += 2;
+                }
+                (Some(_), None) => {
+                    stack[top] = left;
+                    top += 1;
+                }
+                (None, Some(_)) => {
+                    stack[top] = right;
+                    top += 1;
+                }
+                (None, None) => {}
+            }
+        }
+        false
+    }
+}
+
+/// Splits node `index` (covering `order[start..start + count]`) by the binned SAH, or makes it
+/// a leaf when no split is cheaper than testing its triangles.
+fn split(
+    nodes: &mut Vec<Node>,
+    index: usize,
+    order: &mut [u32],
+    start: usize,
+    depth: usize,
+    bounds: &[Aabb],
+    centroids: &[[f64; 3]],
+) {
+    let count = nodes[index].count as usize;
+    let items = &mut order[start..start + count];
+    let mut node_bounds = Aabb::EMPTY;
+    let mut centroid_bounds = Aabb::EMPTY;
+    for &t in items.iter() {
+        node_bounds.grow(&bounds[t as usize]);
+        centroid_bounds.grow_point(&centroids[t as usize]);
+    }
+    nodes[index].bounds = node_bounds;
+    nodes[index].first = start as u32;
+    if count <= LEAF_SIZE || depth >= MAX_DEPTH {
+        return;
+    }
+    let Some((axis, boundary)) = best_split(items, bounds, centroids, &centroid_bounds, &node_bounds) else {
+        return;
+    };
+    let lo = centroid_bounds.lo[axis];
+    let scale = BINS as f64 / (centroid_bounds.hi[axis] - lo);
+    let bin_of = |t: u32| (((centroids[t as usize][axis] - lo) * scale) as usize).min(BINS - 1);
+    // Partition: bins below `boundary` go left.
+    let mut left = 0;
+    for i in 0..count {
+        if bin_of(items[i]) < boundary {
+            items.swap(i, left);
+            left += 1;
+        }
+    }
+    let children = nodes.len();
+    nodes[index].first = children as u32;
+    nodes[index].count = 0;
+    nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: left as u32 });
+    nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: (count - left) as u32 });
+    split(nodes, children, order, start, depth + 1, bounds, centroids);
+    split(nodes, children + 1, order, start + left, depth + 1, bounds, centroids);
+}
+
+/// The axis and bin boundary of the cheapest SAH split, if it beats a leaf.
+fn best_split(
+    items: &[u32],
+    bounds: &[Aabb],
+    centroids: &[[f64; 3]],
+    centroid_bounds: &Aabb,
+    node_bounds: &Aabb,
+) -> Option<(usize, usize)> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    for (axis, (&lo, &hi)) in centroid_bounds.lo.iter().zip(&centroid_bounds.hi).enumerate() {
+        let extent = hi - lo;
+        if extent <= 0.0 {
+            continue;
+        }
+        let scale = BINS as f64 / extent;
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_counts = [0usize; BINS];
+        for &t in items {
+            let b = (((centroids[t as usize][axis] - lo) * scale) as usize).min(BINS - 1);
+            bin_bounds[b].grow(&bounds[t as usize]);
+            bin_counts[b] += 1;
+        }
+        // Sweep from the right to get the cost of every right part, then from the left.
+        let mut right_area = [0.0; BINS];
+        let mut right_count = [0usize; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut n = 0;
+        for b in (1..BINS).rev() {
+            acc.grow(&bin_bounds[b]);
+            n += bin_counts[b];
+            right_area[b] = acc.half_area();
+            right_count[b] = n;
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut n = 0;
+        for boundary in 1..BINS {
+            acc.grow(&bin_bounds[boundary - 1]);
+            n += bin_counts[boundary - 1];
+            if n == 0 || right_count[boundary] == 0 {
+                continue;
+            }
+            let cost = acc.half_area() * n as f64 + right_area[boundary] * right_count[boundary] as f64;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, boundary));
+            }
+        }
+    }
+    let leaf_cost = node_bounds.half_area() * items.len() as f64;
+    // One traversal step costs about as much as one triangle test.
+    best.filter(|&(cost, _, _)| cost + node_bounds.half_area() < leaf_cost || items.len() > 4 * LEAF_SIZE)
+        .map(|(_, axis, boundary)| (axis, boundary))
+}
+
+/// Moller-Trumbore, double-sided, hit parameter strictly inside `(0, t_max)`.
+fn ray_meets(tri: &PreparedTriangle, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+    let p = cross(direction, &tri.ac);
+    let det = dot(&tri.ab, &p);
+    if det == 0.0 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = sub(origin, &tri.a);
+    let u = dot(&s, &p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let q = cross(&s, &tri.ab);
+    let v = dot(direction, &q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    let t = dot(&tri.ac, &q) * inv;
+    t > 0.0 && t < t_max
+}
+
+pub(crate) fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(crate) fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+pub(crate) fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Random triangles in the unit cube, random segments: the BVH agrees with testing every
+    /// triangle.
+    #[test]
+    fn agrees_with_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let points: Vec<[f64; 3]> = (0..600).map(|_| std::array::from_fn(|_| rng.random::<f64>())).collect();
+        let triangles: Vec<[u32; 3]> = (0..200)
+            .map(|i| {
+                let a = 3 * i as u32;
+                [a, a + 1, a + 2]
+            })
+            .collect();
+        // Shrink triangles so that rays can pass between them.
+        let points: Vec<[f64; 3]> = points
+            .chunks(3)
+            .flat_map(|c| {
+                let centre: [f64; 3] = std::array::from_fn(|a| (c[0][a] + c[1][a] + c[2][a]) / 3.0);
+                c.iter().map(move |p| std::array::from_fn(|a| centre[a] + 0.15 * (p[a] - centre[a]))).collect::<Vec<_>>()
+            })
+            .collect();
+        let bvh = TriangleBvh::build(&points, &triangles);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let origin: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.2..1.2));
+            let direction: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let t_max = rng.random_range(0.1..2.0);
+            let brute = triangles.iter().any(|t| {
+                let [a, b, c] = t.map(|v| points[v as usize]);
+                ray_meets(&PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) }, &origin, &direction, t_max)
+            });
+            assert_eq!(bvh.any_hit(&origin, &direction, t_max), brute);
+            hits += brute as usize;
+        }
+        assert!(hits > 100 && hits < 2900, "the test should see both hits and misses, saw {hits} hits");
+    }
+
+    #[test]
+    fn axis_parallel_ray_and_segment_end() {
+        let points = vec![[0.0, -1.0, -1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]];
+        let bvh = TriangleBvh::build(&points, &[[0, 1, 2]]);
+        assert!(bvh.any_hit(&[-1.0, 0.0, 0.0], &[1.0, 0.0, 0.0], 2.0));
+        assert!(!bvh.any_hit(&[-1.0, 0.0, 0.0], &[1.0, 0.0, 0.0], 0.9), "the wall is beyond the segment");
+        assert!(!bvh.any_hit(&[-1.0, 0.0, 0.0], &[-1.0, 0.0, 0.0], 5.0), "the wall is behind the ray");
+        assert!(!TriangleBvh::build(&points, &[]).any_hit(&[-1.0, 0.0, 0.0], &[1.0, 0.0, 0.0], 2.0));
+    }
+}
