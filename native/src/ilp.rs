@@ -98,6 +98,9 @@ pub struct IlpSolution {
 /// on programs it has solved to optimality.
 pub const OPTIMALITY_GAP: f64 = 1e-9;
 
+/// HiGHS keeps process-wide state (its task scheduler); one solve at a time.
+static HIGHS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Solves the program with HiGHS (gaps set to zero so that "optimal" means proven optimal).
 /// Errors: [`ShapesmithError::Infeasible`] when no 0/1 point satisfies the rows,
 /// [`ShapesmithError::Solver`] for anything else HiGHS reports.
@@ -144,9 +147,10 @@ pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> Shapesmith
     if let Some(limit) = options.time_limit {
         highs_model.set_option("time_limit", limit);
     }
-    let solved = highs_model
-        .try_solve()
-        .map_err(|e| ShapesmithError::Solver(format!("HiGHS failed: {e:?}")))?;
+    let solved = {
+        let _one_at_a_time = HIGHS.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        highs_model.try_solve().map_err(|e| ShapesmithError::Solver(format!("HiGHS failed: {e:?}")))?
+    };
     let status = match solved.status() {
         HighsModelStatus::Optimal if solved.mip_gap().is_finite() && solved.mip_gap() > OPTIMALITY_GAP => {
             SolveStatus::GapLimit
