@@ -8,6 +8,10 @@ use super::conflicts::ConflictGraph;
 use crate::error::ShapesmithResult;
 use crate::ilp::{solve_binary, BinaryProgram, IlpOptions, IlpSolution, Sense, SolveStatus};
 
+/// Relative objective gap under which two expressions count as equally important: far
+/// below the precision of importances computed from f32 displacements.
+pub const TIE_TOLERANCE: f64 = 1e-10;
+
 /// HiGHS must not run on several threads at once; packing jobs may start from several
 /// threads (Blender jobs, parallel tests), so they take turns here.
 static HIGHS_TURN: Mutex<()> = Mutex::new(());
@@ -19,8 +23,14 @@ fn solve_in_turn(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithRes
 
 /// Eq. (3) on the nodes still `remaining`: maximise $\sum_v \lambda_v x_v$ subject to
 /// $\sum_{v \in Q} x_v \le 1$ for every clique Q of the cover. Nodes with no remaining
-/// neighbour are always taken (weights are positive) and stay out of the program. Returns the
-/// chosen nodes, ascending, and the solve status.
+/// neighbour are always taken (weights are positive) and stay out of the program.
+///
+/// Ties (several sets of the same weight, common when shapes have equal importance) are
+/// broken by a second solve: among the sets within [`TIE_TOLERANCE`] of the optimum, the one
+/// whose nodes have the most remaining conflicts, so that hard-to-place shapes go early and
+/// the loop needs fewer expressions. The primary optimum and its status come from the first
+/// solve; if the second fails in any way, the first solution stands.
+/// Returns the chosen nodes, ascending, and the first solve's status.
 pub fn heaviest_independent_set(
     graph: &ConflictGraph,
     remaining: &[bool],
@@ -49,8 +59,21 @@ pub fn heaviest_independent_set(
                 program.at_most(terms, 1.0);
             }
         }
-        let solution = solve_in_turn(&program, options)?;
+        let mut solution = solve_in_turn(&program, options)?;
         status = solution.status;
+        if status.is_optimal() {
+            let conflicts = |v: usize| (0..n).filter(|&u| remaining[u] && graph.adjacent[v][u]).count() as f64;
+            let mut tie_break = BinaryProgram::new(Sense::Maximise, variables.iter().map(|&v| conflicts(v)).collect());
+            tie_break.rows = program.rows.clone();
+            let best = solution.objective;
+            tie_break.at_least(
+                variables.iter().enumerate().map(|(i, &v)| (i, weight[v])).collect(),
+                best - TIE_TOLERANCE * best.max(1.0),
+            );
+            if let Ok(tied) = solve_in_turn(&tie_break, options) {
+                solution = tied;
+            }
+        }
         chosen.extend(variables.iter().zip(&solution.x).filter(|p| *p.1).map(|p| *p.0));
         // A solve stopped by the time limit may return nothing among the constrained nodes;
         // the heaviest of them alone is still a valid expression, so the loop always ends.

@@ -273,12 +273,18 @@ fn check_packing(inst: &Instance, params: &PackingParams, packing: &Packing) {
     }
 }
 
+/// Brute force and every rule on random instances. Fewer expressions than first-fit greedy is
+/// not a theorem for Algorithm 1 (a heaviest first expression can leave a residue that needs
+/// more colours), so J is compared with greedy J in aggregate: over these 200 instances the
+/// loop must lose to greedy less often than it wins and use no more expressions in total
+/// (it loses on 2 and wins on 3, 441 against 442 expressions; without the tie-break of
+/// `heaviest_independent_set` it lost on 7 and won on none, 449 against 442, so this catches
+/// ties resolved blindly).
 #[test]
 fn random_instances_match_brute_force_and_keep_every_rule() {
     let mut rng = ChaCha8Rng::seed_from_u64(11);
-    let mut loop_total = 0;
-    let mut greedy_total = 0;
-    for trial in 0..400 {
+    let (mut loop_total, mut greedy_total, mut losses, mut wins) = (0, 0, 0, 0);
+    for trial in 0..200 {
         let k_count = rng.random_range(1..=12);
         let inst = random_instance(&mut rng, k_count);
         let shapes: Vec<usize> = (0..inst.k()).collect();
@@ -295,17 +301,30 @@ fn random_instances_match_brute_force_and_keep_every_rule() {
         check_packing(&inst, &params, &packing);
         let greedy = pack_greedy(&inst.rig(), target.as_deref(), &params, &NoProgress).unwrap();
         assert!(greedy.expressions.iter().all(|e| e.status.is_none() && !e.optimal));
-        let fewest = packing.fewest.as_ref().unwrap().count;
-        assert!(greedy.expressions.len() >= fewest, "trial {trial}: greedy below the proven minimum");
-        loop_total += packing.expressions.len();
-        greedy_total += greedy.expressions.len();
-        if packing.expressions.len() > greedy.expressions.len() {
-            eprintln!("DEBUG trial {trial}: J = {} greedy {} fewest {} exprs {:?} greedy {:?} imp {:?}", packing.expressions.len(), greedy.expressions.len(), fewest,
-              packing.expressions.iter().map(|e| e.shapes.clone()).collect::<Vec<_>>(), greedy.expressions.iter().map(|e| e.shapes.clone()).collect::<Vec<_>>(), packing.importance);
-        }
-        if packing.expressions.len() < greedy.expressions.len() { eprintln!("DEBUG better trial {trial}"); }
+        check_greedy(&inst, &params, &greedy);
+        let (j, greedy_j) = (packing.expressions.len(), greedy.expressions.len());
+        assert!(greedy_j >= packing.fewest.as_ref().unwrap().count, "trial {trial}: greedy below the proven minimum");
+        loop_total += j;
+        greedy_total += greedy_j;
+        losses += usize::from(j > greedy_j);
+        wins += usize::from(j < greedy_j);
     }
-    assert!(loop_total <= greedy_total);
+    assert!(losses <= wins && loop_total <= greedy_total, "J {loop_total} vs greedy {greedy_total}: lost {losses}, won {wins}");
+}
+
+/// Greedy keeps the same rules and places every shape once, in importance order.
+fn check_greedy(inst: &Instance, params: &PackingParams, greedy: &Packing) {
+    let rules = Rules::new(inst, params, &greedy.antagonists);
+    let mut placed = vec![0usize; inst.k()];
+    for e in &greedy.expressions {
+        let mut set = vec![false; inst.k()];
+        for &s in &e.shapes {
+            set[s] = true;
+            placed[s] += 1;
+        }
+        assert!(rules.valid(&set), "greedy expression {:?} breaks a rule", e.shapes);
+    }
+    assert!((0..inst.k()).all(|s| placed[s] == usize::from(rules.placeable[s])));
 }
 
 #[test]
