@@ -1,7 +1,7 @@
 //! The conflict graph of paper 000's Eq. (3), built once per packing: which shapes cannot
 //! share an expression, which must, and the cliques that become the program's rows.
 //!
-//! The vertex rows $\sum_k b_k[n] w_k \le 1$ say that no two shapes active at one vertex are
+//! The vertex rows $\sum_k b_{k,n} w_k \le 1$ say that no two shapes active at one vertex are
 //! both posed, so they are equivalent to one edge per pair of intersecting active sets. The
 //! symmetry rows $w_x = w_p$ (Eq. (3d)) and the user's pins merge shapes into one *node*, and
 //! a partner's overlap with its own partner is no conflict (paper fig. 2). Antagonists and

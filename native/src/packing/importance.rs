@@ -12,7 +12,7 @@ use crate::rig::{norm, RigView};
 /// section 1): with it, every node of the program has a positive weight.
 pub const IMPORTANCE_FLOOR: f64 = 0.01;
 
-/// Eq. (5): $\bar d_k$ = mean $|D_k[n]|$ over the active vertices, divided by its maximum
+/// Eq. (5): $\bar d_k$ = mean $|D_{k,n}|$ over the active vertices, divided by its maximum
 /// over k. Shapes without active vertices (inert) score 0 and do not set the maximum.
 pub fn displacement_strength(rig: &RigView, active: &[Vec<u32>]) -> Vec<f64> {
     let mean: Vec<f64> = active
@@ -191,10 +191,10 @@ mod tests {
             .collect();
         let rig = RigView::new(&pts, &deltas, &tris, &names).unwrap();
         let cosines = cosine_matrix(&rig);
-        for i in 0..4 {
-            for j in 0..4 {
+        for (i, row) in cosines.iter().enumerate() {
+            for (j, &c) in row.iter().enumerate() {
                 let direct = crate::geometry::mirror::cosine(rig.delta(i), rig.delta(j));
-                assert!((cosines[i][j] - direct).abs() < 1e-12, "{i} {j}: {} vs {direct}", cosines[i][j]);
+                assert!((c - direct).abs() < 1e-12, "{i} {j}: {c} vs {direct}");
             }
         }
         assert!((cosines[0][0] - 1.0).abs() < 1e-12 && cosines[3][3] == 0.0);

@@ -26,6 +26,9 @@
 //! - Antagonists (mirror pairs moving the same region, and shapes whose deltas have a cosine
 //!   below [`PackingParams::antagonist_cosine`]) conflict, and a pair of antagonists is no
 //!   symmetric pair (SPEC). Mirror antagonists are searched even when `symmetric` is off.
+//! - Ties in Eq. (3a) (equal sums, common since mirror shapes have equal importance) are
+//!   broken by a second solve towards the nodes with the most remaining conflicts, so that
+//!   hard-to-place shapes go early and J shrinks; the optimum itself is unchanged.
 //! - Algorithm 1's loop test "K non-empty or J < Jmax" is read as "and" (SPEC).
 //! - Refinements (the paper's section 4.5.3) are constraints: pins merge nodes, `keep_apart`
 //!   adds an edge (and dissolves a symmetric pair it names), `exclude` removes shapes.
