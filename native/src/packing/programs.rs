@@ -5,7 +5,7 @@
 use std::sync::Mutex;
 
 use super::conflicts::ConflictGraph;
-use crate::error::ShapesmithResult;
+use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::ilp::{solve_binary, BinaryProgram, IlpOptions, IlpSolution, Sense, SolveStatus};
 
 /// Relative objective gap under which two expressions count as equally important: far
@@ -19,6 +19,15 @@ static HIGHS_TURN: Mutex<()> = Mutex::new(());
 fn solve_in_turn(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<IlpSolution> {
     let _turn = HIGHS_TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     solve_binary(program, options)
+}
+
+/// Solves; `None` when a time limit is set and HiGHS stopped before finding any point (it
+/// then reports a failure rather than a status).
+fn solve_within_limit(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<Option<IlpSolution>> {
+    match solve_in_turn(program, options) {
+        Err(ShapesmithError::Solver(_)) if options.time_limit.is_some() => Ok(None),
+        other => other.map(Some),
+    }
 }
 
 /// Eq. (3) on the nodes still `remaining`: maximise $\sum_v \lambda_v x_v$ subject to
@@ -74,30 +83,61 @@ pub fn heaviest_independent_set(
             chosen.sort_unstable();
             return Ok((chosen, SolveStatus::Optimal));
         }
-        let mut solution = solve_in_turn(&program, options)?;
-        status = solution.status;
-        if status.is_optimal() {
-            let conflicts = |v: usize| (0..n).filter(|&u| remaining[u] && graph.adjacent[v][u]).count() as f64;
-            let mut tie_break = BinaryProgram::new(Sense::Maximise, variables.iter().map(|&v| conflicts(v)).collect());
-            tie_break.rows = program.rows.clone();
-            let best = solution.objective;
-            tie_break.at_least(
-                variables.iter().enumerate().map(|(i, &v)| (i, weight[v])).collect(),
-                best - TIE_TOLERANCE * best.max(1.0),
-            );
-            if let Ok(tied) = solve_in_turn(&tie_break, options) {
-                solution = tied;
+        let Some(mut solution) = solve_within_limit(&program, options)? else {
+            chosen.extend(complete_greedily(graph, &variables, Vec::new(), weight));
+            chosen.sort_unstable();
+            return Ok((chosen, SolveStatus::TimeLimit));
+        };
+        if solution.status.is_optimal() {
+            if let Some(tied) = break_tie(graph, remaining, &variables, &program, weight, solution.objective, options) {
+                solution = IlpSolution { status: solution.status, ..tied };
             }
         }
-        chosen.extend(variables.iter().zip(&solution.x).filter(|p| *p.1).map(|p| *p.0));
-        // A solve stopped by the time limit may return nothing among the constrained nodes;
-        // the heaviest of them alone is still a valid expression, so the loop always ends.
-        if chosen.is_empty() {
-            chosen.extend(variables.iter().copied().max_by(|&a, &b| weight[a].total_cmp(&weight[b])));
+        status = solution.status;
+        let solved: Vec<usize> = variables.iter().zip(&solution.x).filter(|p| *p.1).map(|p| *p.0).collect();
+        if status.is_optimal() {
+            chosen.extend(solved);
+        } else {
+            // Stopped early: whatever HiGHS found, made maximal, so the expression is never
+            // empty and the loop always ends.
+            chosen.extend(complete_greedily(graph, &variables, solved, weight));
         }
     }
     chosen.sort_unstable();
     Ok((chosen, status))
+}
+
+/// Among the sets within [`TIE_TOLERANCE`] of the optimum `best`, the one whose nodes have
+/// the most conflicts among the remaining nodes; `None` if that solve fails in any way.
+fn break_tie(
+    graph: &ConflictGraph,
+    remaining: &[bool],
+    variables: &[usize],
+    program: &BinaryProgram,
+    weight: &[f64],
+    best: f64,
+    options: &IlpOptions,
+) -> Option<IlpSolution> {
+    let conflicts = |v: usize| (0..graph.n_nodes()).filter(|&u| remaining[u] && graph.adjacent[v][u]).count() as f64;
+    let mut tie_break = BinaryProgram::new(Sense::Maximise, variables.iter().map(|&v| conflicts(v)).collect());
+    tie_break.rows = program.rows.clone();
+    tie_break.at_least(
+        variables.iter().enumerate().map(|(i, &v)| (i, weight[v])).collect(),
+        best - TIE_TOLERANCE * best.max(1.0),
+    );
+    solve_in_turn(&tie_break, options).ok()
+}
+
+/// Adds to `taken` every candidate, heaviest first, that conflicts with nothing taken.
+fn complete_greedily(graph: &ConflictGraph, candidates: &[usize], mut taken: Vec<usize>, weight: &[f64]) -> Vec<usize> {
+    let mut order = candidates.to_vec();
+    order.sort_by(|&a, &b| weight[b].total_cmp(&weight[a]).then(a.cmp(&b)));
+    for v in order {
+        if !taken.contains(&v) && taken.iter().all(|&u| !graph.adjacent[u][v]) {
+            taken.push(v);
+        }
+    }
+    taken
 }
 
 /// First-fit colouring: each node, in the given order, joins the first group holding no
@@ -166,7 +206,11 @@ pub fn fewest_colours(graph: &ConflictGraph, colours: usize, options: &IlpOption
     for (c, &v) in largest.iter().enumerate() {
         program.equal(vec![(x(v, c), 1.0)], 1.0);
     }
-    let solution = solve_in_turn(&program, options)?;
+    let Some(solution) = solve_within_limit(&program, options)? else {
+        // No point found in time: the known colouring is the best count available.
+        return Ok((colours, SolveStatus::TimeLimit));
+    };
     let used = (0..colours).filter(|&c| solution.x[y(c)]).count();
     Ok((used, solution.status))
 }
+

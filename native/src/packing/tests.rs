@@ -545,6 +545,30 @@ fn antagonists_are_kept_apart_and_partners_together() {
 }
 
 #[test]
+fn a_time_limit_never_loses_a_shape_and_is_reported() {
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let mut stopped = 0;
+    for _ in 0..10 {
+        let inst = random_instance(&mut rng, 12);
+        let params = PackingParams { time_limit: Some(1e-9), pairs: Some(Vec::new()), fewest: true, ..Default::default() };
+        let packing = pack_expressions(&inst.rig(), None, &params, &NoProgress).unwrap();
+        let rules = Rules::new(&inst, &params, &packing.antagonists);
+        let mut placed = vec![0usize; inst.k()];
+        for e in &packing.expressions {
+            let set: Vec<bool> = (0..inst.k()).map(|s| e.shapes.contains(&s)).collect();
+            assert!(!e.shapes.is_empty() && rules.valid(&set), "{:?}", e.shapes);
+            assert_eq!(e.optimal, e.status == Some(SolveStatus::Optimal));
+            stopped += usize::from(!e.optimal);
+            e.shapes.iter().for_each(|&s| placed[s] += 1);
+        }
+        assert!((0..inst.k()).all(|s| placed[s] == usize::from(rules.placeable[s])));
+        let fewest = packing.fewest.unwrap();
+        assert!(fewest.count <= packing.expressions.len() || !fewest.optimal);
+    }
+    assert!(stopped > 0, "a 1 ns limit should stop some solve");
+}
+
+#[test]
 fn cancellation_stops_the_loop() {
     struct StopAfter(std::sync::atomic::AtomicUsize);
     impl Progress for StopAfter {
