@@ -536,10 +536,12 @@ fn antagonists_are_kept_apart_and_partners_together() {
     let checked = PackingParams { pairs: Some(vec![(0, 1)]), ..params };
     check_packing(&inst, &checked, &packing);
 
-    // Without antagonist rules (cosine threshold at -1, jaw pair named as partners by the
-    // user), the broad pair shares an expression: the cosine edge is what kept it apart.
+    // Without antagonist rules (cosine threshold at -1, IoU threshold at 1, so the jaw pair
+    // becomes a symmetric pair), the broad pair shares an expression: the cosine edge is what
+    // kept it apart.
     let plain = PackingParams { antagonist_cosine: -1.0, antagonist_iou: 1.0, ..Default::default() };
     let packing = pack_expressions(&inst.rig(), None, &plain, &NoProgress).unwrap();
+    assert!(packing.antagonists.is_empty() && packing.pairs.contains(&(2, 3)), "{packing:?}");
     let expression_of = |s: usize| packing.expressions.iter().position(|e| e.shapes.contains(&s)).unwrap();
     assert_eq!(expression_of(5), expression_of(6));
 }
