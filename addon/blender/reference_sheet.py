@@ -114,22 +114,31 @@ class _Stage:
         text.color = (0.05, 0.05, 0.05, 1.0)
         return text
 
+    def _fit(self, text):
+        """(size, wrapped text): the largest of a few sizes at which `text` fits the label area."""
+        for scale in (1.0, 0.8, 0.65, 0.55, 0.45):
+            size = self.line_height * scale
+            lines = textwrap.wrap(text, max(12, int(self.frame_width / (0.45 * size))))
+            if len(lines) * scale <= 4:
+                break
+        return size, "\n".join(lines)
+
     def render(self, number, members):
         """One tile, composed over the background: float RGBA (height, width, 4)."""
         self.number.data.body = number
-        width = max(12, int(self.frame_width / (0.55 * self.line_height)))
-        self.members.data.body = "\n".join(textwrap.wrap(", ".join(members), width)[:4])
+        self.members.data.size, self.members.data.body = self._fit(", ".join(members))
         path = os.path.join(self.folder, f"tile_{number}.png")
         self.scene.render.filepath = path
         bpy.ops.render.render(write_still=True, scene=self.scene.name)
         image = bpy.data.images.load(path)
         try:
-            pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+            width, height = image.size
+            pixels = np.empty(width * height * 4, dtype=np.float32)
             image.pixels.foreach_get(pixels)
         finally:
             bpy.data.images.remove(image)
             os.remove(path)
-        tile = pixels.reshape(image.size[1], image.size[0], 4)
+        tile = pixels.reshape(height, width, 4)
         alpha = tile[:, :, 3:]
         tile[:, :, :3] = tile[:, :, :3] * alpha + BACKGROUND * (1 - alpha)
         tile[:, :, 3] = 1.0
