@@ -142,6 +142,8 @@ def add_pack_args(parser):
     parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
     parser.add_argument("--csv", help="write the shot list here")
     parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
+    parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
+    parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
     parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
     parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
 
@@ -171,7 +173,7 @@ def run_pack(args):
         packing.bake_expressions(obj)
     if args.sheet:
         reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
-        reference_sheet.render_reference_sheet(obj, args.sheet)
+        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
         print(f"wrote {args.sheet}")
     if args.csv:
         packing.write_shot_list_csv(args.csv, report)

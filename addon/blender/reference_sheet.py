@@ -118,7 +118,7 @@ class _Stage:
         """(size, wrapped text): the largest of a few sizes at which `text` fits the label area."""
         for scale in (1.0, 0.8, 0.65, 0.55, 0.45):
             size = self.line_height * scale
-            lines = textwrap.wrap(text, max(12, int(self.frame_width / (0.45 * size))))
+            lines = textwrap.wrap(text, max(12, int(self.frame_width / (0.48 * size))))
             if len(lines) * scale <= 4:
                 break
         return size, "\n".join(lines)
