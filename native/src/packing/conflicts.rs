@@ -217,6 +217,7 @@ impl UnionFind {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // adjacency matrices read best indexed
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};

@@ -2,6 +2,8 @@
 //! triangle distortion against a target neutral (Eqs. (6)-(7), with the SPEC's `- 2`) and
 //! the optional uniqueness (Eq. (8)), combined as Eq. (4) plus a floor.
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
 use rayon::prelude::*;
 
 use crate::rig::{norm, RigView};
@@ -70,25 +72,18 @@ pub fn triangle_distortion(scores: &[f64], triangles: &[[u32; 3]], active: &[Vec
 
 /// Cosines of the flattened delta fields of every two shapes (K x K, symmetric, 1 on the
 /// diagonal of moving shapes, 0 for inert ones). Used for the cosine antagonists and Eq. (8).
+/// One Gram matrix product: the shapes are the columns of a 3N x K matrix.
 pub fn cosine_matrix(rig: &RigView) -> Vec<Vec<f64>> {
     let k_count = rig.n_shapes();
-    let norms: Vec<f64> = (0..k_count).map(|k| crate::geometry::mirror::field_norm(rig.delta(k))).collect();
+    let rows = 3 * rig.n_vertices();
+    let fields = Mat::<f64>::from_fn(rows, k_count, |r, k| rig.delta(k)[r / 3][r % 3] as f64);
+    let mut gram = Mat::<f64>::zeros(k_count, k_count);
+    matmul(&mut gram, Accum::Replace, fields.transpose(), &fields, 1.0, Par::Seq);
+    let norms: Vec<f64> = (0..k_count).map(|k| gram[(k, k)].sqrt()).collect();
     (0..k_count)
-        .into_par_iter()
         .map(|i| {
             (0..k_count)
-                .map(|j| {
-                    if norms[i] == 0.0 || norms[j] == 0.0 {
-                        return 0.0;
-                    }
-                    let dot: f64 = rig
-                        .delta(i)
-                        .iter()
-                        .zip(rig.delta(j))
-                        .map(|(p, q)| (0..3).map(|c| p[c] as f64 * q[c] as f64).sum::<f64>())
-                        .sum();
-                    dot / (norms[i] * norms[j])
-                })
+                .map(|j| if norms[i] > 0.0 && norms[j] > 0.0 { gram[(i, j)] / (norms[i] * norms[j]) } else { 0.0 })
                 .collect()
         })
         .collect()
@@ -184,6 +179,25 @@ mod tests {
         let td = triangle_distortion(&scores, &tris, &active, pts.len());
         assert_eq!(td, vec![0.0, 1.0, 0.0]);
         assert_eq!(triangle_distortion(&vec![0.0; tris.len()], &tris, &active, pts.len()), vec![0.0; 3]);
+    }
+
+    #[test]
+    fn cosine_matrix_matches_the_direct_cosine() {
+        let (pts, tris) = grid();
+        let n = pts.len();
+        let names: Vec<String> = ["a", "b", "c", "still"].map(String::from).to_vec();
+        let deltas: Vec<[f32; 3]> = (0..4 * n)
+            .map(|i| if i >= 3 * n { [0.0; 3] } else { [(i % 7) as f32 - 3.0, (i % 5) as f32 * 0.5, (i % 3) as f32 - 1.0] })
+            .collect();
+        let rig = RigView::new(&pts, &deltas, &tris, &names).unwrap();
+        let cosines = cosine_matrix(&rig);
+        for i in 0..4 {
+            for j in 0..4 {
+                let direct = crate::geometry::mirror::cosine(rig.delta(i), rig.delta(j));
+                assert!((cosines[i][j] - direct).abs() < 1e-12, "{i} {j}: {} vs {direct}", cosines[i][j]);
+            }
+        }
+        assert!((cosines[0][0] - 1.0).abs() < 1e-12 && cosines[3][3] == 0.0);
     }
 
     #[test]

@@ -23,7 +23,8 @@ fn solve_in_turn(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithRes
 
 /// Eq. (3) on the nodes still `remaining`: maximise $\sum_v \lambda_v x_v$ subject to
 /// $\sum_{v \in Q} x_v \le 1$ for every clique Q of the cover. Nodes with no remaining
-/// neighbour are always taken (weights are positive) and stay out of the program.
+/// neighbour are always taken (weights are positive) and stay out of the program; when the
+/// rest is a set of disjoint cliques, the heaviest node of each is taken without a solve.
 ///
 /// Ties (several sets of the same weight, common when shapes have equal importance) are
 /// broken by a second solve: among the sets within [`TIE_TOLERANCE`] of the optimum, the one
@@ -58,6 +59,20 @@ pub fn heaviest_independent_set(
             if terms.len() >= 2 {
                 program.at_most(terms, 1.0);
             }
+        }
+        let mut rows_per_variable = vec![0usize; variables.len()];
+        for row in &program.rows {
+            row.terms.iter().for_each(|t| rows_per_variable[t.0] += 1);
+        }
+        if rows_per_variable.iter().all(|&r| r == 1) {
+            // The remaining conflicts are disjoint cliques (every edge lies in a row): the
+            // heaviest node of each is optimal, and no solve is needed.
+            for row in &program.rows {
+                let heaviest = row.terms.iter().map(|t| variables[t.0]);
+                chosen.extend(heaviest.max_by(|&a, &b| weight[a].total_cmp(&weight[b]).then(b.cmp(&a))));
+            }
+            chosen.sort_unstable();
+            return Ok((chosen, SolveStatus::Optimal));
         }
         let mut solution = solve_in_turn(&program, options)?;
         status = solution.status;

@@ -248,8 +248,8 @@ fn check_packing(inst: &Instance, params: &PackingParams, packing: &Packing) {
     if params.max_expressions.is_none() {
         assert!(unplaced.is_empty());
     }
-    for s in 0..k {
-        assert_eq!(placed[s], usize::from(rules.placeable[s] && !unplaced.contains(&s)), "shape {s}");
+    for (s, &count) in placed.iter().enumerate() {
+        assert_eq!(count, usize::from(rules.placeable[s] && !unplaced.contains(&s)), "shape {s}");
     }
     let weights = packing.weights();
     assert_eq!(weights.len(), packing.expressions.len());
