@@ -112,6 +112,20 @@ def test_stored_weights_match_the_members_and_survive_save_and_reload(sample, sh
     assert report["params"]["mu"] == pytest.approx(0.3)
 
 
+def test_export_shot_list_writes_json_and_csv_from_the_stored_result(sample, tmp_path):
+    template = bpy.data.objects["Template"]
+    groups = members(pack(template))
+    path = tmp_path / "shots.json"
+    assert bpy.ops.shapesmith.export_shot_list(filepath=str(path)) == {"FINISHED"}
+    report = json.loads(path.read_text())
+    assert [e["shapes"] for e in report["expressions"]] == groups
+    assert {frozenset(a) for a in report["antagonists"]} >= {frozenset(a) for a in ANTAGONISTS}
+    assert len(report["weights"]) == len(groups) and all(sum(row) == len(g) for row, g in zip(report["weights"], groups))
+    rows = list(csv.DictReader(open(tmp_path / "shots.csv")))
+    assert [r["label"] for r in rows] == [f"REF_{j + 1:02d}" for j in range(len(groups))]
+    assert [r["shapes"].split() for r in rows] == groups
+
+
 def test_a_higher_threshold_packs_into_no_more_expressions(sample):
     template = bpy.data.objects["Template"]
     loose = len(pack(template, mu=0.2).expressions)

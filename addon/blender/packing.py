@@ -11,10 +11,6 @@ import numpy as np
 from .. import native
 from .mesh_arrays import MeshDataError, check_mesh, read_positions, read_rig
 
-# Keys of the stored result that the JSON shot list carries, in order.
-REPORT_KEYS = ("expressions", "importance", "inert", "excluded", "unplaced", "pairs", "antagonists", "weights", "fewest", "params")
-
-
 def packing_options(obj, axis=0, time_limit=None):
     """The keyword arguments of `pack_object` from the settings stored on `obj`: parameters,
     refinements, and the symmetric pairs of Analyze Rig (as the user left them) when the rig
