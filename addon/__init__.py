@@ -10,7 +10,12 @@ _MODULE_NAMES = (
     "properties",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
+    "operators.pack_expressions",
+    "operators.pack_refinements",
+    "operators.pose_expressions",
+    "operators.export_expressions",
     "ui.panels",
+    "ui.pack_panel",
 )
 
 _modules = []

@@ -30,11 +30,120 @@ class SHAPESMITH_PG_analysis(bpy.types.PropertyGroup):
     self_symmetric: bpy.props.StringProperty(description="Shapes that are their own mirror image")
 
 
+# --- Pack Expressions: settings, refinements and the last result (read by Transfer) ---
+
+
+def _is_other_mesh(settings, obj):
+    """Target candidates: meshes other than the rig that owns the settings."""
+    return obj.type == "MESH" and obj != settings.id_data
+
+
+class SHAPESMITH_PG_shape_name(bpy.types.PropertyGroup):
+    name: bpy.props.StringProperty(name="Shape", description="Shape key name")
+
+
+class SHAPESMITH_PG_packed_shape(bpy.types.PropertyGroup):
+    """One shape key of the packed rig, in the rig's order: column k of the J x K weights."""
+
+    name: bpy.props.StringProperty(name="Shape")
+    importance: bpy.props.FloatProperty(name="Importance", description="Eq. (4) in the first iteration; 0 when inert")
+    expression: bpy.props.IntProperty(
+        name="Expression", description="Index of the expression that poses this shape (-1: none)", default=-1
+    )
+
+
+class SHAPESMITH_PG_expression(bpy.types.PropertyGroup):
+    """One reference expression: its member shapes are posed at 1 together."""
+
+    name: bpy.props.StringProperty(name="Label")
+    members: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    importance: bpy.props.FloatProperty(name="Importance")
+    vertices: bpy.props.IntProperty(name="Vertices", description="Vertices the expression moves strongly")
+    optimal: bpy.props.BoolProperty(name="Optimal", description="Proven the most important expression left")
+    status: bpy.props.StringProperty(name="Solver Status")
+
+
+class SHAPESMITH_PG_pack_result(bpy.types.PropertyGroup):
+    done: bpy.props.BoolProperty(default=False)
+    expressions: bpy.props.CollectionProperty(type=SHAPESMITH_PG_expression)
+    shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_packed_shape)
+    inert: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    excluded: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    unplaced: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    antagonists: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    fewest: bpy.props.IntProperty(name="Fewest Possible", description="0: not asked for")
+    fewest_optimal: bpy.props.BoolProperty()
+    params_json: bpy.props.StringProperty(description="The parameters of the native call, as JSON")
+
+
+class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
+    mu: bpy.props.FloatProperty(
+        name="Threshold (mu)",
+        description="A vertex belongs to a shape's region when it moves at least this fraction of the shape's "
+        "largest displacement (paper: 0.25 to 0.4)",
+        default=0.3,
+        min=0.01,
+        max=1.0,
+    )
+    a: bpy.props.FloatProperty(
+        name="Strength vs Distortion (a)",
+        description="Importance weight of displacement strength; the rest goes to the target's triangle distortion",
+        default=0.5,
+        min=0.0,
+        max=1.0,
+    )
+    beta: bpy.props.FloatProperty(
+        name="Uniqueness (beta)",
+        description="Importance weight of shapes unlike those already placed (0: off)",
+        default=0.0,
+        min=0.0,
+        soft_max=2.0,
+    )
+    target: bpy.props.PointerProperty(
+        name="Target",
+        type=bpy.types.Object,
+        poll=_is_other_mesh,
+        description="Optional new head of the same topology: shapes that distort it most are packed first",
+    )
+    limit_expressions: bpy.props.BoolProperty(
+        name="Limit", description="Stop after a maximum number of expressions (J max)", default=False
+    )
+    max_expressions: bpy.props.IntProperty(name="J max", description="Most expressions to pack", default=10, min=1)
+    symmetric: bpy.props.BoolProperty(
+        name="Symmetric Pairs Together", description="Pose left/right partners in the same expression", default=True
+    )
+    antagonist_cosine: bpy.props.FloatProperty(
+        name="Antagonist Cosine",
+        description="Two shapes whose displacements have a cosine below this are never posed together",
+        default=-0.5,
+        min=-1.0,
+        max=0.0,
+    )
+    fewest: bpy.props.BoolProperty(
+        name="Fewest Possible",
+        description="Also prove the fewest expressions the conflicts allow (shown beside J)",
+        default=False,
+    )
+    pin_together: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    active_pin: bpy.props.IntProperty()
+    keep_apart: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    active_apart: bpy.props.IntProperty()
+    exclude: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    active_exclude: bpy.props.IntProperty()
+    result: bpy.props.PointerProperty(type=SHAPESMITH_PG_pack_result)
+    active_expression: bpy.props.IntProperty(name="Expression")
+    baked: bpy.props.CollectionProperty(
+        type=SHAPESMITH_PG_shape_name, description="Shape keys written by Bake: never packed themselves"
+    )
+
+
 class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
     analysis: bpy.props.PointerProperty(type=SHAPESMITH_PG_analysis)
     pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
     active_pair: bpy.props.IntProperty(name="Active Pair")
     antagonists: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    pack: bpy.props.PointerProperty(type=SHAPESMITH_PG_pack)
 
 
 class SHAPESMITH_PG_scene(bpy.types.PropertyGroup):
@@ -54,6 +163,11 @@ class SHAPESMITH_PG_scene(bpy.types.PropertyGroup):
 _CLASSES = (
     SHAPESMITH_PG_shape_pair,
     SHAPESMITH_PG_analysis,
+    SHAPESMITH_PG_shape_name,
+    SHAPESMITH_PG_packed_shape,
+    SHAPESMITH_PG_expression,
+    SHAPESMITH_PG_pack_result,
+    SHAPESMITH_PG_pack,
     SHAPESMITH_PG_object,
     SHAPESMITH_PG_scene,
 )

@@ -3,7 +3,7 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze (see `-- COMMAND --help`). Every command but `sample` needs the
+Commands: sample, analyze, pack (see `-- COMMAND --help`). Every command but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
 on stderr; input files are never written (results go to --output/--json).
 """
@@ -129,9 +129,65 @@ def run_analyze(args):
     write_json(args.json, report)
 
 
+def add_pack_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--target", help="target head of the same topology (importance by its distortion)")
+    parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
+    parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
+    parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
+    parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
+    parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
+    parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
+    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
+    parser.add_argument("--csv", help="write the shot list here")
+    parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
+    parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
+    parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
+    parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
+    parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
+
+
+def run_pack(args):
+    """Settings and refinements stored on the object apply; flags override them."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    packing = import_module(shapesmith.__name__ + ".blender.packing")
+    obj = find_object(args.object)
+    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
+    options.update({key: value for key, value in overrides.items() if value is not None})
+    options["fewest"] = args.fewest or options.get("fewest", False)
+    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
+    if args.target:
+        options["target"] = find_object(args.target)
+    report = packing.pack_object(obj, **options)
+    started = time.perf_counter()
+    packing.store_packing(obj, report)
+    for line in packing.summary_lines(report):
+        print(line)
+    if args.bake:
+        packing.bake_expressions(obj)
+    if args.sheet:
+        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
+        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
+        print(f"wrote {args.sheet}")
+    if args.csv:
+        packing.write_shot_list_csv(args.csv, report)
+    if args.output:
+        save_copy(args.output)
+    report.update(input=os.path.abspath(args.input), object=args.object)
+    report["seconds"]["write"] = time.perf_counter() - started
+    write_json(args.json, report)
+
+
 COMMANDS = {
     "sample": (add_sample_args, run_sample, "build sample.blend from the MakeHuman assets"),
     "analyze": (add_analyze_args, run_analyze, "analyze a rig's shape keys"),
+    "pack": (add_pack_args, run_pack, "pack the shape keys into reference expressions"),
 }
 
 

@@ -63,14 +63,6 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
                 box.label(text=f"{pair.first} / {pair.second}")
 
 
-class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
-    bl_label = "Pack Expressions"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Pack Expressions tool", icon="INFO")
-
-
 class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Landmarks"
     bl_options = {"DEFAULT_CLOSED"}
@@ -87,7 +79,7 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         self.layout.label(text="Not available yet: arrives with the Transfer Shape Keys tool", icon="INFO")
 
 
-_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_pack, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
+_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
 
 
 def register():
