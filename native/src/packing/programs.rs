@@ -2,8 +2,6 @@
 //! independent set) and the fewest expressions possible (a graph colouring), plus the
 //! first-fit colouring that serves as the greedy baseline and as the colouring's bound.
 
-use std::sync::Mutex;
-
 use super::conflicts::ConflictGraph;
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::ilp::{solve_binary, BinaryProgram, IlpOptions, IlpSolution, Sense, SolveStatus};
@@ -12,19 +10,10 @@ use crate::ilp::{solve_binary, BinaryProgram, IlpOptions, IlpSolution, Sense, So
 /// below the precision of importances computed from f32 displacements.
 pub const TIE_TOLERANCE: f64 = 1e-10;
 
-/// HiGHS must not run on several threads at once; packing jobs may start from several
-/// threads (Blender jobs, parallel tests), so they take turns here.
-static HIGHS_TURN: Mutex<()> = Mutex::new(());
-
-fn solve_in_turn(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<IlpSolution> {
-    let _turn = HIGHS_TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    solve_binary(program, options)
-}
-
 /// Solves; `None` when a time limit is set and HiGHS stopped before finding any point (it
 /// then reports a failure rather than a status).
 fn solve_within_limit(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<Option<IlpSolution>> {
-    match solve_in_turn(program, options) {
+    match solve_binary(program, options) {
         Err(ShapesmithError::Solver(_)) if options.time_limit.is_some() => Ok(None),
         other => other.map(Some),
     }
@@ -125,7 +114,7 @@ fn break_tie(
         variables.iter().enumerate().map(|(i, &v)| (i, weight[v])).collect(),
         best - TIE_TOLERANCE * best.max(1.0),
     );
-    solve_in_turn(&tie_break, options).ok()
+    solve_binary(&tie_break, options).ok()
 }
 
 /// Adds to `taken` every candidate, heaviest first, that conflicts with nothing taken.
