@@ -20,9 +20,9 @@ impl Aabb {
     }
 
     fn grow(&mut self, p: &Vec3) {
-        for a in 0..3 {
-            self.lo[a] = self.lo[a].min(p[a]);
-            self.hi[a] = self.hi[a].max(p[a]);
+        for (a, &x) in p.iter().enumerate() {
+            self.lo[a] = self.lo[a].min(x);
+            self.hi[a] = self.hi[a].max(x);
         }
     }
 

@@ -248,9 +248,9 @@ impl DeformationTransfer {
     fn right_hand_side(&self, gradients: &[Mat3]) -> Vec<Vec3> {
         let mut rhs = vec![[0.0; 3]; self.n_vertices()];
         for ((tri, op), h) in self.triangles.iter().zip(&self.target_operators).zip(gradients) {
-            for c in 0..3 {
-                let v = tri[c] as usize;
-                rhs[v] = add(rhs[v], scale(mat_vec(h, op.hat_gradients[c]), op.area));
+            for (&v, &grad) in tri.iter().zip(&op.hat_gradients) {
+                let v = v as usize;
+                rhs[v] = add(rhs[v], scale(mat_vec(h, grad), op.area));
             }
         }
         if !self.virtual_edges.is_empty() {
@@ -310,10 +310,9 @@ impl DeformationTransfer {
                 sub(scale(source[p], inv * self.piece_scale[p]), scale(solved[p], inv))
             })
             .collect();
-        for v in 0..out.len() {
-            let p = self.piece[v] as usize;
-            if pinned[p] {
-                out[v] = add(out[v], shift[p]);
+        for (d, &p) in out.iter_mut().zip(&self.piece) {
+            if pinned[p as usize] {
+                *d = add(*d, shift[p as usize]);
             }
         }
     }
@@ -337,7 +336,7 @@ fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
         return Err(invalid!("static_fraction must lie in [0, 1), got {}", params.static_fraction));
     }
     if let Some(ve) = &params.virtual_edges {
-        if !(ve.tau_d.is_finite() && ve.tau_d > 0.0) || !(ve.tau_r.is_finite() && ve.tau_r > 0.0) {
+        if !(ve.tau_d.is_finite() && ve.tau_d > 0.0 && ve.tau_r.is_finite() && ve.tau_r > 0.0) {
             return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {}, tau_r = {}", ve.tau_d, ve.tau_r));
         }
     }

@@ -164,8 +164,8 @@ mod tests {
         // The field f(x) = a . x sampled at the corners has gradient = tangential part of a.
         let a = [0.7, -1.9, 2.3];
         let mut grad = [0.0; 3];
-        for i in 0..3 {
-            grad = add(grad, scale(op.hat_gradients[i], dot(a, p[i])));
+        for (&g, &q) in op.hat_gradients.iter().zip(&p) {
+            grad = add(grad, scale(g, dot(a, q)));
         }
         let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
         let n = scale(n, 1.0 / length(n));

@@ -79,7 +79,7 @@ impl DeformationTransfer {
         self.validate_deltas(source_deltas, names)?;
         let (n, n_shapes) = (self.n_vertices(), names.len());
         validate_personalise_params(params)?;
-        if examples.len() % n != 0 {
+        if !examples.len().is_multiple_of(n) {
             return Err(invalid!("training expressions hold {} vertex rows, not a multiple of the {n} vertices", examples.len()));
         }
         let n_examples = examples.len() / n;
@@ -310,7 +310,7 @@ fn validate_personalise_params(params: &PersonaliseParams) -> ShapesmithResult<(
     if !(params.beta_reg.is_finite() && params.beta_reg > 0.0) {
         return Err(invalid!("beta_reg must be a positive number, got {}", params.beta_reg));
     }
-    if !(params.kappa.is_finite() && params.kappa > 0.0) || !(params.theta.is_finite() && params.theta >= 0.0) {
+    if !(params.kappa.is_finite() && params.kappa > 0.0 && params.theta.is_finite() && params.theta >= 0.0) {
         return Err(invalid!("kappa must be positive and theta >= 0, got kappa = {}, theta = {}", params.kappa, params.theta));
     }
     Ok(())

@@ -77,6 +77,7 @@ pub struct TransferReport {
 
 /// Transfers the template's shapes onto `target_neutral` (personalised when `examples` are
 /// given) and reports timings and penetration. Returns K x N target deltas.
+#[allow(clippy::too_many_arguments)]
 pub fn transfer_shapes(
     source_neutral: &[[f32; 3]],
     source_deltas: &[[f32; 3]],
@@ -166,7 +167,7 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
     let n = neutral.len();
     crate::rig::validate_triangle_indices(n, triangles)?;
     crate::rig::validate_points(neutral, "neutral")?;
-    if n == 0 || deltas.len() % n != 0 {
+    if n == 0 || !deltas.len().is_multiple_of(n) {
         return Err(invalid!("deltas hold {} vertex rows, not a multiple of the {n} vertices of the neutral", deltas.len()));
     }
     let shapes = deltas
