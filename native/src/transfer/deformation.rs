@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
 use super::gradients::{
-    add, corners, delta_gradient, edge_frame, inverse, mat_add_scaled, mat_vec, scale, sub, to_f64, transpose, Mat3,
+    add, corners, delta_gradient, dot, edge_frame, inverse, mat_add_scaled, mat_vec, scale, sub, to_f64, transpose, Mat3,
     TriangleOperator, Vec3, IDENTITY, ZERO,
 };
 use super::system::NormalMatrix;
@@ -188,14 +188,19 @@ impl DeformationTransfer {
             .collect()
     }
 
-    /// `S_kt - I` for every triangle of one source shape (S&P Eq. 1).
+    /// `S_kt - I` for every triangle of one source shape (S&P Eq. 1); zero on triangles whose
+    /// corners are all static (their rows are eliminated anyway).
     pub(super) fn shape_gradients(&self, delta: &[[f32; 3]]) -> Vec<Mat3> {
-        let offsets: Vec<Vec3> = delta.iter().map(to_f64).collect();
-        self.triangles
-            .iter()
-            .zip(&self.source_rest_inverse)
-            .map(|(tri, rest_inverse)| delta_gradient(rest_inverse, corners(&self.source_neutral, Some(&offsets), tri)))
+        let moving = self.moving_vertices(delta);
+        (0..self.triangles.len())
+            .map(|t| if self.triangles[t].iter().any(|&v| moving[v as usize]) { self.triangle_gradient(t, delta) } else { ZERO })
             .collect()
+    }
+
+    /// `|D_k[n]| >= static_fraction x max_n |D_k[n]|`.
+    fn moving_vertices(&self, delta: &[[f32; 3]]) -> Vec<bool> {
+        let threshold = self.static_fraction * max_length(delta);
+        delta.iter().map(|d| length32(d) >= threshold).collect()
     }
 
     /// `S_kt - I` of one triangle of one source shape.
@@ -210,8 +215,7 @@ impl DeformationTransfer {
     /// shape `delta` fixed at zero and floating pieces placed by their carried-over motion.
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradients: &[Mat3]) -> ShapesmithResult<Vec<Vec3>> {
         let n = self.n_vertices();
-        let threshold = self.static_fraction * max_length(delta);
-        let moving: Vec<bool> = delta.iter().map(|d| length32(d) >= threshold).collect();
+        let moving = self.moving_vertices(delta);
         // A piece with moving vertices but no static one floats: pin its first vertex.
         let n_pieces = self.piece_scale.len();
         let mut anchored = vec![false; n_pieces];
@@ -244,7 +248,8 @@ impl DeformationTransfer {
     }
 
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
-    /// energy for deltas) plus `+-w_ve (S_ij - I)(B0_i - B0_j)` at the ends of each virtual edge.
+    /// energy for deltas) plus `+-w_ve (S_ij - I)(B0_i - B0_j)` at the ends of each virtual
+    /// edge (paper 004: the edge vector transformed by the mean gradient at its ends).
     fn right_hand_side(&self, gradients: &[Mat3]) -> Vec<Vec3> {
         let mut rhs = vec![[0.0; 3]; self.n_vertices()];
         for ((tri, op), h) in self.triangles.iter().zip(&self.target_operators).zip(gradients) {
@@ -352,7 +357,7 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
     }
     let rms = |points: &[Vec3], m: &[usize]| {
         let c = centroid(&m.iter().map(|&v| points[v]).collect::<Vec<_>>());
-        (m.iter().map(|&v| super::gradients::dot(sub(points[v], c), sub(points[v], c))).sum::<f64>() / m.len().max(1) as f64).sqrt()
+        (m.iter().map(|&v| dot(sub(points[v], c), sub(points[v], c))).sum::<f64>() / m.len().max(1) as f64).sqrt()
     };
     members
         .iter()

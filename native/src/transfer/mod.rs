@@ -46,6 +46,12 @@
 //!   are squared lengths, and `w_ve = 1` makes a virtual edge weigh about as much as one mesh
 //!   edge of the cotangent Laplacian (whose weights are `(cot a + cot b) / 2 ~ 0.6`).
 //!   `S_ij` is the mean of the source gradients averaged over the one-rings of `i` and `j`.
+//!   As in the paper, the springs hold a gap at its transformed rest vector: a layer that
+//!   translates has `S ~ I`, so gaps that the template closes (blinks, a closed mouth) are
+//!   held partly open, and transfer onto the template itself is exact only without virtual
+//!   edges. (A rank-one correction mapping the template's own pair vector exactly would close
+//!   gaps by the template's fraction; tried, it leaves no margin, and thick lips crossed at
+//!   any weight up to 30, so it was not kept.)
 //! - **Personalisation** follows EBFR in the gradient domain: per triangle, the K target
 //!   gradients minimise `sum_j |sum_k alpha_jk M_k - A_j|^2 + beta sum_k w_k |M_k - S_k|^2`
 //!   with EBFR's adaptive weight `w_k = ((1 + |S_k|) / (kappa + |S_k|))^theta`, normalised

@@ -394,3 +394,4 @@ fn serial_and_parallel_runs_agree_and_cancelling_stops() {
     }
     assert_eq!(dt.transfer(&deltas, &names, &Stop).unwrap_err(), ShapesmithError::Cancelled);
 }
+
