@@ -74,7 +74,7 @@ mod system;
 mod virtual_edges;
 
 pub use deformation::DeformationTransfer;
-pub use penetration::{measure_penetration, Penetration};
+pub use penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};
 pub use report::{
     measure_rig_penetration, transfer_shapes, RigPenetration, ShapePenetration, StageSeconds, TrainingExpressions, TransferReport,
