@@ -10,7 +10,10 @@ _MODULE_NAMES = (
     "properties",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
+    "operators.preview_virtual_edges",
+    "operators.transfer_shape_keys",
     "ui.panels",
+    "ui.transfer_panel",
 )
 
 _modules = []

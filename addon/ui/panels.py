@@ -79,15 +79,7 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
         self.layout.label(text="Not available yet: arrives with the Place Landmarks tool", icon="INFO")
 
 
-class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
-    bl_label = "Transfer"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Transfer Shape Keys tool", icon="INFO")
-
-
-_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_pack, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
+_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_pack, SHAPESMITH_PT_landmarks)
 
 
 def register():
