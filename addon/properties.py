@@ -104,13 +104,17 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
 
 
 class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
-    """Intersection curve of one transferred shape beside the template's own for that shape."""
+    """Intersection curve of one transferred shape beside the template's own for that shape
+    (lips or lids passing through each other; the neutral's own intersection included)."""
 
     name: bpy.props.StringProperty(name="Shape")
     length: bpy.props.FloatProperty(name="Curve Length", subtype="DISTANCE")
     pairs: bpy.props.IntProperty(name="Pairs")
     template_length: bpy.props.FloatProperty(name="Template Curve Length", subtype="DISTANCE")
     template_pairs: bpy.props.IntProperty(name="Template Pairs")
+    worse: bpy.props.BoolProperty(
+        name="Worse", description="Adds more intersection to the target's neutral than to the template's"
+    )
 
 
 class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
@@ -121,6 +125,8 @@ class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
     virtual_edges: bpy.props.IntProperty(name="Virtual Edges")
     examples: bpy.props.IntProperty(name="Training Expressions")
     seconds: bpy.props.FloatProperty(name="Seconds")
+    neutral_length: bpy.props.FloatProperty(name="Target Neutral Curve Length", subtype="DISTANCE")
+    template_neutral_length: bpy.props.FloatProperty(name="Template Neutral Curve Length", subtype="DISTANCE")
     shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_transfer_shape)
 
 

@@ -222,9 +222,13 @@ def run_transfer(args):
                 "virtual_edges": result.report["virtual_edges"],
                 "penetrations": result.report["penetration"],
                 "neutral_penetration": result.report["neutral_penetration"],
+                "template_neutral_penetration": result.report["template_neutral_penetration"],
                 "training": {name: row.tolist() for name, row in result.training.items()},
                 "weights": result.report.get("weights"),
                 "worse_than_template": transfer.worse_than_template(result.report),
+                "plain_worse_than_template": (
+                    transfer.worse_than_template(result.report, key="plain_length") if not args.no_virtual_edges else None
+                ),
                 "warnings": result.warnings,
                 "seconds": seconds,
             }

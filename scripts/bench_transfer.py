@@ -95,7 +95,7 @@ def warp_benchmark(nat, rig, pack_json):
         examples = np.stack([w(points + np.tensordot(weights[row], rig.deltas, 1)) for row in range(j)])
         started = time.perf_counter()
         rows[f"personalised, {j} packed expressions"], report = transfer(
-            virtual_edges=True, examples=examples, example_weights=weights
+            virtual_edges=True, examples=examples, example_weights=weights.tolist()
         )
         result["personalise_seconds"] = time.perf_counter() - started
         result["personalise_native_seconds"] = report["seconds"]
@@ -106,7 +106,7 @@ def warp_benchmark(nat, rig, pack_json):
             control_weights = np.zeros((len(chosen), len(rig.names)), dtype=np.float32)
             control_weights[np.arange(len(chosen)), chosen] = 1.0
             control_examples = np.stack([w(points + rig.deltas[k]) for k in chosen])
-            controls.append(transfer(virtual_edges=True, examples=control_examples, example_weights=control_weights)[0])
+            controls.append(transfer(virtual_edges=True, examples=control_examples, example_weights=control_weights.tolist())[0])
         rows[f"personalised, {j} random single shapes (control, {CONTROL_SEEDS} seeds)"] = float(np.mean(controls))
         result["control_spread"] = [float(min(controls)), float(max(controls))]
         result["expressions"] = expressions
@@ -114,14 +114,13 @@ def warp_benchmark(nat, rig, pack_json):
     return result
 
 
-def penetration_benchmark(nat, rig, targets, rest_positions):
+def penetration_benchmark(transfer_module, template, targets):
     """Per target: total intersection-curve length with and without virtual edges beside the
-    template's, and the shapes whose curve is longer than the template's."""
+    template's, and the shapes that add more intersection to the target's neutral than to
+    the template's (with virtual edges, and plain)."""
     result = {}
     for target in targets:
-        _, report = nat.transfer_shapes(
-            rig.neutral, rig.deltas, rest_positions(target), rig.triangles, rig.names, compare_plain=True
-        )
+        report = transfer_module.transfer_object(template, target, compare_plain=True).report
         rows = report["penetration"]
         result[target.name] = {
             "virtual_edges": report["virtual_edges"],
@@ -129,10 +128,10 @@ def penetration_benchmark(nat, rig, targets, rest_positions):
             "plain_length": sum(r["plain_length"] for r in rows),
             "template_length": sum(r["template_length"] for r in rows),
             "neutral_length": report["neutral_penetration"]["length"],
-            "worse_than_template": {
-                r["name"]: [r["length"], r["template_length"]] for r in rows if r["length"] > r["template_length"] + 1e-9
-            },
-            "plain_worse_than_template": sorted(r["name"] for r in rows if r["plain_length"] > r["template_length"] + 1e-9),
+            "template_neutral_length": report["template_neutral_penetration"]["length"],
+            "worse_than_template": transfer_module.worse_than_template(report),
+            "plain_worse_than_template": transfer_module.worse_than_template(report, key="plain_length"),
+            "shapes": rows,
         }
     return result
 
@@ -172,7 +171,7 @@ def timing_benchmark(nat, mesh_arrays, template, target, rest_positions, runs=3)
     started = time.perf_counter()
     _, report = nat.transfer_shapes(
         rig.neutral, rig.deltas, neutral, rig.triangles, rig.names,
-        measure_penetration=False, examples=examples, example_weights=weights,
+        measure_penetration=False, examples=examples, example_weights=weights.tolist(),
     )
     return {
         "vertices": len(rig.neutral),
@@ -188,12 +187,16 @@ def print_report(result):
     print(f"\n== Warp ground truth (mean error on active vertices / bbox diagonal; packing: {warp_result['packing']})")
     for name, value in warp_result["mean_active_error"].items():
         print(f"  {name:55s} {value:.2e}")
-    print("\n== Penetration on the identities (total intersection-curve length over 52 shapes)")
+    print("\n== Penetration on the identities (intersection-curve length added to each neutral, summed over the shapes)")
     for name, row in result["penetration"].items():
+        k = len(row["shapes"])
+        added = row["length"] - k * row["neutral_length"]
+        plain = row["plain_length"] - k * row["neutral_length"]
+        template = row["template_length"] - k * row["template_neutral_length"]
         print(
-            f"  {name}: {row['virtual_edges']} virtual edges; with {row['length']:.4f}, plain {row['plain_length']:.4f}, "
-            f"template {row['template_length']:.4f}; worse than the template: "
-            f"{', '.join(row['worse_than_template']) or 'none'} (plain: {', '.join(row['plain_worse_than_template']) or 'none'})"
+            f"  {name}: {row['virtual_edges']} virtual edges; added with {added:.4f}, plain {plain:.4f}, template {template:.4f}; "
+            f"shapes adding more than on the template: {len(row['worse_than_template'])} "
+            f"(plain {len(row['plain_worse_than_template'])}): {', '.join(row['worse_than_template']) or 'none'}"
         )
     print("\n== Timings (best of 3, native seconds)")
     for name, row in result["timings"].items():
@@ -215,7 +218,8 @@ def main():
     from importlib import import_module
 
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
-    rest_positions = import_module(shapesmith.__name__ + ".blender.transfer").rest_positions
+    transfer_module = import_module(shapesmith.__name__ + ".blender.transfer")
+    rest_positions = transfer_module.rest_positions
     nat = shapesmith.native.module()
     sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
     if not os.path.isfile(sample):
@@ -226,7 +230,7 @@ def main():
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {
         "warp": warp_benchmark(nat, rig, args.pack_json),
-        "penetration": penetration_benchmark(nat, rig, targets, rest_positions),
+        "penetration": penetration_benchmark(transfer_module, template, targets),
         "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
     }
     dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")

@@ -44,29 +44,42 @@ def rest_positions(obj):
     return co.reshape(-1, 3)
 
 
-def check_same_topology(obj, template, template_triangles, what="target"):
-    """Raises MeshDataError unless `obj` has the template's vertices and faces (same count,
-    same corners), naming both counts; returns nothing."""
+def face_corners(obj):
+    """(corners per face, vertex of each corner): the mesh's faces, independent of positions
+    (unlike `loop_triangles`, whose split of a quad follows its shape)."""
+    mesh = obj.data
+    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    corners = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", corners)
+    return sizes, corners
+
+
+def check_same_topology(obj, template, what="target"):
+    """Raises MeshDataError unless `obj` has the template's vertices and faces (same counts,
+    same corners), naming both counts. The template's triangles then serve both meshes."""
     check_mesh(obj, need_shape_keys=False)
-    n_obj, n_template = len(obj.data.vertices), len(template.data.vertices)
-    if n_obj != n_template:
+    (sizes, corners), (template_sizes, template_corners) = face_corners(obj), face_corners(template)
+    counts = [
+        (len(mesh.vertices), len(face_sizes), int(np.sum(face_sizes - 2)))
+        for mesh, face_sizes in ((obj.data, sizes), (template.data, template_sizes))
+    ]
+    for index, unit in enumerate(("vertices", "faces", "triangles")):
+        if counts[0][index] != counts[1][index]:
+            raise MeshDataError(
+                f"{what} '{obj.name}' has {counts[0][index]} {unit} but template '{template.name}' has "
+                f"{counts[1][index]}: transfer needs the same topology"
+            )
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    differs = np.flatnonzero(
+        (sizes != template_sizes) | np.logical_or.reduceat(corners != template_corners, starts)
+    )
+    if len(differs):
+        f = differs[0]
         raise MeshDataError(
-            f"{what} '{obj.name}' has {n_obj} vertices but template '{template.name}' has {n_template}: "
-            "transfer needs the same topology"
-        )
-    triangles = read_triangles(obj)
-    if len(triangles) != len(template_triangles):
-        raise MeshDataError(
-            f"{what} '{obj.name}' has {len(triangles)} triangles but template '{template.name}' has "
-            f"{len(template_triangles)}: transfer needs the same topology"
-        )
-    differing = np.flatnonzero(np.any(triangles != template_triangles, axis=1))
-    if len(differing):
-        t = differing[0]
-        raise MeshDataError(
-            f"{what} '{obj.name}' has the template's counts but other faces ({len(differing)} triangles differ, "
-            f"e.g. triangle {t}: vertices {tuple(triangles[t])} vs {tuple(template_triangles[t])}): "
-            "transfer needs the same topology"
+            f"{what} '{obj.name}' has the template's counts but other faces ({len(differs)} faces differ, "
+            f"e.g. face {f}: vertices {tuple(obj.data.polygons[f].vertices)} vs "
+            f"{tuple(template.data.polygons[f].vertices)}): transfer needs the same topology"
         )
 
 
@@ -78,7 +91,7 @@ def _read_pair(source, target):
     if target == source or target.data == source.data:
         raise MeshDataError(f"the target '{target.name}' is the template itself: pick another mesh as target")
     rig = read_rig(source)
-    check_same_topology(target, source, rig.triangles)
+    check_same_topology(target, source)
     return rig, rest_positions(target)
 
 
@@ -131,7 +144,7 @@ def training_weights(obj_name, names, expressions):
     return weights
 
 
-def read_training(objects, source, target, names, triangles, expressions):
+def read_training(objects, source, target, names, expressions):
     """Training expressions (J, N, 3) and their weights (J, K) from meshes of the target's
     topology; the template and target themselves, and non-meshes, are left out."""
     chosen = [o for o in objects if o.type == "MESH" and o not in (source, target)]
@@ -139,7 +152,7 @@ def read_training(objects, source, target, names, triangles, expressions):
         raise MeshDataError("no training expressions: put meshes of the target's topology in the training collection")
     positions, rows = [], {}
     for obj in sorted(chosen, key=lambda o: o.name):
-        check_same_topology(obj, source, triangles, what="training expression")
+        check_same_topology(obj, source, what="training expression")
         rows[obj.name] = training_weights(obj.name, names, expressions)
         positions.append(rest_positions(obj))
     return np.ascontiguousarray(np.stack(positions)), np.stack(list(rows.values())), rows
@@ -169,7 +182,7 @@ def transfer_object(
     if training_objects:
         expressions = packed_expressions(source, pack_report)
         examples, example_weights, training = read_training(
-            training_objects, source, target, rig.names, rig.triangles, expressions
+            training_objects, source, target, rig.names, expressions
         )
     read = time.perf_counter()
     deltas, report = native.module().transfer_shapes(
@@ -183,12 +196,17 @@ def transfer_object(
         tau_r=tau_r,
         edge_weight=edge_weight,
         examples=examples,
-        example_weights=example_weights,
+        example_weights=None if example_weights is None else example_weights.tolist(),
         beta_reg=beta_reg,
         refine_weights=refine_weights,
         compare_plain=compare_plain,
         measure_penetration=True,
     )
+    # The template's own neutral intersection, so each shape is judged by what it adds: the
+    # MakeHuman heads' eyes, teeth and lashes already cross the skin at rest.
+    empty = np.zeros((0, len(rig.neutral), 3), dtype=np.float32)
+    report["template_neutral_penetration"] = native.module().measure_penetration(rig.neutral, empty, rig.triangles)["neutral"]
+    report["diagonal"] = float(np.linalg.norm(target_neutral.max(0) - target_neutral.min(0)))
     report["seconds"]["read"] = read - started
     return Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
 
@@ -241,18 +259,31 @@ def store_transfer(transfer, written, skipped):
     result.virtual_edges = report["virtual_edges"]
     result.examples = len(transfer.training)
     result.seconds = sum(report["seconds"].values())
+    result.neutral_length = report["neutral_penetration"]["length"]
+    result.template_neutral_length = report["template_neutral_penetration"]["length"]
+    worse = set(worse_than_template(report))
     result.shapes.clear()
     for row in report["penetration"]:
         item = result.shapes.add()
         item.name = row["name"]
         item.length, item.pairs = row["length"], row["pairs"]
         item.template_length, item.template_pairs = row["template_length"], row["template_pairs"]
+        item.worse = row["name"] in worse
     result.done = True
 
 
-def worse_than_template(report, tolerance=1e-9):
-    """Names of shapes whose intersection curve on the target is longer than the template's."""
-    return [row["name"] for row in report["penetration"] if row["length"] > row["template_length"] + tolerance]
+def worse_than_template(report, key="length", tolerance=1e-3):
+    """Names of shapes that add more intersection curve to the target's neutral than they add
+    to the template's (beyond `tolerance` x the bbox diagonal); `key="plain_length"` judges
+    plain transfer."""
+    target_rest = report["neutral_penetration"]["length"]
+    template_rest = report["template_neutral_penetration"]["length"]
+    margin = tolerance * report["diagonal"]
+    return [
+        row["name"]
+        for row in report["penetration"]
+        if row[key] - target_rest > row["template_length"] - template_rest + margin
+    ]
 
 
 def summary_lines(transfer, written, skipped):
@@ -266,6 +297,6 @@ def summary_lines(transfer, written, skipped):
         f"virtual edges: {report['virtual_edges']}"
         + (f"; personalised with {len(transfer.training)} training expressions" if transfer.training else ""),
         "seconds: " + ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
-        f"shapes intersecting more than on the template: {', '.join(worse) or 'none'}",
+        f"shapes adding more intersection than on the template: {', '.join(worse) or 'none'}",
     ]
     return lines + [f"warning: {w}" for w in transfer.warnings]

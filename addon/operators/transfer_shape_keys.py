@@ -48,13 +48,15 @@ class TransferOperator:
         store_transfer(transfer, written, skipped)
         for warning in transfer.warnings + warnings:
             self.report({"WARNING"}, warning)
+        if not written:
+            self.report({"WARNING"}, f"every key already exists on '{target.name}': nothing written (tick Overwrite Existing Keys)")
         worse = worse_than_template(transfer.report)
         self.report(
             {"INFO"},
             f"{len(written)} shape keys written onto '{target.name}'"
             + (f", {len(skipped)} existing kept" if skipped else "")
             + f"; {transfer.report['virtual_edges']} virtual edges"
-            + (f"; intersecting more than the template: {', '.join(worse)}" if worse else ""),
+            + (f"; adding more intersection than on the template: {', '.join(worse)}" if worse else ""),
         )
         return {"FINISHED"}
 

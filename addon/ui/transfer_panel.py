@@ -52,13 +52,12 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"Virtual edges: {result.virtual_edges}")
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")
-        worse = [s for s in result.shapes if s.length > s.template_length + 1e-9]
-        col.label(
-            text=f"Intersecting more than the template: {len(worse)}",
-            icon="ERROR" if worse else "CHECKMARK",
-        )
+        worse = [s for s in result.shapes if s.worse]
+        col.label(text=f"Adding more intersection than on the template: {len(worse)}", icon="ERROR" if worse else "CHECKMARK")
         for shape in worse[:8]:
-            col.label(text=f"  {shape.name}: {shape.length:.4f} vs {shape.template_length:.4f} ({shape.pairs} pairs)")
+            added = shape.length - result.neutral_length
+            template_added = shape.template_length - result.template_neutral_length
+            col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template")
 
 
 def register():
