@@ -60,8 +60,10 @@ def copy_driver(fcurve, keys, mapping):
     if keys.animation_data is not None and keys.animation_data.drivers.find(path) is not None:
         keys.driver_remove(path)
     new = keys.driver_add(path)
-    for modifier in list(new.modifiers):  # driver_add adds a default Generator
+    # driver_add starts with a default Generator (4.x) or default keyframes (5.x)
+    for modifier in list(new.modifiers):
         new.modifiers.remove(modifier)
+    new.keyframe_points.clear()
     driver, source_driver = new.driver, fcurve.driver
     driver.type = source_driver.type
     driver.use_self = source_driver.use_self
@@ -113,7 +115,7 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
         if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups
     ]
     if target.data.shape_keys is None:
-        target.shape_key_add(name="Basis", from_mix=False)
+        target.shape_key_add(name="Basis", from_mix=False).value = 0.0
     keys = target.data.shape_keys
     created = set()
     for name in written:  # all keys first, so relative keys can name keys later in the list
