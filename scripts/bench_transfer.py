@@ -12,7 +12,8 @@
    with and without virtual edges beside the template's own.
 3. Timings on the bundled rig and on a 4x denser subdivision of it.
 The packed expressions come from `shapesmith_native.pack_expressions` when the native core
-has it, else from a Pack Expressions JSON report (--pack-json); without either, row 4 is left out.
+has it, else from a Pack Expressions JSON report (--pack-json, default docs/template_pack.json,
+the stored packing of the sample Template).
 """
 
 import argparse
@@ -21,8 +22,8 @@ import os
 import sys
 import time
 
-import bmesh
 import bpy
+import bmesh  # noqa: I001  (bmesh loads only after bpy)
 import numpy as np
 
 SCRIPTS = os.path.dirname(os.path.abspath(__file__))
@@ -56,10 +57,10 @@ def packed_expressions(nat, rig, target_neutral, pack_json):
     if hasattr(nat, "pack_expressions"):
         report = nat.pack_expressions(rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral)
         return [e["shapes"] for e in report["expressions"]], "shapesmith_native.pack_expressions"
-    if pack_json:
+    if pack_json and os.path.isfile(pack_json):
         with open(pack_json) as f:
             return [e["shapes"] for e in json.load(f)["expressions"]], pack_json
-    return None, "no packing available (native core without pack_expressions and no --pack-json)"
+    return None, "no packing available (native core without pack_expressions, no --pack-json file)"
 
 
 def warp_benchmark(nat, rig, pack_json):
@@ -142,7 +143,7 @@ def subdivided(obj, name):
     mesh = bmesh.new()
     mesh.from_mesh(obj.data)
     bmesh.ops.subdivide_edges(mesh, edges=mesh.edges[:], cuts=1, use_grid_fill=True)
-    data = bpy.data.meshes.new(name)
+    data = obj.data.copy()  # keeps the Key, whose blocks to_mesh fills from the layers
     mesh.to_mesh(data)
     mesh.free()
     copy = bpy.data.objects.new(name, data)
@@ -212,7 +213,11 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_transfer.py --")
     parser.add_argument("--json", default=os.path.join(batch_cache(), "bench", "transfer.json"))
-    parser.add_argument("--pack-json", help="Pack Expressions JSON report of the Template")
+    parser.add_argument(
+        "--pack-json",
+        default=os.path.join(SCRIPTS, "..", "docs", "template_pack.json"),
+        help="Pack Expressions JSON report of the Template (used when the native core has no pack_expressions)",
+    )
     args = parser.parse_args(argv)
     shapesmith = batch.load_shapesmith()
     from importlib import import_module

@@ -22,7 +22,7 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 from bench_transfer import batch_cache  # noqa: E402
 
-SIZE = (360, 300)
+SIZE = (300, 250)
 
 
 def transferred_copy(modules, template, target, name, virtual_edges):
@@ -66,11 +66,12 @@ def side_by_side(paths, output):
     pixels = [np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4) for image in images]
     gap = np.ones((height, 6, 4), dtype=np.float32)
     combined = np.concatenate([pixels[0], gap, pixels[1]], axis=1)
-    result = bpy.data.images.new("side_by_side", combined.shape[1], height, alpha=True)
+    result = bpy.data.images.new("side_by_side", combined.shape[1], height, alpha=False)
     result.pixels = combined.ravel()
-    result.filepath_raw = output
-    result.file_format = "PNG"
-    result.save()
+    # save through the scene's output settings: 8-bit RGB, full compression (a small PNG)
+    settings = bpy.context.scene.render.image_settings
+    settings.file_format, settings.color_mode, settings.color_depth, settings.compression = "PNG", "RGB", "8", 100
+    result.save_render(output)
 
 
 def main():
