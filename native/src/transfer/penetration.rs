@@ -23,34 +23,79 @@ pub struct Penetration {
 /// Measures the self-intersection of `positions` with `triangles` (indices must be in range).
 pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Penetration {
     let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
-    measure_penetration_f64(&points, triangles)
+    total(&crossings(&points, triangles, None))
 }
 
-pub(crate) fn measure_penetration_f64(points: &[Vec3], triangles: &[[u32; 3]]) -> Penetration {
+/// The self-intersections of a rest mesh, kept so that each of its shapes is scored by
+/// re-testing only the triangles the shape moves: a pair of unmoved triangles crosses
+/// exactly as at rest.
+pub struct PenetrationBaseline<'a> {
+    neutral: &'a [[f32; 3]],
+    triangles: &'a [[u32; 3]],
+    /// `(a, b, length)` with `a < b`, in order of `a`.
+    rest: Vec<(u32, u32, f64)>,
+}
+
+impl<'a> PenetrationBaseline<'a> {
+    pub fn new(neutral: &'a [[f32; 3]], triangles: &'a [[u32; 3]]) -> Self {
+        let points: Vec<Vec3> = neutral.iter().map(|p| p.map(f64::from)).collect();
+        Self { neutral, triangles, rest: crossings(&points, triangles, None) }
+    }
+
+    /// The rest mesh's own penetration.
+    pub fn neutral(&self) -> Penetration {
+        total(&self.rest)
+    }
+
+    /// The penetration of `neutral + delta` (N rows). A vertex moves when its delta is not
+    /// exactly zero.
+    pub fn shape(&self, delta: &[[f32; 3]]) -> Penetration {
+        let points: Vec<Vec3> =
+            self.neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
+        let moved: Vec<bool> =
+            self.triangles.iter().map(|t| t.iter().any(|&v| delta[v as usize] != [0.0; 3])).collect();
+        let unmoved = self.rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]).copied();
+        let mut all: Vec<(u32, u32, f64)> = unmoved.collect();
+        all.extend(crossings(&points, self.triangles, Some(&moved)));
+        total(&all)
+    }
+}
+
+fn total(pairs: &[(u32, u32, f64)]) -> Penetration {
+    // Summed in a fixed order so the result does not depend on the thread count.
+    Penetration { length: pairs.iter().map(|p| p.2).sum(), pairs: pairs.len() }
+}
+
+/// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex. With
+/// `moved`, only pairs with at least one moved triangle are tested.
+fn crossings(points: &[Vec3], triangles: &[[u32; 3]], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let boxes: Vec<Aabb> = (0..triangles.len()).map(|t| Aabb::of_points(&corners(t))).collect();
     let bvh = Bvh::new(&boxes);
-    let per_triangle: Vec<(f64, usize)> = (0..triangles.len())
+    let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
+    let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
         .into_par_iter()
         .map(|a| {
-            let mut total = (0.0, 0usize);
+            let mut found = Vec::new();
+            if !is_moved(a) {
+                return found;
+            }
             bvh.for_each_overlap(&boxes[a], |b| {
                 let b = b as usize;
-                if b <= a || triangles[a].iter().any(|v| triangles[b].contains(v)) {
+                // Each pair once: from its lower index when both moved, else from the moved one.
+                if (b <= a && is_moved(b)) || a == b || triangles[a].iter().any(|v| triangles[b].contains(v)) {
                     return;
                 }
                 if let Some(len) = intersection_length(corners(a), corners(b)) {
-                    total.0 += len;
-                    total.1 += 1;
+                    found.push((a.min(b) as u32, a.max(b) as u32, len));
                 }
             });
-            total
+            found
         })
         .collect();
-    // Summed in triangle order so the result does not depend on the thread count.
-    per_triangle
-        .into_iter()
-        .fold(Penetration::default(), |acc, (len, pairs)| Penetration { length: acc.length + len, pairs: acc.pairs + pairs })
+    let mut all: Vec<(u32, u32, f64)> = per_triangle.into_iter().flatten().collect();
+    all.sort_by_key(|&(a, b, _)| (a, b));
+    all
 }
 
 /// The length of the segment where two triangles cross, or `None` when they do not cross
@@ -139,6 +184,24 @@ mod tests {
         )
         .unwrap();
         assert!((p.length - expect).abs() < 1e-12 && p.length > 0.0);
+    }
+
+    #[test]
+    fn baseline_scores_a_shape_like_a_full_sweep() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let pts: Vec<[f32; 3]> = (0..240).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let tris: Vec<[u32; 3]> = (0..80).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        let baseline = PenetrationBaseline::new(&pts, &tris);
+        assert_eq!(baseline.neutral(), measure_penetration(&pts, &tris));
+        // Move a third of the triangles.
+        let delta: Vec<[f32; 3]> =
+            (0..pts.len()).map(|v| if v % 9 < 3 { [0.2, -0.1, 0.05 * (v % 4) as f32] } else { [0.0; 3] }).collect();
+        let posed: Vec<[f32; 3]> = pts.iter().zip(&delta).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect();
+        let full = measure_penetration(&posed, &tris);
+        let fast = baseline.shape(&delta);
+        assert!(full.pairs > 5 && full != baseline.neutral());
+        assert_eq!(fast.pairs, full.pairs);
+        assert!((fast.length - full.length).abs() < 1e-9);
     }
 
     #[test]

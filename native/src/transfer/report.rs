@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::penetration::measure_penetration;
+use super::penetration::PenetrationBaseline;
 use super::{DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::invalid;
@@ -115,15 +115,15 @@ pub fn transfer_shapes(
 
     let (penetration, neutral_penetration) = if params.measure_penetration {
         let start = Instant::now();
-        let posed = |neutral: &[[f32; 3]], d: &[[f32; 3]], k: usize| -> Vec<[f32; 3]> {
-            neutral.iter().zip(&d[k * n..(k + 1) * n]).map(|(p, q)| [p[0] + q[0], p[1] + q[1], p[2] + q[2]]).collect()
-        };
+        let on_target = PenetrationBaseline::new(target_neutral, triangles);
+        let on_template = PenetrationBaseline::new(source_neutral, triangles);
         let per_shape = (0..names.len())
             .into_par_iter()
             .map(|k| {
-                let result = measure_penetration(&posed(target_neutral, &deltas, k), triangles);
-                let template = measure_penetration(&posed(source_neutral, source_deltas, k), triangles);
-                let plain = plain.as_ref().map(|d| measure_penetration(&posed(target_neutral, d, k), triangles));
+                let rows = k * n..(k + 1) * n;
+                let result = on_target.shape(&deltas[rows.clone()]);
+                let template = on_template.shape(&source_deltas[rows.clone()]);
+                let plain = plain.as_ref().map(|d| on_target.shape(&d[rows]));
                 ShapePenetration {
                     name: names[k].clone(),
                     length: result.length,
@@ -135,9 +135,8 @@ pub fn transfer_shapes(
                 }
             })
             .collect();
-        let neutral = measure_penetration(target_neutral, triangles);
         seconds.penetration = start.elapsed().as_secs_f64();
-        (per_shape, Some(neutral))
+        (per_shape, Some(on_target.neutral()))
     } else {
         (Vec::new(), None)
     };
@@ -161,7 +160,7 @@ pub struct RigPenetration {
     pub shapes: Vec<Penetration>,
 }
 
-/// [`measure_penetration`] of `neutral` and of `neutral + D_k` for each of the K shapes in
+/// [`super::measure_penetration`] of `neutral` and of `neutral + D_k` for each of the K shapes in
 /// `deltas` (K x N); triangle indices are checked.
 pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triangles: &[[u32; 3]]) -> ShapesmithResult<RigPenetration> {
     let n = neutral.len();
@@ -170,12 +169,7 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
     if n == 0 || !deltas.len().is_multiple_of(n) {
         return Err(invalid!("deltas hold {} vertex rows, not a multiple of the {n} vertices of the neutral", deltas.len()));
     }
-    let shapes = deltas
-        .par_chunks(n)
-        .map(|d| {
-            let posed: Vec<[f32; 3]> = neutral.iter().zip(d).map(|(p, q)| [p[0] + q[0], p[1] + q[1], p[2] + q[2]]).collect();
-            measure_penetration(&posed, triangles)
-        })
-        .collect();
-    Ok(RigPenetration { neutral: measure_penetration(neutral, triangles), shapes })
+    let baseline = PenetrationBaseline::new(neutral, triangles);
+    let shapes = deltas.par_chunks(n).map(|d| baseline.shape(d)).collect();
+    Ok(RigPenetration { neutral: baseline.neutral(), shapes })
 }

@@ -100,6 +100,8 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
 struct DijkstraScratch {
     distance: Vec<f64>,
     touched: Vec<u32>,
+    /// Per vertex: its index in the current candidate list plus one (0: not a candidate).
+    candidate: Vec<u32>,
 }
 
 #[derive(PartialEq)]
@@ -122,7 +124,7 @@ impl PartialOrd for Entry {
 
 impl DijkstraScratch {
     fn new(n: usize) -> Self {
-        Self { distance: vec![f64::INFINITY; n], touched: Vec::new() }
+        Self { distance: vec![f64::INFINITY; n], touched: Vec::new(), candidate: vec![0; n] }
     }
 
     /// The candidates `(j, d_ij)` whose edge-graph distance from `source` exceeds
@@ -137,7 +139,11 @@ impl DijkstraScratch {
         ratio: f64,
     ) -> Vec<(usize, f64)> {
         let bound = ratio * candidates.iter().map(|c| c.1).fold(0.0, f64::max);
-        let mut pending: std::collections::HashMap<usize, f64> = candidates.iter().copied().collect();
+        for (slot, &(j, _)) in candidates.iter().enumerate() {
+            self.candidate[j] = slot as u32 + 1;
+        }
+        let mut settled = vec![false; candidates.len()];
+        let mut pending = candidates.len();
         let mut far = Vec::new();
         let mut heap = BinaryHeap::new();
         self.distance[source] = 0.0;
@@ -148,12 +154,16 @@ impl DijkstraScratch {
             if g > self.distance[v] {
                 continue;
             }
-            if g > bound || pending.is_empty() {
+            if g > bound || pending == 0 {
                 break;
             }
-            if let Some(d) = pending.remove(&v) {
+            let slot = self.candidate[v];
+            if slot > 0 && !settled[slot as usize - 1] {
+                let (j, d) = candidates[slot as usize - 1];
+                settled[slot as usize - 1] = true;
+                pending -= 1;
                 if g > ratio * d {
-                    far.push((v, d));
+                    far.push((j, d));
                 }
             }
             for &u in adjacency.neighbours(v) {
@@ -170,7 +180,10 @@ impl DijkstraScratch {
             }
         }
         // Not reached within the bound: farther than ratio x d along the surface.
-        far.extend(pending);
+        far.extend(candidates.iter().zip(&settled).filter(|(_, &done)| !done).map(|(&c, _)| c));
+        for &(j, _) in candidates {
+            self.candidate[j] = 0;
+        }
         for &v in &self.touched {
             self.distance[v as usize] = f64::INFINITY;
         }
