@@ -14,8 +14,11 @@ _MODULE_NAMES = (
     "operators.pack_refinements",
     "operators.pose_expressions",
     "operators.export_expressions",
+    "operators.preview_virtual_edges",
+    "operators.transfer_shape_keys",
     "ui.panels",
     "ui.pack_panel",
+    "ui.transfer_panel",
 )
 
 _modules = []

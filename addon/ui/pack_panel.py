@@ -35,6 +35,7 @@ def _refinement_list(layout, settings, title, kind, collection, index, list_type
 
 class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Pack Expressions"
+    bl_order = 1
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):

@@ -27,6 +27,7 @@ class ShapesmithPanel:
 
 class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Rig"
+    bl_order = 0
 
     def draw(self, context):
         layout = self.layout
@@ -65,21 +66,14 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
 
 class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Landmarks"
+    bl_order = 2
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         self.layout.label(text="Not available yet: arrives with the Place Landmarks tool", icon="INFO")
 
 
-class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
-    bl_label = "Transfer"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Transfer Shape Keys tool", icon="INFO")
-
-
-_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
+_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_landmarks)
 
 
 def register():
