@@ -10,11 +10,19 @@ _MODULE_NAMES = (
     "properties",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
+    "operators.pack_expressions",
+    "operators.pack_refinements",
+    "operators.pose_expressions",
+    "operators.export_expressions",
     "operators.place_landmarks",
     "operators.score_layout",
     "operators.export_landmarks",
     "operators.render_landmarks",
+    "operators.preview_virtual_edges",
+    "operators.transfer_shape_keys",
     "ui.panels",
+    "ui.pack_panel",
+    "ui.transfer_panel",
 )
 
 _modules = []

@@ -56,6 +56,214 @@ class SHAPESMITH_PG_layout_score(bpy.types.PropertyGroup):
     max_error: bpy.props.FloatProperty(name="Max Error", description="Largest reconstruction error / bbox diagonal")
 
 
+# --- Pack Expressions: settings, refinements and the last result (read by Transfer) ---
+
+
+def _is_other_mesh(settings, obj):
+    """Target candidates: meshes other than the rig that owns the settings."""
+    return obj.type == "MESH" and obj != settings.id_data
+
+
+class SHAPESMITH_PG_shape_name(bpy.types.PropertyGroup):
+    name: bpy.props.StringProperty(name="Shape", description="Shape key name")
+
+
+class SHAPESMITH_PG_packed_shape(bpy.types.PropertyGroup):
+    """One shape key of the packed rig, in the rig's order: column k of the J x K weights."""
+
+    name: bpy.props.StringProperty(name="Shape")
+    importance: bpy.props.FloatProperty(name="Importance", description="Eq. (4) in the first iteration; 0 when inert")
+    expression: bpy.props.IntProperty(
+        name="Expression", description="Index of the expression that poses this shape (-1: none)", default=-1
+    )
+
+
+class SHAPESMITH_PG_expression(bpy.types.PropertyGroup):
+    """One reference expression: its member shapes are posed at 1 together."""
+
+    name: bpy.props.StringProperty(name="Label")
+    members: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    importance: bpy.props.FloatProperty(name="Importance")
+    vertices: bpy.props.IntProperty(name="Vertices", description="Vertices the expression moves strongly")
+    optimal: bpy.props.BoolProperty(name="Optimal", description="Proven the most important expression left")
+    status: bpy.props.StringProperty(name="Solver Status")
+
+
+class SHAPESMITH_PG_pack_result(bpy.types.PropertyGroup):
+    done: bpy.props.BoolProperty(default=False)
+    expressions: bpy.props.CollectionProperty(type=SHAPESMITH_PG_expression)
+    shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_packed_shape)
+    inert: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    excluded: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    unplaced: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    antagonists: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    fewest: bpy.props.IntProperty(name="Fewest Possible", description="0: not asked for")
+    fewest_optimal: bpy.props.BoolProperty()
+    params_json: bpy.props.StringProperty(description="The parameters of the native call, as JSON")
+
+
+class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
+    mu: bpy.props.FloatProperty(
+        name="Threshold (mu)",
+        description="A vertex belongs to a shape's region when it moves at least this fraction of the shape's "
+        "largest displacement (paper: 0.25 to 0.4)",
+        default=0.3,
+        min=0.01,
+        max=1.0,
+    )
+    a: bpy.props.FloatProperty(
+        name="Strength vs Distortion (a)",
+        description="Importance weight of displacement strength; the rest goes to the target's triangle distortion",
+        default=0.5,
+        min=0.0,
+        max=1.0,
+    )
+    beta: bpy.props.FloatProperty(
+        name="Uniqueness (beta)",
+        description="Importance weight of shapes unlike those already placed (0: off)",
+        default=0.0,
+        min=0.0,
+        soft_max=2.0,
+    )
+    target: bpy.props.PointerProperty(
+        name="Target",
+        type=bpy.types.Object,
+        poll=_is_other_mesh,
+        description="Optional new head of the same topology: shapes that distort it most are packed first",
+    )
+    limit_expressions: bpy.props.BoolProperty(
+        name="Limit", description="Stop after a maximum number of expressions (J max)", default=False
+    )
+    max_expressions: bpy.props.IntProperty(name="J max", description="Most expressions to pack", default=10, min=1)
+    symmetric: bpy.props.BoolProperty(
+        name="Symmetric Pairs Together", description="Pose left/right partners in the same expression", default=True
+    )
+    antagonist_cosine: bpy.props.FloatProperty(
+        name="Antagonist Cosine",
+        description="Two shapes whose displacements have a cosine below this are never posed together",
+        default=-0.5,
+        min=-1.0,
+        max=0.0,
+    )
+    fewest: bpy.props.BoolProperty(
+        name="Fewest Possible",
+        description="Also prove the fewest expressions the conflicts allow (shown beside J)",
+        default=False,
+    )
+    pin_together: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    active_pin: bpy.props.IntProperty()
+    keep_apart: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    active_apart: bpy.props.IntProperty()
+    exclude: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
+    active_exclude: bpy.props.IntProperty()
+    result: bpy.props.PointerProperty(type=SHAPESMITH_PG_pack_result)
+    active_expression: bpy.props.IntProperty(name="Expression")
+    baked: bpy.props.CollectionProperty(
+        type=SHAPESMITH_PG_shape_name, description="Shape keys written by Bake: never packed themselves"
+    )
+
+
+# --- Transfer Shape Keys: scene settings and the last transfer's report on the target ---
+
+
+def _has_shape_keys(settings, obj):
+    """Transfer sources: meshes with shape keys beyond the Basis."""
+    keys = obj.data.shape_keys if obj.type == "MESH" else None
+    return keys is not None and len(keys.key_blocks) > 1
+
+
+class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
+    source: bpy.props.PointerProperty(
+        name="Template",
+        type=bpy.types.Object,
+        poll=_has_shape_keys,
+        description="Mesh whose shape keys are transferred onto the active object (same topology)",
+    )
+    virtual_edges: bpy.props.BoolProperty(
+        name="Virtual Edges",
+        description="Keep opposite lips, eyelids and nostril walls from passing through each other",
+        default=True,
+    )
+    tau_d: bpy.props.FloatProperty(
+        name="Distance (tau_d)",
+        description="Vertex pairs closer than this fraction of the bounding-box diagonal are candidates",
+        default=0.015,
+        min=0.0001,
+        max=0.2,
+        precision=4,
+    )
+    tau_r: bpy.props.FloatProperty(
+        name="Detour (tau_r)",
+        description="A candidate pair becomes a virtual edge when its path along the surface is this many "
+        "times longer than the straight distance",
+        default=4.0,
+        min=1.0,
+        soft_max=20.0,
+    )
+    edge_weight: bpy.props.FloatProperty(
+        name="Weight", description="Weight of each virtual edge against the shape-following energy", default=1.0, min=0.0, soft_max=100.0
+    )
+    overwrite: bpy.props.BoolProperty(
+        name="Overwrite Existing Keys",
+        description="Replace the target's shape keys that have a template key's name (otherwise they are skipped)",
+        default=False,
+    )
+    copy_drivers: bpy.props.BoolProperty(
+        name="Copy Drivers",
+        description="Recreate the drivers on the template's key values, re-targeted from the template to the target",
+        default=False,
+    )
+    compare_plain: bpy.props.BoolProperty(
+        name="Compare Without Virtual Edges",
+        description="Also measure the penetration of plain transfer (one more solve)",
+        default=False,
+    )
+    training: bpy.props.PointerProperty(
+        name="Training",
+        type=bpy.types.Collection,
+        description="Meshes of the target's topology posing expressions: named REF_01... after the template's "
+        "packed expressions, or after a shape key",
+    )
+    beta_reg: bpy.props.FloatProperty(
+        name="Regularisation",
+        description="How strongly personalised shapes stay close to the transferred ones",
+        default=0.1,
+        min=0.0,
+        soft_max=10.0,
+    )
+    refine_weights: bpy.props.BoolProperty(
+        name="Refine Weights", description="Also refit each training expression's weights within [0, 1]", default=False
+    )
+
+
+class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
+    """Intersection curve of one transferred shape beside the template's own for that shape
+    (lips or lids passing through each other; the neutral's own intersection included)."""
+
+    name: bpy.props.StringProperty(name="Shape")
+    length: bpy.props.FloatProperty(name="Curve Length", subtype="DISTANCE")
+    pairs: bpy.props.IntProperty(name="Pairs")
+    template_length: bpy.props.FloatProperty(name="Template Curve Length", subtype="DISTANCE")
+    template_pairs: bpy.props.IntProperty(name="Template Pairs")
+    worse: bpy.props.BoolProperty(
+        name="Worse", description="Adds more intersection to the target's neutral than to the template's"
+    )
+
+
+class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
+    done: bpy.props.BoolProperty(default=False)
+    source: bpy.props.StringProperty(name="Template")
+    written: bpy.props.IntProperty(name="Written")
+    skipped: bpy.props.StringProperty(description="Keys kept because they existed, comma separated")
+    virtual_edges: bpy.props.IntProperty(name="Virtual Edges")
+    examples: bpy.props.IntProperty(name="Training Expressions")
+    seconds: bpy.props.FloatProperty(name="Seconds")
+    neutral_length: bpy.props.FloatProperty(name="Target Neutral Curve Length", subtype="DISTANCE")
+    template_neutral_length: bpy.props.FloatProperty(name="Template Neutral Curve Length", subtype="DISTANCE")
+    shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_transfer_shape)
+
+
 class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
     analysis: bpy.props.PointerProperty(type=SHAPESMITH_PG_analysis)
     landmarks: bpy.props.PointerProperty(type=SHAPESMITH_PG_landmark_layout)
@@ -63,6 +271,8 @@ class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
     pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
     active_pair: bpy.props.IntProperty(name="Active Pair")
     antagonists: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
+    pack: bpy.props.PointerProperty(type=SHAPESMITH_PG_pack)
+    transfer: bpy.props.PointerProperty(type=SHAPESMITH_PG_transfer_result)
 
 
 class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
@@ -114,6 +324,7 @@ class SHAPESMITH_PG_scene(bpy.types.PropertyGroup):
         description="Pair shapes by Left/Right, _L/_R, .L/.R names where geometry finds no mirror partner",
         default=True,
     )
+    transfer: bpy.props.PointerProperty(type=SHAPESMITH_PG_transfer_settings)
 
 
 _CLASSES = (
@@ -121,6 +332,14 @@ _CLASSES = (
     SHAPESMITH_PG_analysis,
     SHAPESMITH_PG_landmark_layout,
     SHAPESMITH_PG_layout_score,
+    SHAPESMITH_PG_shape_name,
+    SHAPESMITH_PG_packed_shape,
+    SHAPESMITH_PG_expression,
+    SHAPESMITH_PG_pack_result,
+    SHAPESMITH_PG_pack,
+    SHAPESMITH_PG_transfer_settings,
+    SHAPESMITH_PG_transfer_shape,
+    SHAPESMITH_PG_transfer_result,
     SHAPESMITH_PG_object,
     SHAPESMITH_PG_landmark_settings,
     SHAPESMITH_PG_scene,

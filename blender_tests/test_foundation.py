@@ -156,5 +156,5 @@ def test_batch_bad_input_exits_with_one_line(sample_path, tmp_path, args, messag
     proc = run_batch("analyze", *args)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
-    assert lines and message in lines[-1] and lines[-1].startswith("shapesmith: error:")
+    assert len(lines) == 1 and message in lines[0] and lines[0].startswith("shapesmith: error:")
     assert file_digest(path) == digest

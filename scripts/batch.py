@@ -3,7 +3,8 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze, landmarks (see `-- COMMAND --help`). Every command but `sample` needs the
+Commands: sample, analyze, pack, landmarks, transfer (see `-- COMMAND --help`). Every command
+but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
 on stderr; input files are never written (results go to --output/--json).
 """
@@ -187,10 +188,183 @@ def run_landmarks(args):
         save_copy(args.output)
 
 
+def add_pack_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--target", help="target head of the same topology (importance by its distortion)")
+    parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
+    parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
+    parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
+    parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
+    parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
+    parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
+    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
+    parser.add_argument("--csv", help="write the shot list here")
+    parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
+    parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
+    parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
+    parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
+    parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
+
+
+def run_pack(args):
+    """Settings and refinements stored on the object apply; flags override them."""
+def add_transfer_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--source", required=True, help="the template: mesh with shape keys")
+    parser.add_argument("--target", action="append", default=[], help="mesh to receive the keys (repeatable)")
+    parser.add_argument("--targets", help="glob over object names, e.g. 'Target_*'")
+    parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer")
+    parser.add_argument("--tau-d", type=float, default=0.015, help="virtual-edge distance, fraction of the bbox diagonal")
+    parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
+    parser.add_argument("--edge-weight", type=float, default=1.0, help="weight of each virtual edge")
+    parser.add_argument(
+        "--examples",
+        help="training expressions to personalise with, comma separated object names (REF_01-style after the "
+        "packed expressions, or after shape keys); with several targets use {target} in the names",
+    )
+    parser.add_argument("--pack-json", help="Pack Expressions JSON report naming the expressions' shapes")
+    parser.add_argument("--beta-reg", type=float, default=0.1, help="personalisation regularisation")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
+    parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
+
+
+def transfer_targets(args):
+    """The target objects named by --target and --targets, in order, without repeats."""
+    import fnmatch
+
+    names = list(args.target)
+    if args.targets:
+        matched = sorted(o.name for o in bpy.data.objects if fnmatch.fnmatchcase(o.name, args.targets))
+        if not matched:
+            raise BatchError(f"--targets '{args.targets}' matches no object")
+        names += matched
+    if not names:
+        raise BatchError("give --target NAME (repeatable) or --targets GLOB")
+    return [find_object(name) for name in dict.fromkeys(names)]
+
+
+def run_transfer(args):
+    """Validates and solves every target before writing any, then writes and saves."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    packing = import_module(shapesmith.__name__ + ".blender.packing")
+    obj = find_object(args.object)
+    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
+    options.update({key: value for key, value in overrides.items() if value is not None})
+    options["fewest"] = args.fewest or options.get("fewest", False)
+    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
+    if args.target:
+        options["target"] = find_object(args.target)
+    report = packing.pack_object(obj, **options)
+    started = time.perf_counter()
+    packing.store_packing(obj, report)
+    for line in packing.summary_lines(report):
+        print(line)
+    if args.bake:
+        packing.bake_expressions(obj)
+    if args.sheet:
+        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
+        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
+        print(f"wrote {args.sheet}")
+    if args.csv:
+        packing.write_shot_list_csv(args.csv, report)
+    if args.output:
+        save_copy(args.output)
+    report.update(input=os.path.abspath(args.input), object=args.object)
+    report["seconds"]["write"] = time.perf_counter() - started
+    write_json(args.json, report)
+    started = time.perf_counter()
+    open_blend(args.input)
+    transfer = import_module(shapesmith.__name__ + ".blender.transfer")
+    shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
+    source = find_object(args.source)
+    targets = transfer_targets(args)
+    pack_report = None
+    if args.pack_json:
+        if not os.path.isfile(args.pack_json):
+            raise BatchError(f"pack JSON not found: {args.pack_json}")
+        with open(args.pack_json) as f:
+            pack_report = json.load(f)
+    if args.examples and len(targets) > 1 and "{target}" not in args.examples:
+        raise BatchError("--examples with several targets must name them per target with {target}")
+    opened = time.perf_counter()
+    solved = []
+    for target in targets:
+        examples = [find_object(n.strip().replace("{target}", target.name)) for n in (args.examples or "").split(",") if n.strip()]
+        solved.append(
+            transfer.transfer_object(
+                source,
+                target,
+                virtual_edges=not args.no_virtual_edges,
+                tau_d=args.tau_d,
+                tau_r=args.tau_r,
+                edge_weight=args.edge_weight,
+                training_objects=examples,
+                pack_report=pack_report,
+                beta_reg=args.beta_reg,
+                compare_plain=not args.no_virtual_edges,
+            )
+        )
+    reports = []
+    for result in solved:
+        write_started = time.perf_counter()
+        written, skipped, warnings = shape_keys.write_transferred_keys(result, args.overwrite, args.copy_drivers)
+        transfer.store_transfer(result, written, skipped)
+        result.warnings += warnings
+        for line in transfer.summary_lines(result, written, skipped):
+            print(line)
+        seconds = dict(result.report["seconds"])
+        seconds["io"] = seconds.pop("read") + time.perf_counter() - write_started
+        reports.append(
+            {
+                "target": result.target.name,
+                "shapes": written,
+                "skipped": skipped,
+                "virtual_edges": result.report["virtual_edges"],
+                "penetrations": result.report["penetration"],
+                "neutral_penetration": result.report["neutral_penetration"],
+                "template_neutral_penetration": result.report["template_neutral_penetration"],
+                "training": {name: row.tolist() for name, row in result.training.items()},
+                "weights": result.report.get("weights"),
+                "worse_than_template": transfer.worse_than_template(result.report),
+                "plain_worse_than_template": (
+                    transfer.worse_than_template(result.report, key="plain_length") if not args.no_virtual_edges else None
+                ),
+                "warnings": result.warnings,
+                "seconds": seconds,
+            }
+        )
+    saved = time.perf_counter()
+    if args.output:
+        save_copy(args.output)
+    totals = {key: sum(r["seconds"][key] for r in reports) for key in reports[0]["seconds"]}
+    totals["io"] += (opened - started) + (time.perf_counter() - saved)
+    totals["total"] = time.perf_counter() - started
+    write_json(
+        args.json,
+        {
+            "input": os.path.abspath(args.input),
+            "source": source.name,
+            "params": solved[0].report["params"],
+            "targets": reports,
+            "seconds": totals,
+        },
+    )
+
+
 COMMANDS = {
     "sample": (add_sample_args, run_sample, "build sample.blend from the MakeHuman assets"),
     "analyze": (add_analyze_args, run_analyze, "analyze a rig's shape keys"),
+    "pack": (add_pack_args, run_pack, "pack the shape keys into reference expressions"),
     "landmarks": (add_landmarks_args, run_landmarks, "place landmarks, score and export the layout"),
+    "transfer": (add_transfer_args, run_transfer, "transfer a template's shape keys onto other heads"),
 }
 
 

@@ -16,6 +16,7 @@ from mathutils import Matrix
 
 from .. import native
 from .mesh_arrays import MeshDataError, read_rig
+from .packing import stored_weights
 
 COLLECTION_NAME = "Landmarks"
 VERTEX_GROUP_NAME = "Landmarks"
@@ -93,6 +94,31 @@ def mesh_note(parts, landmark_vertices):
     )
 
 
+def packed_poses(obj, names):
+    """The expressions of a Pack Expressions result stored on `obj` as extra test poses
+    (J, K) float32 in the rig's shape order (SPEC: the packed expressions are test poses), or
+    None when the object carries no pack result."""
+    if not obj.shapesmith.pack.result.done:
+        return None
+    packed_names, weights = stored_weights(obj)
+    column = {name: k for k, name in enumerate(names)}
+    poses = np.zeros((len(weights), len(names)), dtype=np.float32)
+    for j, name in enumerate(packed_names):
+        if name in column:
+            poses[:, column[name]] = weights[:, j]
+    return poses
+
+
+def score_vertices(obj, rig, vertices):
+    """Noisy reconstruction score of a layout (SPEC section 2), with the packed expressions
+    among the test poses when the object has them."""
+    poses = packed_poses(obj, rig.names)
+    score = native.module().score_layout(
+        rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE, extra_poses=poses
+    )
+    return dict(score, noise=SCORE_NOISE, packed_expressions=0 if poses is None else len(poses))
+
+
 def place_landmarks(obj, cameras=None, axis=0, **params):
     """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
     nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
@@ -101,8 +127,7 @@ def place_landmarks(obj, cameras=None, axis=0, **params):
     rig = read_rig(obj)
     parts = mesh_parts(obj)
     read = time.perf_counter()
-    core = native.module()
-    layout = core.place_landmarks(
+    layout = native.module().place_landmarks(
         rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, **params
     )
     vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
@@ -112,9 +137,8 @@ def place_landmarks(obj, cameras=None, axis=0, **params):
             "there is nothing to place landmarks for"
         )
     placed = time.perf_counter()
-    score = core.score_layout(rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE)
+    layout["reconstruction"] = score_vertices(obj, rig, vertices)
     scored = time.perf_counter()
-    layout["reconstruction"] = dict(score, noise=SCORE_NOISE)
     layout["mesh"] = {
         "vertices": len(rig.neutral),
         "loose_parts": parts["loose_parts"],
@@ -214,9 +238,7 @@ def score_group(obj, name):
     """Reconstruction error of the layout a vertex group describes (same poses and noise as
     Place Landmarks' own score), relative to the bbox diagonal. Writes nothing."""
     vertices = group_vertices(obj, name)
-    rig = read_rig(obj)
-    score = native.module().score_layout(rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE)
-    return dict(score, group=name, noise=SCORE_NOISE)
+    return dict(score_vertices(obj, read_rig(obj), vertices), group=name)
 
 
 def store_score(obj, score):
@@ -266,7 +288,8 @@ def summary_lines(document):
         f"{len(document['landmarks'])} landmarks in {document['rounds']} round(s), "
         f"{'proven optimal' if document['optimal'] else 'NOT proven optimal'}",
         f"uncovered shapes: {', '.join(document['uncovered']) or 'none'}; inert: {', '.join(document['inert']) or 'none'}",
-        f"reconstruction error (noise {rec['noise']:.1%} of the diagonal, {rec['poses']} poses): "
+        f"reconstruction error (noise {rec['noise']:.1%} of the diagonal, {rec['poses']} poses, "
+        f"{rec['packed_expressions']} of them packed expressions): "
         f"mean {rec['mean']:.2e}, max {rec['max']:.2e} of the bbox diagonal",
         f"mesh: {document['mesh']['note']}",
         f"seconds: I/O {seconds['io']:.2f}, visibility {seconds['visibility']:.2f} "

@@ -27,6 +27,7 @@ class ShapesmithPanel:
 
 class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Rig"
+    bl_order = 0
 
     def draw(self, context):
         layout = self.layout
@@ -63,16 +64,9 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
                 box.label(text=f"{pair.first} / {pair.second}")
 
 
-class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
-    bl_label = "Pack Expressions"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Pack Expressions tool", icon="INFO")
-
-
 class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Landmarks"
+    bl_order = 2
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
@@ -118,15 +112,7 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
                            f"mean {score.mean_error:.2%}, max {score.max_error:.2%}")
 
 
-class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
-    bl_label = "Transfer"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.label(text="Not available yet: arrives with the Transfer Shape Keys tool", icon="INFO")
-
-
-_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_pack, SHAPESMITH_PT_landmarks, SHAPESMITH_PT_transfer)
+_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_landmarks)
 
 
 def register():

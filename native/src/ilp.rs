@@ -3,10 +3,8 @@
 //! (weighted set cover).
 
 use good_lp::solvers::highs::highs;
-use good_lp::{
-    variable, Expression, ProblemVariables, ResolutionError, Solution, SolutionStatus, SolverModel,
-    Variable,
-};
+use good_lp::{variable, Expression, ProblemVariables, SolverModel, Variable};
+use highs::{HighsModelStatus, HighsSolutionStatus};
 use serde::Serialize;
 
 use crate::error::{ShapesmithError, ShapesmithResult};
@@ -96,6 +94,13 @@ pub struct IlpSolution {
     pub status: SolveStatus,
 }
 
+/// A MIP gap at most this (relative) counts as closed: HiGHS reports float noise such as 1e-16
+/// on programs it has solved to optimality.
+pub const OPTIMALITY_GAP: f64 = 1e-9;
+
+/// HiGHS keeps process-wide state (its task scheduler); one solve at a time.
+static HIGHS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Solves the program with HiGHS (gaps set to zero so that "optimal" means proven optimal).
 /// Errors: [`ShapesmithError::Infeasible`] when no 0/1 point satisfies the rows,
 /// [`ShapesmithError::Solver`] for anything else HiGHS reports.
@@ -119,11 +124,6 @@ pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> Shapesmith
         Sense::Minimise => vars.minimise(objective),
     };
     let mut model = highs(unsolved);
-    model.set_verbose(false);
-    model = model.set_threads(1).set_option("mip_rel_gap", 0.0).set_option("mip_abs_gap", 0.0);
-    if let Some(limit) = options.time_limit {
-        model = model.set_time_limit(limit);
-    }
     for row in &program.rows {
         let expr = linear(&mut row.terms.iter().copied());
         if row.lower == row.upper {
@@ -137,18 +137,40 @@ pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> Shapesmith
             model = model.with(expr.leq(row.upper));
         }
     }
-    let solution = model.solve().map_err(|e| match e {
-        ResolutionError::Infeasible => {
-            ShapesmithError::Infeasible("the 0/1 program has no feasible solution".into())
-        }
-        other => ShapesmithError::Solver(format!("HiGHS failed: {other}")),
-    })?;
-    let status = match solution.status() {
-        SolutionStatus::Optimal => SolveStatus::Optimal,
-        SolutionStatus::GapLimit => SolveStatus::GapLimit,
-        SolutionStatus::TimeLimit => SolveStatus::TimeLimit,
+    let mut highs_model = model
+        .try_into_inner()
+        .map_err(|e| ShapesmithError::Solver(format!("HiGHS rejected the model: {e}")))?;
+    highs_model.set_option("output_flag", false);
+    highs_model.set_option("threads", 1);
+    highs_model.set_option("mip_rel_gap", 0.0);
+    highs_model.set_option("mip_abs_gap", 0.0);
+    if let Some(limit) = options.time_limit {
+        highs_model.set_option("time_limit", limit);
+    }
+    let solved = {
+        let _one_at_a_time = HIGHS.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        highs_model.try_solve().map_err(|e| ShapesmithError::Solver(format!("HiGHS failed: {e:?}")))?
     };
-    let values: Vec<bool> = x.iter().map(|&v| solution.value(v) > 0.5).collect();
+    let status = match solved.status() {
+        HighsModelStatus::Optimal if solved.mip_gap().is_finite() && solved.mip_gap() > OPTIMALITY_GAP => {
+            SolveStatus::GapLimit
+        }
+        HighsModelStatus::Optimal => SolveStatus::Optimal,
+        HighsModelStatus::ReachedTimeLimit
+        | HighsModelStatus::ReachedIterationLimit
+        | HighsModelStatus::ReachedSolutionLimit
+        | HighsModelStatus::ReachedInterrupt => SolveStatus::TimeLimit,
+        HighsModelStatus::Infeasible | HighsModelStatus::UnboundedOrInfeasible => {
+            return Err(ShapesmithError::Infeasible("the 0/1 program has no feasible solution".into()))
+        }
+        other => return Err(ShapesmithError::Solver(format!("HiGHS stopped with status {other:?}"))),
+    };
+    if solved.primal_solution_status() != HighsSolutionStatus::Feasible {
+        return Err(ShapesmithError::Solver("HiGHS stopped before finding any feasible point".into()));
+    }
+    let columns = solved.get_solution();
+    // good_lp adds one HiGHS column per variable, in creation order.
+    let values: Vec<bool> = columns.columns()[..x.len()].iter().map(|&v| v > 0.5).collect();
     let (objective, feasible) = program.evaluate(&values);
     if !feasible {
         return Err(ShapesmithError::Solver("HiGHS returned a point that violates a constraint".into()));

@@ -129,8 +129,12 @@ pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) ->
     let mirrored: Vec<Vec<[f32; 3]>> = (0..k_count)
         .map(|k| if inert.contains(&k) { Vec::new() } else { map.mirror_field(rig.delta(k)) })
         .collect();
+    // Both directions: on a mesh with unmatched vertices one direction alone would pair a
+    // small shape with any large one (the mirrored field is zero where no partner exists).
     let mirror_error = |i: usize, j: usize| {
-        difference_norm(&mirrored[i], rig.delta(j)) / norms[i].max(norms[j])
+        let forward = difference_norm(&mirrored[i], rig.delta(j));
+        let backward = difference_norm(&mirrored[j], rig.delta(i));
+        forward.max(backward) / norms[i].max(norms[j])
     };
     let active: Vec<Vec<u32>> = (0..k_count).map(|k| rig.active_vertices(k, params.mu)).collect();
 
@@ -339,6 +343,22 @@ mod tests {
         assert_eq!((pair.second, pair.source), (1, PairSource::Name));
         let off = find_symmetry(&rig, &map, &SymmetryParams { use_names: false, ..Default::default() });
         assert!(off.pairs.is_empty());
+    }
+
+    #[test]
+    fn no_pairs_without_mirror_partners() {
+        // A lopsided mesh (nothing mirrors) with a small and a large shape on one side.
+        let pts: Vec<[f32; 3]> = (0..12).map(|i| [1.0 + i as f32, (i % 3) as f32, 0.0]).collect();
+        let mut deltas = vec![[0.0f32; 3]; 24];
+        deltas[2] = [0.0, 0.0, 0.01];
+        deltas[12 + 5] = [0.0, 0.0, 1.0];
+        let names = vec!["small".to_string(), "large".to_string()];
+        let tris = [];
+        let rig = RigView::new(&pts, &deltas, &tris, &names).unwrap();
+        let map = MirrorMap::new(&pts, 0, 1e-3);
+        assert_eq!(map.unmatched.len(), 12);
+        let sym = find_symmetry(&rig, &map, &SymmetryParams::default());
+        assert!(sym.pairs.is_empty() && sym.antagonists.is_empty(), "{sym:?}");
     }
 
     #[test]

@@ -15,10 +15,7 @@ pub fn points<'a>(array: &'a PyReadonlyArray2<'_, f32>, what: &str) -> Result<&'
     if shape[1] != 3 {
         return Err(invalid!("{what} must have shape (N, 3), got {shape:?}"));
     }
-    let flat = array
-        .as_slice()
-        .map_err(|_| invalid!("{what} must be C-contiguous (use numpy.ascontiguousarray)"))?;
-    Ok(bytemuck::cast_slice(flat))
+    Ok(bytemuck::cast_slice(c_contiguous(array.as_slice(), array.is_c_contiguous(), what)?))
 }
 
 /// Borrows a (K, N, 3) float32 array as shape-major delta rows; returns them with K.
@@ -29,10 +26,17 @@ pub fn deltas<'a>(array: &'a PyReadonlyArray3<'_, f32>, n_vertices: usize) -> Re
             "deltas must have shape (K, {n_vertices}, 3) to match the neutral, got {shape:?}"
         ));
     }
-    let flat = array
-        .as_slice()
-        .map_err(|_| invalid!("deltas must be C-contiguous (use numpy.ascontiguousarray)"))?;
+    let flat = c_contiguous(array.as_slice(), array.is_c_contiguous(), "deltas")?;
     Ok((bytemuck::cast_slice(flat), shape[0]))
+}
+
+/// The array's data in C order. `as_slice` alone also accepts Fortran order, whose rows would
+/// be read as garbage.
+fn c_contiguous<'a, E>(slice: Result<&'a [f32], E>, is_c: bool, what: &str) -> Result<&'a [f32], ShapesmithError> {
+    match slice {
+        Ok(flat) if is_c => Ok(flat),
+        _ => Err(invalid!("{what} must be C-contiguous (use numpy.ascontiguousarray)")),
+    }
 }
 
 /// Copies an (T, 3) int32 array to unsigned triangle indices; negative indices are an error.

@@ -1,7 +1,212 @@
-//! Bindings of the packing module (being written).
+//! Bindings of [`crate::packing::pack_expressions`] and [`crate::packing::pack_greedy`]:
+//! shape names in, shape names out.
 
+use numpy::{PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
+use serde_json::{json, Value};
 
-pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
-    Ok(())
+use super::arrays;
+use super::errors::py_err;
+use crate::error::ShapesmithResult;
+use crate::invalid;
+use crate::packing::{self, Packing, PackingParams};
+use crate::progress::NoProgress;
+use crate::rig::RigView;
+
+type NamePairs = Vec<(String, String)>;
+
+/// The keyword arguments shared by both packers, as Python passed them.
+struct Options {
+    mu: f64,
+    a: f64,
+    beta: f64,
+    max_expressions: Option<usize>,
+    symmetric: bool,
+    antagonist_cosine: f64,
+    antagonist_iou: f64,
+    pair_tolerance: f64,
+    pairs: Option<NamePairs>,
+    pin_together: NamePairs,
+    keep_apart: NamePairs,
+    exclude: Vec<String>,
+    fewest: bool,
+    time_limit: Option<f64>,
+    axis: usize,
+    mirror_tolerance: f64,
+}
+
+impl Options {
+    fn params(&self, names: &[String]) -> ShapesmithResult<PackingParams> {
+        let index = |name: &str, what: &str| {
+            names.iter().position(|n| n == name).ok_or_else(|| invalid!("{what}: there is no shape key named '{name}'"))
+        };
+        let pairs = |list: &NamePairs, what: &str| -> ShapesmithResult<Vec<(usize, usize)>> {
+            list.iter().map(|(a, b)| Ok((index(a, what)?, index(b, what)?))).collect()
+        };
+        Ok(PackingParams {
+            mu: self.mu,
+            a: self.a,
+            beta: self.beta,
+            max_expressions: self.max_expressions,
+            symmetric: self.symmetric,
+            axis: self.axis,
+            mirror_tolerance: self.mirror_tolerance,
+            pair_tolerance: self.pair_tolerance,
+            antagonist_iou: self.antagonist_iou,
+            antagonist_cosine: self.antagonist_cosine,
+            pairs: self.pairs.as_ref().map(|p| pairs(p, "pairs")).transpose()?,
+            pin_together: pairs(&self.pin_together, "pin_together")?,
+            keep_apart: pairs(&self.keep_apart, "keep_apart")?,
+            exclude: self.exclude.iter().map(|n| index(n, "exclude")).collect::<ShapesmithResult<_>>()?,
+            fewest: self.fewest,
+            time_limit: self.time_limit,
+        })
+    }
+
+    fn echo(&self) -> Value {
+        json!({
+            "mu": self.mu, "a": self.a, "beta": self.beta, "max_expressions": self.max_expressions,
+            "symmetric": self.symmetric, "antagonist_cosine": self.antagonist_cosine,
+            "antagonist_iou": self.antagonist_iou, "pair_tolerance": self.pair_tolerance,
+            "pairs": self.pairs, "pin_together": self.pin_together, "keep_apart": self.keep_apart,
+            "exclude": self.exclude, "fewest": self.fewest, "time_limit": self.time_limit,
+            "axis": self.axis, "mirror_tolerance": self.mirror_tolerance,
+        })
+    }
+}
+
+type Packer = fn(&RigView, Option<&[[f32; 3]]>, &PackingParams, &dyn crate::Progress) -> ShapesmithResult<Packing>;
+
+#[allow(clippy::too_many_arguments)]
+fn run<'py>(
+    py: Python<'py>,
+    packer: Packer,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    target_neutral: Option<PyReadonlyArray2<'py, f32>>,
+    options: Options,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let target = target_neutral.as_ref().map(|t| arrays::points(t, "target_neutral")).transpose().map_err(py_err(py))?;
+    let params = options.params(&names).map_err(py_err(py))?;
+    let packing = py
+        .detach(|| {
+            let rig = RigView::new(points, delta_rows, &tris, &names)?;
+            packer(&rig, target, &params, &NoProgress)
+        })
+        .map_err(py_err(py))?;
+    arrays::to_python(py, &named(&packing, &names, options.echo()))
+}
+
+fn named(p: &Packing, names: &[String], params: Value) -> Value {
+    let list = |shapes: &[usize]| shapes.iter().map(|&k| names[k].clone()).collect::<Vec<_>>();
+    let pairs = |pairs: &[(usize, usize)]| pairs.iter().map(|&(i, j)| [names[i].clone(), names[j].clone()]).collect::<Vec<_>>();
+    json!({
+        "expressions": p.expressions.iter().map(|e| json!({
+            "shapes": list(&e.shapes), "importance": e.importance, "vertices": e.vertices,
+            "status": e.status, "optimal": e.optimal,
+        })).collect::<Vec<_>>(),
+        "importance": names.iter().cloned().zip(p.importance.iter().map(|&l| json!(l))).collect::<serde_json::Map<String, Value>>(),
+        "inert": list(&p.inert),
+        "excluded": list(&p.excluded),
+        "unplaced": list(&p.unplaced),
+        "pairs": pairs(&p.pairs),
+        "antagonists": pairs(&p.antagonists),
+        "weights": p.weights(),
+        "fewest": p.fewest,
+        "params": params,
+    })
+}
+
+/// pack_expressions(neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5,
+///     beta=0.0, max_expressions=None, symmetric=True, antagonist_cosine=-0.5,
+///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
+///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3) -> dict
+///
+/// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
+/// `pairs`, `pin_together` and `keep_apart` are lists of (name, name); `exclude` a list of
+/// names. Returns a dict: expressions, importance, inert, excluded, unplaced, pairs,
+/// antagonists, weights (J x K 0/1 in the order of `names`), fewest, params.
+#[pyfunction]
+#[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
+                    max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
+                    pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
+                    exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3))]
+#[allow(clippy::too_many_arguments)]
+fn pack_expressions<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    target_neutral: Option<PyReadonlyArray2<'py, f32>>,
+    mu: f64,
+    a: f64,
+    beta: f64,
+    max_expressions: Option<usize>,
+    symmetric: bool,
+    antagonist_cosine: f64,
+    antagonist_iou: f64,
+    pair_tolerance: f64,
+    pairs: Option<NamePairs>,
+    pin_together: NamePairs,
+    keep_apart: NamePairs,
+    exclude: Vec<String>,
+    fewest: bool,
+    time_limit: Option<f64>,
+    axis: usize,
+    mirror_tolerance: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let options = Options {
+        mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
+        pairs, pin_together, keep_apart, exclude, fewest, time_limit, axis, mirror_tolerance,
+    };
+    run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options)
+}
+
+/// pack_greedy(...) -> dict, with the arguments of `pack_expressions` except `fewest` and
+/// `time_limit` (nothing is solved): the first-fit baseline on the same conflicts, nodes in
+/// order of importance. Expressions carry `status` None and `optimal` False.
+#[pyfunction]
+#[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
+                    max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
+                    pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
+                    exclude=Vec::new(), axis=0, mirror_tolerance=1e-3))]
+#[allow(clippy::too_many_arguments)]
+fn pack_greedy<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    target_neutral: Option<PyReadonlyArray2<'py, f32>>,
+    mu: f64,
+    a: f64,
+    beta: f64,
+    max_expressions: Option<usize>,
+    symmetric: bool,
+    antagonist_cosine: f64,
+    antagonist_iou: f64,
+    pair_tolerance: f64,
+    pairs: Option<NamePairs>,
+    pin_together: NamePairs,
+    keep_apart: NamePairs,
+    exclude: Vec<String>,
+    axis: usize,
+    mirror_tolerance: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let options = Options {
+        mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
+        pairs, pin_together, keep_apart, exclude, fewest: false, time_limit: None, axis, mirror_tolerance,
+    };
+    run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(pack_expressions, m)?)?;
+    m.add_function(wrap_pyfunction!(pack_greedy, m)?)
 }

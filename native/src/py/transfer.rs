@@ -1,7 +1,143 @@
-//! Bindings of the transfer module (being written).
+//! Bindings of [`crate::transfer`]: `transfer_shapes`, `find_virtual_edges`,
+//! `measure_penetration`.
 
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
-    Ok(())
+use super::arrays;
+use super::errors::py_err;
+use crate::invalid;
+use crate::transfer::{
+    find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, PersonaliseParams,
+    TrainingExpressions, TransferParams, TransferShapesParams, VirtualEdgeParams,
+};
+use crate::NoProgress;
+
+/// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
+///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=1.0,
+///                 examples=None, example_weights=None, beta_reg=0.1, refine_weights=False,
+///                 compare_plain=False, measure_penetration=True, align_rotation=True)
+///     -> (deltas float32 (K, N, 3), report dict)
+///
+/// `examples` are J training expressions of the target, float32 (J, N, 3) positions;
+/// `example_weights` their J x K blend weights (packed expressions are 0/1 rows).
+#[pyfunction]
+#[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
+                    tau_d=0.015, tau_r=4.0, edge_weight=1.0, examples=None, example_weights=None, beta_reg=0.1,
+                    refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true))]
+#[allow(clippy::too_many_arguments)]
+fn transfer_shapes<'py>(
+    py: Python<'py>,
+    source_neutral: PyReadonlyArray2<'py, f32>,
+    source_deltas: PyReadonlyArray3<'py, f32>,
+    target_neutral: PyReadonlyArray2<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    virtual_edges: bool,
+    tau_d: f64,
+    tau_r: f64,
+    edge_weight: f64,
+    examples: Option<PyReadonlyArray3<'py, f32>>,
+    example_weights: Option<Vec<Vec<f64>>>,
+    beta_reg: f64,
+    refine_weights: bool,
+    compare_plain: bool,
+    measure_penetration: bool,
+    align_rotation: bool,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let source = arrays::points(&source_neutral, "source_neutral").map_err(py_err(py))?;
+    let target = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&source_deltas, source.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let n = target.len();
+    let (example_rows, weights) = match (&examples, &example_weights) {
+        (Some(ex), Some(w)) => {
+            let shape = ex.shape();
+            if shape[1] != n || shape[2] != 3 {
+                return Err(py_err(py)(invalid!("examples must have shape (J, {n}, 3) to match the target, got {shape:?}")));
+            }
+            if w.len() != shape[0] || w.iter().any(|row| row.len() != names.len()) {
+                return Err(py_err(py)(invalid!(
+                    "example_weights must be {} rows (one per example) of {} weights (one per shape)",
+                    shape[0],
+                    names.len()
+                )));
+            }
+            let flat = ex
+                .as_slice()
+                .map_err(|_| py_err(py)(invalid!("examples must be C-contiguous (use numpy.ascontiguousarray)")))?;
+            (Some(bytemuck::cast_slice::<f32, [f32; 3]>(flat)), w.concat())
+        }
+        (None, None) => (None, Vec::new()),
+        _ => return Err(py_err(py)(invalid!("give both examples and example_weights, or neither"))),
+    };
+    let params = TransferShapesParams {
+        transfer: TransferParams {
+            virtual_edges: virtual_edges.then_some(VirtualEdgeParams { tau_d, tau_r, ..Default::default() }),
+            edge_weight,
+            align_rotation,
+            ..Default::default()
+        },
+        personalise: PersonaliseParams { beta_reg, refine_weights, ..Default::default() },
+        compare_plain,
+        measure_penetration,
+    };
+    let (deltas, report) = py
+        .detach(|| {
+            let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
+            run_transfer(source, delta_rows, target, &tris, &names, training, &params, &NoProgress)
+        })
+        .map_err(py_err(py))?;
+    let flat: Vec<f32> = deltas.into_iter().flatten().collect();
+    let array = PyArray1::from_vec(py, flat).reshape([names.len(), n, 3])?;
+    Ok((array.into_any(), arrays::to_python(py, &report)?))
+}
+
+/// find_virtual_edges(target_neutral, triangles, *, tau_d=0.015, tau_r=4.0) -> int32 (E, 2)
+#[pyfunction]
+#[pyo3(signature = (target_neutral, triangles, *, tau_d=0.015, tau_r=4.0))]
+fn find_virtual_edges<'py>(
+    py: Python<'py>,
+    target_neutral: PyReadonlyArray2<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    tau_d: f64,
+    tau_r: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
+    let edges = py
+        .detach(|| {
+            crate::rig::validate_points(points, "target_neutral")?;
+            crate::rig::validate_triangle_indices(points.len(), &tris)?;
+            if !(tau_d > 0.0 && tau_r > 0.0) {
+                return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {tau_d}, tau_r = {tau_r}"));
+            }
+            Ok(find_edges(points, &tris, &params))
+        })
+        .map_err(py_err(py))?;
+    let flat: Vec<i32> = edges.iter().flat_map(|&(i, j)| [i as i32, j as i32]).collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([edges.len(), 2])?.into_any())
+}
+
+/// measure_penetration(neutral, deltas, triangles)
+///     -> {"neutral": {"length", "pairs"}, "shapes": [{"length", "pairs"}, ...]}
+#[pyfunction]
+fn measure_penetration<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let report = py.detach(|| measure_rig_penetration(points, delta_rows, &tris)).map_err(py_err(py))?;
+    arrays::to_python(py, &report)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(transfer_shapes, m)?)?;
+    m.add_function(wrap_pyfunction!(find_virtual_edges, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_penetration, m)?)
 }

@@ -1,0 +1,316 @@
+"""Pack Expressions as plain functions: the operators and `scripts/batch.py pack` both call
+them. `pack_object` reads and solves without writing anything; `store_packing` is the one
+place that writes the result onto the object."""
+
+import csv
+import json
+import time
+
+import numpy as np
+
+from .. import native
+from .mesh_arrays import MeshDataError, check_mesh, read_positions, read_rig
+
+def packing_options(obj, axis=0, time_limit=None):
+    """The keyword arguments of `pack_object` from the settings stored on `obj`: parameters,
+    refinements, and the symmetric pairs of Analyze Rig (as the user left them) when the rig
+    was analysed; otherwise the native call finds the pairs itself."""
+    settings = obj.shapesmith.pack
+    options = dict(
+        target=settings.target,
+        mu=settings.mu,
+        a=settings.a,
+        beta=settings.beta,
+        max_expressions=settings.max_expressions if settings.limit_expressions else None,
+        symmetric=settings.symmetric,
+        antagonist_cosine=settings.antagonist_cosine,
+        fewest=settings.fewest,
+        pin_together=[(p.first, p.second) for p in settings.pin_together],
+        keep_apart=[(p.first, p.second) for p in settings.keep_apart],
+        exclude=[e.name for e in settings.exclude],
+        axis=axis,
+        time_limit=time_limit,
+        pairs=None,
+    )
+    if obj.shapesmith.analysis.done:
+        options["pairs"] = [(p.first, p.second) for p in obj.shapesmith.pairs]
+    return options
+
+
+def _check_named_pairs(pairs, what):
+    for index, (first, second) in enumerate(pairs):
+        if not first or not second:
+            raise MeshDataError(f"{what}: entry {index + 1} is missing a shape key name: fill it in or remove it")
+
+
+def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, **params):
+    """Reads the rig (without the keys a previous Bake wrote), runs the native packer and
+    returns its report with timings and shape-key warnings added. Writes nothing.
+
+    `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
+    antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis). Raises MeshDataError
+    (or the core's InvalidInputError) for anything the user has to fix."""
+    started = time.perf_counter()
+    if max_expressions is not None and max_expressions < 1:
+        raise MeshDataError(f"the maximum number of expressions must be at least 1 (got {max_expressions})")
+    rig = read_rig(obj)
+    baked = {b.name for b in obj.shapesmith.pack.baked}
+    keep = [k for k, name in enumerate(rig.names) if name not in baked]
+    if not keep:
+        raise MeshDataError(f"'{obj.name}' has only the shape keys Bake wrote: nothing to pack")
+    names = [rig.names[k] for k in keep]
+    deltas = np.ascontiguousarray(rig.deltas[keep])
+    target_neutral = None
+    if target is not None:
+        check_mesh(target, need_shape_keys=False)
+        target_neutral = read_positions(target)
+        if len(target_neutral) != len(rig.neutral):
+            raise MeshDataError(
+                f"target '{target.name}' has {len(target_neutral)} vertices but '{obj.name}' has {len(rig.neutral)}: "
+                "the target must share the rig's topology"
+            )
+    for what in ("pin_together", "keep_apart"):
+        _check_named_pairs(params.get(what, ()), what.replace("_", " "))
+    if symmetric and pairs is not None:
+        _check_named_pairs(pairs, "symmetric pairs")
+    read = time.perf_counter()
+    report = native.module().pack_expressions(
+        rig.neutral,
+        deltas,
+        rig.triangles,
+        names,
+        target_neutral=target_neutral,
+        max_expressions=max_expressions,
+        symmetric=symmetric,
+        pairs=pairs if symmetric else None,
+        time_limit=time_limit,
+        **params,
+    )
+    solved = time.perf_counter()
+    if not report["expressions"] and not report["unplaced"]:
+        raise MeshDataError(
+            f"nothing to pack on '{obj.name}': every shape key is inert or excluded "
+            f"(inert: {', '.join(report['inert']) or 'none'}; excluded: {', '.join(report['excluded']) or 'none'})"
+        )
+    report["names"] = names
+    report["target"] = target.name if target is not None else None
+    report["warnings"] = rig.warnings
+    report["seconds"] = {"read": read - started, "native": solved - read}
+    return report
+
+
+def expression_label(index):
+    """`REF_01`-style name of expression `index` (0-based)."""
+    return f"REF_{index + 1:02d}"
+
+
+def store_packing(obj, report):
+    """Replaces the result stored on `obj` by `report` (a `pack_object` report)."""
+    result = obj.shapesmith.pack.result
+    result.expressions.clear()
+    result.shapes.clear()
+    for collection in (result.inert, result.excluded, result.unplaced, result.pairs, result.antagonists):
+        collection.clear()
+    member_of = {}
+    for j, expression in enumerate(report["expressions"]):
+        item = result.expressions.add()
+        item.name = expression_label(j)
+        for name in expression["shapes"]:
+            item.members.add().name = name
+            member_of[name] = j
+        item.importance = expression["importance"]
+        item.vertices = expression["vertices"]
+        item.optimal = expression["optimal"]
+        item.status = str(expression["status"] or "")
+    for name in report["names"]:
+        shape = result.shapes.add()
+        shape.name = name
+        shape.importance = report["importance"][name]
+        shape.expression = member_of.get(name, -1)
+    for key in ("inert", "excluded", "unplaced"):
+        for name in report[key]:
+            getattr(result, key).add().name = name
+    for key in ("pairs", "antagonists"):
+        for first, second in report[key]:
+            pair = getattr(result, key).add()
+            pair.first, pair.second = first, second
+            pair.source = "GEOMETRY"
+    fewest = report.get("fewest")
+    result.fewest = fewest["count"] if fewest else 0
+    result.fewest_optimal = bool(fewest and fewest["optimal"])
+    result.params_json = json.dumps(dict(report["params"], target=report.get("target")))
+    result.done = True
+    obj.shapesmith.pack.active_expression = 0
+
+
+def stored_weights(obj):
+    """(names, weights): the shape keys in the packed order and the J x K 0/1 matrix whose
+    row j poses expression j, from the result stored on `obj` (for the Transfer tool)."""
+    result = obj.shapesmith.pack.result
+    names = [shape.name for shape in result.shapes]
+    weights = np.zeros((len(result.expressions), len(names)), dtype=np.uint8)
+    for k, shape in enumerate(result.shapes):
+        if shape.expression >= 0:
+            weights[shape.expression, k] = 1
+    return names, weights
+
+
+def stored_report(obj):
+    """The stored result as the JSON shot list (the keys of the native report)."""
+    result = obj.shapesmith.pack.result
+    if not result.done:
+        raise MeshDataError(f"'{obj.name}' has no packed expressions: run Pack Expressions first")
+    names, weights = stored_weights(obj)
+    fewest = {"count": result.fewest, "optimal": result.fewest_optimal} if result.fewest else None
+    return {
+        "object": obj.name,
+        "expressions": [
+            {
+                "label": e.name,
+                "shapes": [m.name for m in e.members],
+                "importance": e.importance,
+                "vertices": e.vertices,
+                "status": e.status or None,
+                "optimal": e.optimal,
+            }
+            for e in result.expressions
+        ],
+        "importance": {s.name: s.importance for s in result.shapes},
+        "inert": [s.name for s in result.inert],
+        "excluded": [s.name for s in result.excluded],
+        "unplaced": [s.name for s in result.unplaced],
+        "pairs": [[p.first, p.second] for p in result.pairs],
+        "antagonists": [[p.first, p.second] for p in result.antagonists],
+        "names": names,
+        "weights": weights.tolist(),
+        "fewest": fewest,
+        "params": json.loads(result.params_json),
+    }
+
+
+def write_shot_list_json(path, report):
+    with open(path, "w") as f:
+        json.dump(report, f, indent=2)
+
+
+def write_shot_list_csv(path, report):
+    """One row per expression, for a capture session's shot list."""
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["expression", "label", "shapes", "importance", "vertices", "optimal"])
+        for j, expression in enumerate(report["expressions"]):
+            writer.writerow(
+                [
+                    j + 1,
+                    expression_label(j),
+                    " ".join(expression["shapes"]),
+                    f"{expression['importance']:.4f}",
+                    expression["vertices"],
+                    "yes" if expression["optimal"] else "no",
+                ]
+            )
+
+
+def _shape_keys(obj):
+    keys = obj.data.shape_keys
+    if keys is None:
+        raise MeshDataError(f"'{obj.name}' has no shape keys")
+    return [kb for kb in keys.key_blocks if kb != keys.reference_key]
+
+
+def _expression_members(obj, index):
+    result = obj.shapesmith.pack.result
+    if not result.done or not 0 <= index < len(result.expressions):
+        raise MeshDataError(f"'{obj.name}' has no packed expression {index + 1}: run Pack Expressions first")
+    members = {m.name for m in result.expressions[index].members}
+    missing = members - {kb.name for kb in _shape_keys(obj)}
+    if missing:
+        raise MeshDataError(f"shape key(s) {', '.join(sorted(missing))} no longer exist: pack again")
+    return members
+
+
+def preview_expression(obj, index):
+    """Poses expression `index`: its member keys at 1, every other key at 0."""
+    members = _expression_members(obj, index)
+    for block in _shape_keys(obj):
+        block.value = 1.0 if block.name in members else 0.0
+
+
+def animate_expressions(obj, scene):
+    """Keyframes one expression per frame from frame 1 (constant interpolation, so every frame
+    is exactly one expression) and sets the scene's frame range to them; returns J."""
+    result = obj.shapesmith.pack.result
+    posed = [_expression_members(obj, j) for j in range(len(result.expressions))]
+    blocks = _shape_keys(obj)
+    for frame, members in enumerate(posed, start=1):
+        for block in blocks:
+            block.value = 1.0 if block.name in members else 0.0
+            block.keyframe_insert("value", frame=frame)
+    action = obj.data.shape_keys.animation_data.action
+    for fcurve in _fcurves(action):
+        for point in fcurve.keyframe_points:
+            if 1 <= point.co.x <= len(posed):
+                point.interpolation = "CONSTANT"
+    scene.frame_start, scene.frame_end = 1, max(len(posed), 1)
+    scene.frame_set(1)
+    return len(posed)
+
+
+def _fcurves(action):
+    """F-curves of an action in Blender 4.x (flat) and 5.x (layered, channelbags)."""
+    if hasattr(action, "fcurves"):
+        return list(action.fcurves)
+    return [fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves]
+
+
+def bake_expressions(obj):
+    """Writes one `REF_01`-style shape key per expression (Basis plus its members' deltas, value
+    0); keys of an earlier bake are replaced and leftovers removed. Returns the key names."""
+    result = obj.shapesmith.pack.result
+    posed = [_expression_members(obj, j) for j in range(len(result.expressions))]
+    keys = obj.data.shape_keys
+    n = len(obj.data.vertices)
+    neutral = np.empty(n * 3, dtype=np.float32)
+    keys.reference_key.data.foreach_get("co", neutral)
+    baked = obj.shapesmith.pack.baked
+    previous = {b.name for b in baked}
+    sources = {kb.name: kb for kb in _shape_keys(obj) if kb.name not in previous}
+    buffer = np.empty(n * 3, dtype=np.float32)
+    shapes = []
+    for j, members in enumerate(posed):
+        mixed = neutral.copy()
+        for name in members:
+            sources[name].data.foreach_get("co", buffer)
+            mixed += buffer - neutral
+        shapes.append((expression_label(j), mixed))
+    labels = {label for label, _ in shapes}
+    taken = sorted(name for name in labels - previous if name in keys.key_blocks)
+    if taken:
+        raise MeshDataError(f"shape key(s) {', '.join(taken)} exist and were not made by Bake: rename them first")
+    for name in previous - labels:
+        block = keys.key_blocks.get(name)
+        if block is not None:
+            obj.shape_key_remove(block)
+    baked.clear()
+    for label, mixed in shapes:
+        block = keys.key_blocks.get(label) or obj.shape_key_add(name=label, from_mix=False)
+        block.data.foreach_set("co", mixed)
+        block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
+        baked.add().name = label
+    obj.data.update()
+    return [label for label, _ in shapes]
+
+
+def summary_lines(report):
+    """The expressions, numbered with their members, and what was left out (batch, demo)."""
+    fewest = report.get("fewest")
+    beside = f" (fewest possible: {fewest['count']}{'' if fewest['optimal'] else ', not proven'})" if fewest else ""
+    lines = [f"{len(report['expressions'])} expressions{beside}"]
+    for j, expression in enumerate(report["expressions"]):
+        flag = "" if expression["optimal"] else "  [not proven optimal]"
+        lines.append(f"{j + 1:3d}. {', '.join(expression['shapes'])}{flag}")
+    for key in ("inert", "excluded", "unplaced"):
+        if report[key]:
+            lines.append(f"{key}: {', '.join(report[key])}")
+    lines.append("antagonists kept apart: " + (", ".join(f"{a}/{b}" for a, b in report["antagonists"]) or "none"))
+    return lines + [f"warning: {w}" for w in report.get("warnings", ())]

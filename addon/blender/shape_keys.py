@@ -1,0 +1,136 @@
+"""Writes transferred shape keys (and their drivers) onto a target: the only place Transfer
+changes a mesh. Everything that can be refused is checked by `plan_keys` before the first
+write."""
+
+import bpy
+
+from .mesh_arrays import MeshDataError
+
+
+def plan_keys(target, names, overwrite):
+    """(written, skipped): the template keys to write in order, and those kept because the
+    target already has a key of that name and `overwrite` is off."""
+    keys = target.data.shape_keys
+    existing = set(keys.key_blocks.keys()) if keys is not None else set()
+    if overwrite and keys is not None and keys.reference_key.name in names:
+        raise MeshDataError(
+            f"the template has a shape key named '{keys.reference_key.name}', the name of the target's reference key: "
+            "rename one of them (overwriting the reference key would move the whole head)"
+        )
+    written = [n for n in names if overwrite or n not in existing]
+    skipped = [n for n in names if not overwrite and n in existing]
+    return written, skipped
+
+
+def _key_value_path(name):
+    return f'key_blocks["{bpy.utils.escape_identifier(name)}"].value'
+
+
+def key_drivers(source, names):
+    """The template's drivers on the values of the keys `names`: {name: F-curve}."""
+    animation = source.data.shape_keys.animation_data
+    if animation is None:
+        return {}
+    by_path = {fcurve.data_path: fcurve for fcurve in animation.drivers}
+    return {name: by_path[_key_value_path(name)] for name in names if _key_value_path(name) in by_path}
+
+
+def _copy_key_settings(block, source_block, keys, source_keys):
+    block.slider_min = -10.0  # the lowest allowed, so any slider_max can be set first
+    block.slider_max = source_block.slider_max
+    block.slider_min = source_block.slider_min
+    block.vertex_group = source_block.vertex_group
+    block.mute = source_block.mute
+    block.interpolation = source_block.interpolation
+    relative = source_block.relative_key
+    mapped = keys.key_blocks.get(relative.name) if relative != source_keys.reference_key else None
+    block.relative_key = mapped if mapped is not None and mapped != block else keys.reference_key
+
+
+def _retargeted(id_, mapping):
+    return mapping.get(id_, id_) if id_ is not None else None
+
+
+def copy_driver(fcurve, keys, mapping):
+    """Recreates the driver F-curve `fcurve` on the Key `keys`: expression, variables (their
+    targets mapped through `mapping`, e.g. template object -> target object), keyframes and
+    Generator modifiers. Returns warnings for what could not be carried over."""
+    warnings = []
+    path = fcurve.data_path
+    if keys.animation_data is not None and keys.animation_data.drivers.find(path) is not None:
+        keys.driver_remove(path)
+    new = keys.driver_add(path)
+    # driver_add starts with a default Generator (4.x) or default keyframes (5.x)
+    for modifier in list(new.modifiers):
+        new.modifiers.remove(modifier)
+    new.keyframe_points.clear()
+    driver, source_driver = new.driver, fcurve.driver
+    driver.type = source_driver.type
+    driver.use_self = source_driver.use_self
+    driver.expression = source_driver.expression
+    for variable in source_driver.variables:
+        copy = driver.variables.new()
+        copy.name = variable.name
+        copy.type = variable.type
+        for source_target, target in zip(variable.targets, copy.targets):
+            if variable.type == "SINGLE_PROP":
+                target.id_type = source_target.id_type
+            target.id = _retargeted(source_target.id, mapping)
+            target.data_path = source_target.data_path
+            target.bone_target = source_target.bone_target
+            target.transform_type = source_target.transform_type
+            target.transform_space = source_target.transform_space
+            target.rotation_mode = source_target.rotation_mode
+    new.extrapolation = fcurve.extrapolation
+    points = fcurve.keyframe_points
+    new.keyframe_points.add(len(points))
+    for point, copy in zip(points, new.keyframe_points):
+        copy.co = point.co
+        copy.interpolation = point.interpolation
+        copy.handle_left_type, copy.handle_right_type = point.handle_left_type, point.handle_right_type
+        copy.handle_left, copy.handle_right = point.handle_left, point.handle_right
+    for modifier in fcurve.modifiers:
+        if modifier.type != "GENERATOR":
+            warnings.append(f"driver on {path}: its {modifier.type.lower()} modifier was not copied")
+            continue
+        copy = new.modifiers.new("GENERATOR")
+        copy.mode, copy.poly_order, copy.use_additive = modifier.mode, modifier.poly_order, modifier.use_additive
+        copy.coefficients = modifier.coefficients
+    return warnings
+
+
+def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
+    """Writes `transfer` (a solved `transfer.Transfer`) onto its target: a Basis first when
+    the target has no shape keys; then each template key with the template's name, slider
+    range, vertex group, mute, interpolation and relative key (mapped by name, else the
+    reference key); new keys at value 0. Existing keys are kept unless `overwrite`. Returns
+    (written, skipped, warnings)."""
+    source, target = transfer.source, transfer.target
+    written, skipped = plan_keys(target, transfer.names, overwrite)
+    drivers = key_drivers(source, written) if copy_drivers else {}
+    source_keys = source.data.shape_keys
+    warnings = [
+        f"vertex group '{source_keys.key_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
+        for n in written
+        if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups
+    ]
+    if target.data.shape_keys is None:
+        target.shape_key_add(name="Basis", from_mix=False).value = 0.0
+    keys = target.data.shape_keys
+    created = set()
+    for name in written:  # all keys first, so relative keys can name keys later in the list
+        if name not in keys.key_blocks:
+            target.shape_key_add(name=name, from_mix=False)
+            created.add(name)
+    order = {name: k for k, name in enumerate(transfer.names)}
+    for name in written:
+        block = keys.key_blocks[name]
+        block.data.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
+        _copy_key_settings(block, source_keys.key_blocks[name], keys, source_keys)
+        if name in created:
+            block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
+    mapping = {source: target, source.data: target.data, source_keys: keys}
+    for fcurve in drivers.values():
+        warnings += copy_driver(fcurve, keys, mapping)
+    target.data.update()
+    return written, skipped, warnings

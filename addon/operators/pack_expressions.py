@@ -1,0 +1,50 @@
+"""Pack Expressions: the fewest reference expressions for the active rig's shape keys, stored
+on it (replacing any earlier result)."""
+
+import bpy
+
+from .. import preferences
+from ..blender.packing import pack_object, packing_options, store_packing
+from .base import expected_errors, poll_mesh
+
+
+class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
+    bl_idname = "shapesmith.pack_expressions"
+    bl_label = "Pack Expressions"
+    bl_description = (
+        "Group the shape keys into as few reference expressions as possible, each posing shapes whose "
+        "strongly moving regions do not overlap, most important first"
+    )
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return poll_mesh(cls, context)
+
+    def execute(self, context):
+        obj = context.active_object
+        prefs = preferences.get(context)
+        time_limit = prefs.solver_time_limit if prefs and prefs.solver_time_limit > 0 else None
+        options = packing_options(obj, axis=int(context.scene.shapesmith.symmetry_axis), time_limit=time_limit)
+        try:
+            report = pack_object(obj, **options)
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        store_packing(obj, report)
+        for warning in report["warnings"]:
+            self.report({"WARNING"}, warning)
+        unproven = sum(not e["optimal"] for e in report["expressions"])
+        if unproven:
+            self.report({"WARNING"}, f"{unproven} expression(s) not proven optimal (solver time limit)")
+        left = f", {len(report['unplaced'])} shapes left over (J max)" if report["unplaced"] else ""
+        self.report({"INFO"}, f"{len(report['expressions'])} expressions from {len(report['names'])} shapes{left}")
+        return {"FINISHED"}
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_OT_pack_expressions)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_OT_pack_expressions)

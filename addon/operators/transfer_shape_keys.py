@@ -1,0 +1,101 @@
+"""Transfer Shape Keys and Personalise: the template's keys onto the active mesh, solved in
+full before anything is written, so an error leaves the target as it was."""
+
+import bpy
+
+from ..blender.shape_keys import write_transferred_keys
+from ..blender.transfer import store_transfer, transfer_object, worse_than_template
+from .base import expected_errors, poll_mesh
+
+
+class TransferOperator:
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not poll_mesh(cls, context):
+            return False
+        if context.scene.shapesmith.transfer.source is None:
+            cls.poll_message_set("Pick a template with shape keys")
+            return False
+        return True
+
+    def training_objects(self, settings):
+        return ()
+
+    def execute(self, context):
+        settings = context.scene.shapesmith.transfer
+        target = context.active_object
+        try:
+            transfer = transfer_object(
+                settings.source,
+                target,
+                virtual_edges=settings.virtual_edges,
+                tau_d=settings.tau_d,
+                tau_r=settings.tau_r,
+                edge_weight=settings.edge_weight,
+                training_objects=self.training_objects(settings),
+                beta_reg=settings.beta_reg,
+                refine_weights=settings.refine_weights,
+                compare_plain=settings.compare_plain,
+            )
+            written, skipped, warnings = write_transferred_keys(
+                transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+            )
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        store_transfer(transfer, written, skipped)
+        for warning in transfer.warnings + warnings:
+            self.report({"WARNING"}, warning)
+        if not written:
+            self.report({"WARNING"}, f"every key already exists on '{target.name}': nothing written (tick Overwrite Existing Keys)")
+        worse = worse_than_template(transfer.report)
+        self.report(
+            {"INFO"},
+            f"{len(written)} shape keys written onto '{target.name}'"
+            + (f", {len(skipped)} existing kept" if skipped else "")
+            + f"; {transfer.report['virtual_edges']} virtual edges"
+            + (f"; adding more intersection than on the template: {', '.join(worse)}" if worse else ""),
+        )
+        return {"FINISHED"}
+
+
+class SHAPESMITH_OT_transfer_shape_keys(TransferOperator, bpy.types.Operator):
+    bl_idname = "shapesmith.transfer_shape_keys"
+    bl_label = "Transfer"
+    bl_description = "Transfer the template's shape keys onto the active mesh (same topology)"
+
+
+class SHAPESMITH_OT_personalise_shape_keys(TransferOperator, bpy.types.Operator):
+    bl_idname = "shapesmith.personalise_shape_keys"
+    bl_label = "Personalise"
+    bl_description = (
+        "Transfer the template's shape keys onto the active mesh and fit them to the training expressions: "
+        "meshes of the target's topology named after the template's packed expressions (REF_01...) or shape keys"
+    )
+
+    @classmethod
+    def poll(cls, context):
+        if not super().poll(context):
+            return False
+        if context.scene.shapesmith.transfer.training is None:
+            cls.poll_message_set("Pick a collection of training expressions")
+            return False
+        return True
+
+    def training_objects(self, settings):
+        return list(settings.training.all_objects)
+
+
+_CLASSES = (SHAPESMITH_OT_transfer_shape_keys, SHAPESMITH_OT_personalise_shape_keys)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

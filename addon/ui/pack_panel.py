@@ -1,0 +1,106 @@
+"""The Pack Expressions panel: parameters, refinements, the packed expressions as a list with
+their members, and what to do with them."""
+
+import bpy
+
+from .panels import ShapesmithPanel
+
+
+class SHAPESMITH_UL_expressions(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        row = layout.row(align=True)
+        row.label(text=f"{index + 1}", icon="CHECKMARK" if item.optimal else "ERROR")
+        row.label(text=", ".join(m.name for m in item.members))
+
+
+class SHAPESMITH_UL_shape_names(bpy.types.UIList):
+    """Shape names picked from the mesh's shape keys (excluded shapes)."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        keys = context.active_object.data.shape_keys
+        if keys is None:
+            layout.label(text=item.name)
+        else:
+            layout.prop_search(item, "name", keys, "key_blocks", text="")
+
+
+def _refinement_list(layout, settings, title, kind, collection, index, list_type):
+    layout.label(text=f"{title} ({len(getattr(settings, collection))})")
+    row = layout.row()
+    row.template_list(list_type, f"pack_{collection}", settings, collection, settings, index, rows=2)
+    col = row.column(align=True)
+    col.operator("shapesmith.add_pack_refinement", icon="ADD", text="").kind = kind
+    col.operator("shapesmith.remove_pack_refinement", icon="REMOVE", text="").kind = kind
+
+
+class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Pack Expressions"
+    bl_order = 1
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        obj = context.active_object
+        if obj is None or obj.type != "MESH":
+            layout.label(text="Select a mesh with shape keys", icon="INFO")
+            return
+        settings = obj.shapesmith.pack
+        col = layout.column(align=True)
+        col.prop(settings, "mu")
+        col.prop(settings, "a")
+        col.prop(settings, "beta")
+        layout.prop(settings, "target")
+        row = layout.row(align=True)
+        row.prop(settings, "limit_expressions")
+        sub = row.row(align=True)
+        sub.active = settings.limit_expressions
+        sub.prop(settings, "max_expressions")
+        layout.prop(settings, "symmetric")
+        if settings.symmetric:
+            pairs = obj.shapesmith.pairs
+            source = f"{len(pairs)} pairs from Analyze Rig" if obj.shapesmith.analysis.done else "pairs found when packing"
+            layout.label(text=source, icon="MOD_MIRROR")
+        layout.prop(settings, "antagonist_cosine")
+        layout.prop(settings, "fewest")
+        box = layout.box()
+        _refinement_list(box, settings, "Pin Together", "PIN", "pin_together", "active_pin", "SHAPESMITH_UL_pairs")
+        _refinement_list(box, settings, "Keep Apart", "APART", "keep_apart", "active_apart", "SHAPESMITH_UL_pairs")
+        _refinement_list(box, settings, "Exclude", "EXCLUDE", "exclude", "active_exclude", "SHAPESMITH_UL_shape_names")
+        layout.operator("shapesmith.pack_expressions", icon="PACKAGE")
+        result = settings.result
+        if not result.done:
+            return
+        count = f"J = {len(result.expressions)}"
+        if result.fewest:
+            count += f"   (fewest possible: {result.fewest}{'' if result.fewest_optimal else ', not proven'})"
+        layout.label(text=count)
+        layout.template_list("SHAPESMITH_UL_expressions", "", result, "expressions", settings, "active_expression", rows=5)
+        if 0 <= settings.active_expression < len(result.expressions):
+            expression = result.expressions[settings.active_expression]
+            box = layout.box()
+            box.label(text=f"{expression.name}: {expression.vertices} vertices, importance {expression.importance:.3f}")
+            for member in expression.members:
+                box.label(text=member.name, icon="SHAPEKEY_DATA")
+        for title, names in (("Inert", result.inert), ("Excluded", result.excluded), ("Left over", result.unplaced)):
+            if names:
+                layout.label(text=f"{title}: {', '.join(n.name for n in names)}")
+        row = layout.row(align=True)
+        row.operator("shapesmith.preview_expression", icon="HIDE_OFF")
+        row.operator("shapesmith.animate_expressions", icon="KEYFRAME")
+        row.operator("shapesmith.bake_expressions", icon="SHAPEKEY_DATA")
+        row = layout.row(align=True)
+        row.operator("shapesmith.export_shot_list", icon="EXPORT", text="Shot List")
+        row.operator("shapesmith.render_reference_sheet", icon="RENDER_STILL", text="Reference Sheet")
+
+
+_CLASSES = (SHAPESMITH_UL_expressions, SHAPESMITH_UL_shape_names, SHAPESMITH_PT_pack)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,69 @@
+"""The Transfer panel: template, options, Preview Virtual Edges, Transfer, Personalise, and
+the last transfer's report on the active mesh."""
+
+import bpy
+
+from .panels import ShapesmithPanel
+
+
+class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Transfer"
+    bl_order = 3
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.shapesmith.transfer
+        layout.prop(settings, "source")
+        obj = context.active_object
+        if obj is not None and obj.type == "MESH":
+            layout.label(text=f"Target: {obj.name}", icon="MESH_DATA")
+
+        col = layout.column(align=True)
+        col.prop(settings, "virtual_edges")
+        sub = col.column(align=True)
+        sub.active = settings.virtual_edges
+        sub.prop(settings, "tau_d")
+        sub.prop(settings, "tau_r")
+        sub.prop(settings, "edge_weight")
+        sub.prop(settings, "compare_plain")
+        layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
+
+        col = layout.column(align=True)
+        col.prop(settings, "overwrite")
+        col.prop(settings, "copy_drivers")
+        layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
+
+        box = layout.box()
+        box.label(text="Personalise")
+        box.prop(settings, "training", text="")
+        row = box.row(align=True)
+        row.prop(settings, "beta_reg")
+        row.prop(settings, "refine_weights", text="Refine")
+        box.operator("shapesmith.personalise_shape_keys", icon="USER")
+
+        if obj is None or obj.type != "MESH" or not obj.shapesmith.transfer.done:
+            return
+        result = obj.shapesmith.transfer
+        box = layout.box()
+        col = box.column(align=True)
+        col.label(text=f"From '{result.source}': {result.written} keys written in {result.seconds:.2f} s")
+        if result.skipped:
+            col.label(text=f"Kept: {result.skipped}")
+        col.label(text=f"Virtual edges: {result.virtual_edges}")
+        if result.examples:
+            col.label(text=f"Training expressions: {result.examples}")
+        worse = [s for s in result.shapes if s.worse]
+        col.label(text=f"Adding more intersection than on the template: {len(worse)}", icon="ERROR" if worse else "CHECKMARK")
+        for shape in worse[:8]:
+            added = shape.length - result.neutral_length
+            template_added = shape.template_length - result.template_neutral_length
+            col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template")
+
+
+def register():
+    bpy.utils.register_class(SHAPESMITH_PT_transfer)
+
+
+def unregister():
+    bpy.utils.unregister_class(SHAPESMITH_PT_transfer)

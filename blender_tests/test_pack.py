@@ -1,0 +1,363 @@
+"""Pack Expressions on the MakeHuman Template: poseable expressions (no antagonists together,
+partners together, active regions disjoint, checked here from the shape keys themselves),
+the result stored on the object, what the rigger does with it, bad input, and batch."""
+
+import csv
+import json
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from conftest import file_digest, make_active, run_batch
+
+ANTAGONISTS = [("jawLeft", "jawRight"), ("mouthLeft", "mouthRight")]
+
+
+def shape_deltas(obj):
+    """{name: (N, 3) delta} read here, independently of the add-on."""
+    keys = obj.data.shape_keys
+    n = len(obj.data.vertices)
+    basis = np.empty(n * 3, np.float32)
+    keys.reference_key.data.foreach_get("co", basis)
+    deltas = {}
+    for block in keys.key_blocks[1:]:
+        co = np.empty(n * 3, np.float32)
+        block.data.foreach_get("co", co)
+        deltas[block.name] = (co - basis).reshape(n, 3).astype(np.float64)
+    return deltas
+
+
+def binary_blendshapes(deltas, mu):
+    """b_k[n] = |D_k[n]| >= mu * max |D_k| (SPEC section 1), as vertex sets."""
+    sets = {}
+    for name, delta in deltas.items():
+        length = np.linalg.norm(delta, axis=1)
+        sets[name] = set(np.flatnonzero(length >= mu * length.max()).tolist()) if length.max() > 0 else set()
+    return sets
+
+
+def check_poseable(expressions, pairs, deltas, mu):
+    """Every expression: no antagonists, partners together, active sets pairwise disjoint
+    (partners excepted); every moving shape placed exactly once."""
+    active = binary_blendshapes(deltas, mu)
+    partners = {frozenset(p) for p in pairs}
+    where = {}
+    for j, members in enumerate(expressions):
+        for name in members:
+            assert name not in where, f"{name} in expressions {where[name] + 1} and {j + 1}"
+            where[name] = j
+        for first, second in ANTAGONISTS:
+            assert not (first in members and second in members), f"expression {j + 1} poses {first} with {second}"
+        for i, first in enumerate(members):
+            for second in members[i + 1 :]:
+                if frozenset((first, second)) in partners:
+                    continue
+                overlap = active[first] & active[second]
+                assert not overlap, f"expression {j + 1}: {first} and {second} share vertex {min(overlap)}"
+    for first, second in pairs:
+        assert where.get(first) == where.get(second), f"{first} and {second} are apart"
+    return where
+
+
+def pack(obj, **settings):
+    make_active(obj)
+    for key, value in settings.items():
+        setattr(obj.shapesmith.pack, key, value)
+    assert bpy.ops.shapesmith.pack_expressions() == {"FINISHED"}
+    return obj.shapesmith.pack.result
+
+
+def members(result):
+    return [[m.name for m in e.members] for e in result.expressions]
+
+
+@pytest.mark.parametrize("analyzed", [False, True], ids=["pairs-found-by-packing", "pairs-from-analyze-rig"])
+def test_template_expressions_are_poseable_optimal_and_complete(sample, analyzed):
+    template = make_active(bpy.data.objects["Template"])
+    if analyzed:
+        assert bpy.ops.shapesmith.analyze_rig() == {"FINISHED"}
+    result = pack(template)
+    deltas = shape_deltas(template)
+    pairs = [(p.first, p.second) for p in result.pairs]
+    assert len(pairs) == 18 and not {frozenset(a) for a in ANTAGONISTS} & {frozenset(p) for p in pairs}
+    assert {frozenset((p.first, p.second)) for p in result.antagonists} >= {frozenset(a) for a in ANTAGONISTS}
+    where = check_poseable(members(result), pairs, deltas, mu=0.3)
+    moving = {name for name, delta in deltas.items() if np.abs(delta).max() > 0}
+    assert set(where) == moving - {s.name for s in result.inert}
+    assert all(e.optimal for e in result.expressions)
+    assert 1 < len(result.expressions) < len(moving)
+    importance = [e.importance for e in result.expressions]
+    assert importance[0] == max(importance)
+
+
+def test_stored_weights_match_the_members_and_survive_save_and_reload(sample, shapesmith, tmp_path):
+    template = bpy.data.objects["Template"]
+    result = pack(template, fewest=True)
+    before = members(result)
+    assert 1 <= result.fewest <= len(before) and result.fewest_optimal
+    path = str(tmp_path / "packed.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    template = bpy.data.objects["Template"]
+    assert members(template.shapesmith.pack.result) == before
+    names, weights = shapesmith.blender.packing.stored_weights(template)
+    assert names == [kb.name for kb in template.data.shape_keys.key_blocks[1:]]
+    assert weights.shape == (len(before), len(names)) and set(np.unique(weights)) <= {0, 1}
+    for row, group in zip(weights, before):
+        assert sorted(names[k] for k in np.flatnonzero(row)) == sorted(group)
+    report = shapesmith.blender.packing.stored_report(template)
+    assert report["fewest"]["count"] == template.shapesmith.pack.result.fewest
+    assert report["params"]["mu"] == pytest.approx(0.3)
+
+
+def test_export_shot_list_writes_json_and_csv_from_the_stored_result(sample, tmp_path):
+    template = bpy.data.objects["Template"]
+    groups = members(pack(template))
+    path = tmp_path / "shots.json"
+    assert bpy.ops.shapesmith.export_shot_list(filepath=str(path)) == {"FINISHED"}
+    report = json.loads(path.read_text())
+    assert [e["shapes"] for e in report["expressions"]] == groups
+    assert {frozenset(a) for a in report["antagonists"]} >= {frozenset(a) for a in ANTAGONISTS}
+    assert len(report["weights"]) == len(groups) and all(sum(row) == len(g) for row, g in zip(report["weights"], groups))
+    rows = list(csv.DictReader(open(tmp_path / "shots.csv")))
+    assert [r["label"] for r in rows] == [f"REF_{j + 1:02d}" for j in range(len(groups))]
+    assert [r["shapes"].split() for r in rows] == groups
+
+
+def test_a_higher_threshold_packs_into_no_more_expressions(sample):
+    template = bpy.data.objects["Template"]
+    loose = len(pack(template, mu=0.2).expressions)
+    strict = pack(template, mu=0.5)
+    check_poseable(members(strict), [(p.first, p.second) for p in strict.pairs], shape_deltas(template), mu=0.5)
+    assert len(strict.expressions) <= loose
+
+
+def test_refinements_are_honoured(sample):
+    template = bpy.data.objects["Template"]
+    settings = template.shapesmith.pack
+    plain = members(pack(template))
+    together = next(g for g in plain if "eyeBlinkLeft" in g)
+    assert "eyeBlinkRight" in together
+    bpy.ops.shapesmith.add_pack_refinement(kind="APART")
+    bpy.ops.shapesmith.add_pack_refinement(kind="EXCLUDE")
+    settings.keep_apart[0].first, settings.keep_apart[0].second = "eyeBlinkLeft", "eyeBlinkRight"
+    settings.exclude[0].name = "jawOpen"
+    bpy.ops.shapesmith.add_pack_refinement(kind="PIN")
+    settings.pin_together[0].first, settings.pin_together[0].second = "browInnerUp", "mouthPucker"
+    result = pack(template)
+    groups = members(result)
+    where = {name: j for j, g in enumerate(groups) for name in g}
+    assert where["eyeBlinkLeft"] != where["eyeBlinkRight"]
+    assert "jawOpen" not in where and [s.name for s in result.excluded] == ["jawOpen"]
+    assert where["browInnerUp"] == where["mouthPucker"]
+    assert bpy.ops.shapesmith.remove_pack_refinement(kind="EXCLUDE") == {"FINISHED"}
+    assert len(settings.exclude) == 0
+
+
+def test_symmetry_off_lets_partners_part(sample):
+    template = bpy.data.objects["Template"]
+    result = pack(template, symmetric=False)
+    assert len(result.pairs) == 0
+    check_poseable(members(result), [], shape_deltas(template), mu=0.3)
+
+
+def test_max_expressions_leaves_the_rest_unplaced(sample):
+    template = bpy.data.objects["Template"]
+    result = pack(template, limit_expressions=True, max_expressions=2)
+    assert len(result.expressions) == 2 and len(result.unplaced) > 0
+    placed = {name for g in members(result) for name in g}
+    assert placed.isdisjoint(s.name for s in result.unplaced)
+
+
+def test_preview_animate_and_bake(sample):
+    template = bpy.data.objects["Template"]
+    result = pack(template)
+    groups = members(result)
+    blocks = template.data.shape_keys.key_blocks
+    assert bpy.ops.shapesmith.preview_expression(index=1) == {"FINISHED"}
+    assert {kb.name for kb in blocks[1:] if kb.value == 1.0} == set(groups[1])
+    assert all(kb.value == 0.0 for kb in blocks[1:] if kb.name not in groups[1])
+
+    assert bpy.ops.shapesmith.animate_expressions() == {"FINISHED"}
+    scene = bpy.context.scene
+    assert (scene.frame_start, scene.frame_end) == (1, len(groups))
+    for frame in (1, len(groups) // 2 + 1, len(groups)):
+        scene.frame_set(frame)
+        assert {kb.name for kb in blocks[1:] if kb.value > 0.5} == set(groups[frame - 1])
+
+    assert bpy.ops.shapesmith.bake_expressions() == {"FINISHED"}
+    deltas = shape_deltas(template)
+    for j, group in enumerate(groups):
+        baked = deltas[f"REF_{j + 1:02d}"]
+        assert np.allclose(baked, sum(deltas[name] for name in group), atol=1e-5)
+        assert blocks[f"REF_{j + 1:02d}"].value == 0.0
+    # Baked keys are never packed themselves, and baking again replaces them.
+    assert members(pack(template)) == groups
+    assert bpy.ops.shapesmith.bake_expressions() == {"FINISHED"}
+    assert sum(kb.name.startswith("REF_") for kb in blocks) == len(groups)
+
+
+def test_undo_restores_the_previous_result(sample):
+    template = bpy.data.objects["Template"]
+    first = members(pack(template))
+    bpy.ops.ed.undo_push(message="first pack")
+    pack(template, mu=0.5)
+    bpy.ops.ed.undo_push(message="second pack")
+    assert members(bpy.data.objects["Template"].shapesmith.pack.result) != first
+    bpy.ops.ed.undo()
+    assert members(bpy.data.objects["Template"].shapesmith.pack.result) == first
+
+
+def test_reference_sheet_has_one_labelled_tile_per_expression(sample, tmp_path):
+    template = bpy.data.objects["Template"]
+    groups = members(pack(template))
+    template.data.shape_keys.key_blocks["jawOpen"].value = 0.4
+    scenes, objects = len(bpy.data.scenes), len(bpy.data.objects)
+    path = str(tmp_path / "sheet.png")
+    assert bpy.ops.shapesmith.render_reference_sheet(filepath=path, tile_width=96, tile_height=120) == {"FINISHED"}
+    image = bpy.data.images.load(path)
+    columns = math.ceil(math.sqrt(len(groups)))
+    assert tuple(image.size) == (96 * columns, 120 * math.ceil(len(groups) / columns))
+    pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    tiles = pixels.reshape(image.size[1], image.size[0], 4)[:, :, :3]
+    top_left = tiles[-120:, :96]
+    assert top_left.min() < 0.4 and top_left.max() > 0.9  # dark label and head shading on white
+    assert not np.allclose(tiles[-120:, :96], tiles[-120:, 96:192])  # expressions differ
+    assert len(bpy.data.scenes) == scenes and len(bpy.data.objects) == objects
+    assert template.data.shape_keys.key_blocks["jawOpen"].value == pytest.approx(0.4)
+
+
+# --- bad input: a clear error and nothing changed ------------------------------------------
+
+
+def assert_refused(obj, message):
+    make_active(obj)
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.shapesmith.pack_expressions()
+    assert not obj.shapesmith.pack.result.done
+
+
+def test_a_mesh_without_shape_keys_is_refused(sample):
+    target = bpy.data.objects["Target_OldMan"]
+    assert_refused(target, "no shape keys")
+    assert target.data.shape_keys is None
+
+
+def test_a_single_shape_is_one_expression(sample):
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4)
+    grid = make_active(bpy.context.active_object)
+    grid.shape_key_add(name="Basis", from_mix=False)
+    key = grid.shape_key_add(name="bump", from_mix=False)
+    key.value = 0.0
+    key.data[5].co.z += 0.3
+    result = pack(grid)
+    assert members(result) == [["bump"]] and result.expressions[0].optimal
+
+
+def test_all_inert_shapes_are_refused(sample):
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4)
+    grid = make_active(bpy.context.active_object)
+    grid.shape_key_add(name="Basis", from_mix=False)
+    for name in ("still", "unmoved"):
+        grid.shape_key_add(name=name, from_mix=False).value = 0.0
+    assert_refused(grid, "inert")
+
+
+def test_a_target_with_another_vertex_count_is_refused(sample):
+    template = bpy.data.objects["Template"]
+    bpy.ops.mesh.primitive_cube_add()
+    template.shapesmith.pack.target = bpy.context.active_object
+    assert_refused(template, "target 'Cube' has 8 vertices")
+
+
+def test_nan_coordinates_are_refused(sample):
+    template = bpy.data.objects["Template"]
+    template.data.shape_keys.key_blocks["mouthSmileLeft"].data[11].co.y = float("nan")
+    assert_refused(template, "mouthSmileLeft.*vertex 11")
+
+
+def test_zero_expressions_are_refused(sample, shapesmith):
+    template = bpy.data.objects["Template"]
+    with pytest.raises(ValueError, match="at least 1"):
+        shapesmith.blender.packing.pack_object(template, max_expressions=0)
+    assert not template.shapesmith.pack.result.done
+
+
+def test_a_failed_pack_keeps_the_earlier_result(sample):
+    template = bpy.data.objects["Template"]
+    before = members(pack(template))
+    bpy.ops.shapesmith.add_pack_refinement(kind="EXCLUDE")
+    template.shapesmith.pack.exclude[0].name = "noSuchShape"
+    with pytest.raises(RuntimeError, match="noSuchShape"):
+        bpy.ops.shapesmith.pack_expressions()
+    assert members(template.shapesmith.pack.result) == before
+
+
+# --- batch --------------------------------------------------------------------------------
+
+
+def test_batch_pack_writes_json_csv_sheet_and_a_packed_copy(sample_path, tmp_path):
+    out = {name: str(tmp_path / name) for name in ("pack.json", "pack.csv", "sheet.png", "packed.blend")}
+    digest = file_digest(sample_path)
+    proc = run_batch(
+        "pack", "--input", sample_path, "--object", "Template", "--fewest", "--bake", "--json", out["pack.json"],
+        "--csv", out["pack.csv"], "--sheet", out["sheet.png"], "--output", out["packed.blend"], check=True,
+    )
+    assert file_digest(sample_path) == digest
+    report = json.loads(open(out["pack.json"]).read())
+    for key in ("expressions", "inert", "pairs", "antagonists", "params", "seconds", "weights", "fewest"):
+        assert key in report
+    assert set(report["seconds"]) == {"read", "native", "write"}
+    assert report["params"]["mu"] == pytest.approx(0.3) and report["params"]["symmetric"] is True
+    groups = [e["shapes"] for e in report["expressions"]]
+    assert all(e["optimal"] for e in report["expressions"])
+    assert report["fewest"]["count"] <= len(groups)
+    assert f"1. {', '.join(groups[0])}" in proc.stdout
+    rows = list(csv.DictReader(open(out["pack.csv"])))
+    assert [r["shapes"].split() for r in rows] == groups
+
+    bpy.ops.wm.open_mainfile(filepath=out["packed.blend"])
+    template = bpy.data.objects["Template"]
+    check_poseable(groups, report["pairs"], {k: v for k, v in shape_deltas(template).items() if not k.startswith("REF_")}, 0.3)
+    assert members(template.shapesmith.pack.result) == groups
+    assert [kb.name for kb in template.data.shape_keys.key_blocks if kb.name.startswith("REF_")] == [
+        f"REF_{j + 1:02d}" for j in range(len(groups))
+    ]
+    image = bpy.data.images.load(out["sheet.png"])
+    assert image.size[0] > 0 and image.size[1] > 0
+
+
+def test_batch_pack_flags_change_the_result(sample_path, tmp_path):
+    out = str(tmp_path / "pack.json")
+    run_batch("pack", "--input", sample_path, "--object", "Template", "--no-symmetry", "--mu", "0.4",
+              "--max-expressions", "3", "--json", out, check=True)
+    report = json.loads(open(out).read())
+    assert report["pairs"] == [] and len(report["expressions"]) == 3 and report["unplaced"]
+    assert report["params"]["mu"] == pytest.approx(0.4) and report["params"]["max_expressions"] == 3
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--object", "Target_OldMan"], "no shape keys"),
+        (["--object", "Template", "--max-expressions", "0"], "at least 1"),
+        (["--object", "Template", "--target", "Nobody"], "no object named 'Nobody'"),
+        (["--object", "Template", "--target", "Camera"], "not a mesh"),
+    ],
+)
+def test_batch_pack_bad_input_exits_with_one_line(sample_path, tmp_path, args, message):
+    path = str(tmp_path / "input.blend")
+    bpy.ops.wm.open_mainfile(filepath=sample_path)
+    bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    bpy.context.scene.collection.objects.link(bpy.data.objects["Camera"])
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    digest = file_digest(path)
+    output = tmp_path / "out.blend"
+    proc = run_batch("pack", "--input", path, *args, "--output", str(output))
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert lines and message in lines[-1] and lines[-1].startswith("shapesmith: error:")
+    assert file_digest(path) == digest and not output.exists()

@@ -1,0 +1,161 @@
+//! Everything computed once before the first expression (paper 000, Algorithm 1's header):
+//! validation, binary blendshapes, importance, symmetric pairs, antagonists and the conflict
+//! graph.
+
+use super::conflicts::{validate_shape_pairs, ConflictGraph, ShapeRelations};
+use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
+use super::PackingParams;
+use crate::error::{ShapesmithError, ShapesmithResult};
+use crate::geometry::mirror::{find_symmetry, MirrorMap, SymmetryParams};
+use crate::invalid;
+use crate::rig::{validate_points, validate_triangles, RigView};
+
+pub struct Prepared {
+    /// Binary blendshapes $b_k$ (Eq. (2)), sorted vertex lists; empty for inert shapes.
+    pub active: Vec<Vec<u32>>,
+    /// $a\,\mathrm{Dis}_k + (1-a)\,\mathrm{TD}_k + 0.01$ (Eq. (4) without U); 0 for inert shapes.
+    pub base_importance: Vec<f64>,
+    /// Cosines of the flattened deltas, for Eq. (8); present only when beta > 0.
+    pub cosines: Option<Vec<Vec<f64>>>,
+    pub graph: ConflictGraph,
+    pub inert: Vec<usize>,
+    pub excluded: Vec<usize>,
+    /// Mirror and cosine antagonists among moving shapes, `(i, j)` with i < j, sorted.
+    pub antagonists: Vec<(usize, usize)>,
+}
+
+pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams) -> ShapesmithResult<Prepared> {
+    rig.validate()?;
+    let k_count = rig.n_shapes();
+    if k_count == 0 {
+        return Err(invalid!("the mesh has no shape keys: add the shapes to pack"));
+    }
+    validate_params(params, rig)?;
+    if let Some(target) = target_neutral {
+        if target.len() != rig.n_vertices() {
+            return Err(invalid!(
+                "the target neutral has {} vertices but the rig has {}: it must share the rig's topology",
+                target.len(),
+                rig.n_vertices()
+            ));
+        }
+        validate_points(target, "target neutral")?;
+        validate_triangles(target, rig.triangles).map_err(|e| invalid!("target neutral: {e}"))?;
+    }
+
+    let inert = rig.inert_shapes();
+    let active: Vec<Vec<u32>> = (0..k_count).map(|k| rig.active_vertices(k, params.mu)).collect();
+    let excluded: Vec<usize> = {
+        let mut e: Vec<usize> = params.exclude.iter().copied().filter(|k| !inert.contains(k)).collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    };
+    let placeable: Vec<bool> = (0..k_count).map(|k| !inert.contains(&k) && !excluded.contains(&k)).collect();
+    for &(i, j) in &params.pin_together {
+        for k in [i, j] {
+            if inert.contains(&k) {
+                return Err(invalid!("'{}' is pinned but it is inert (it moves no vertex): remove the pin", rig.names[k]));
+            }
+            if excluded.contains(&k) {
+                return Err(invalid!("'{}' is both pinned and excluded: remove one of the two", rig.names[k]));
+            }
+        }
+    }
+
+    let dis = displacement_strength(rig, &active);
+    let td = match target_neutral {
+        Some(target) => {
+            let scores = triangle_scores(rig.neutral, target, rig.triangles);
+            triangle_distortion(&scores, rig.triangles, &active, rig.n_vertices())
+        }
+        None => vec![0.0; k_count],
+    };
+    let base_importance: Vec<f64> = (0..k_count)
+        .map(|k| if inert.contains(&k) { 0.0 } else { params.a * dis[k] + (1.0 - params.a) * td[k] + IMPORTANCE_FLOOR })
+        .collect();
+
+    // Mirror antagonists are found whether or not pairs are used: they decide poseability.
+    let map = MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance);
+    let symmetry = find_symmetry(
+        rig,
+        &map,
+        &SymmetryParams {
+            pair_tolerance: params.pair_tolerance,
+            antagonist_iou: params.antagonist_iou,
+            mu: params.mu,
+            use_names: true,
+        },
+    );
+    let cosines = cosine_matrix(rig);
+    let mut antagonists: Vec<(usize, usize)> =
+        symmetry.antagonists.iter().map(|a| (a.first.min(a.second), a.first.max(a.second))).collect();
+    for i in (0..k_count).filter(|k| !inert.contains(k)) {
+        for j in (i + 1..k_count).filter(|k| !inert.contains(k)) {
+            if cosines[i][j] < params.antagonist_cosine {
+                antagonists.push((i, j));
+            }
+        }
+    }
+    antagonists.sort_unstable();
+    antagonists.dedup();
+
+    let pairs: Vec<(usize, usize)> = match (&params.pairs, params.symmetric) {
+        (Some(given), _) => given.clone(),
+        (None, true) => symmetry.pairs.iter().map(|p| (p.first, p.second)).collect(),
+        (None, false) => Vec::new(),
+    };
+    let graph = ConflictGraph::build(&ShapeRelations {
+        active: &active,
+        placeable: &placeable,
+        pairs: &pairs,
+        antagonists: &antagonists,
+        pin_together: &params.pin_together,
+        keep_apart: &params.keep_apart,
+        names: rig.names,
+        n_vertices: rig.n_vertices(),
+    })?;
+    let cosines = (params.beta > 0.0).then_some(cosines);
+    Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists })
+}
+
+fn validate_params(p: &PackingParams, rig: &RigView) -> ShapesmithResult<()> {
+    let k_count = rig.n_shapes();
+    let check = |ok: bool, message: String| if ok { Ok(()) } else { Err(ShapesmithError::InvalidInput(message)) };
+    check(p.mu > 0.0 && p.mu <= 1.0, format!("mu must be in (0, 1] (the paper uses 0.25 to 0.4), got {}", p.mu))?;
+    check((0.0..=1.0).contains(&p.a), format!("a must be in [0, 1], got {}", p.a))?;
+    check(p.beta >= 0.0 && p.beta.is_finite(), format!("beta must be a finite number >= 0, got {}", p.beta))?;
+    check(p.max_expressions != Some(0), "max_expressions must be at least 1 (or unset for no limit)".into())?;
+    check(p.axis <= 2, format!("the symmetry axis must be 0, 1 or 2, got {}", p.axis))?;
+    check(
+        p.mirror_tolerance > 0.0 && p.mirror_tolerance.is_finite(),
+        format!("mirror_tolerance must be a positive number, got {}", p.mirror_tolerance),
+    )?;
+    check(
+        p.pair_tolerance > 0.0 && p.pair_tolerance.is_finite(),
+        format!("pair_tolerance must be a positive number, got {}", p.pair_tolerance),
+    )?;
+    check((0.0..=1.0).contains(&p.antagonist_iou), format!("antagonist_iou must be in [0, 1], got {}", p.antagonist_iou))?;
+    check(
+        (-1.0..=1.0).contains(&p.antagonist_cosine),
+        format!("antagonist_cosine must be in [-1, 1], got {}", p.antagonist_cosine),
+    )?;
+    if let Some(limit) = p.time_limit {
+        check(limit > 0.0 && limit.is_finite(), format!("time_limit must be a positive number of seconds, got {limit}"))?;
+    }
+    if let Some(pairs) = &p.pairs {
+        validate_shape_pairs(pairs, k_count, rig.names, "symmetric pairs")?;
+        let mut seen = vec![false; k_count];
+        for k in pairs.iter().flat_map(|&(i, j)| [i, j]) {
+            if std::mem::replace(&mut seen[k], true) {
+                return Err(invalid!("symmetric pairs: '{}' is in two pairs; a shape has at most one partner", rig.names[k]));
+            }
+        }
+    }
+    validate_shape_pairs(&p.pin_together, k_count, rig.names, "pin_together")?;
+    validate_shape_pairs(&p.keep_apart, k_count, rig.names, "keep_apart")?;
+    if let Some(&k) = p.exclude.iter().find(|&&k| k >= k_count) {
+        return Err(invalid!("exclude: shape index {k} is out of range (the rig has {k_count} shapes)"));
+    }
+    Ok(())
+}

@@ -1,0 +1,392 @@
+//! [`DeformationTransfer`]: set up once per pair of neutrals, then solve any number of shapes.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::alignment::{best_rotation, centroid};
+use super::gradients::{
+    add, corners, delta_gradient, dot, edge_frame, inverse, mat_add_scaled, mat_vec, scale, sub, to_f64, transpose, Mat3,
+    TriangleOperator, Vec3, IDENTITY, ZERO,
+};
+use super::system::NormalMatrix;
+use super::virtual_edges::find_virtual_edges;
+use super::{TransferParams, TransferResult};
+use crate::error::ShapesmithResult;
+use crate::geometry::topology::connected_components;
+use crate::invalid;
+use crate::progress::Progress;
+use crate::rig::{bbox_diagonal, validate_points, validate_triangles, INERT_FRACTION};
+
+/// The target-side setup of a transfer: everything that depends only on the two neutrals.
+pub struct DeformationTransfer {
+    pub(super) triangles: Vec<[u32; 3]>,
+    source_neutral: Vec<Vec3>,
+    /// `V^{-1}` of each source rest triangle (S&P Eq. 1).
+    source_rest_inverse: Vec<Mat3>,
+    /// The target neutral rotated into the source's orientation (the working frame).
+    pub(super) target_neutral: Vec<Vec3>,
+    target_operators: Vec<TriangleOperator>,
+    matrix: NormalMatrix,
+    virtual_edges: Vec<(u32, u32)>,
+    edge_weight: f64,
+    /// Original target orientation = `rotation` x working frame.
+    rotation: Mat3,
+    source_centre: Vec3,
+    target_centre: Vec3,
+    piece: Vec<u32>,
+    /// Per piece: target RMS radius / source RMS radius.
+    piece_scale: Vec<f64>,
+    source_diagonal: f64,
+    static_fraction: f64,
+    /// Wall-clock seconds of the setup without the virtual-edge search, and of that search.
+    pub setup_seconds: f64,
+    pub virtual_edge_seconds: f64,
+}
+
+impl DeformationTransfer {
+    /// Validates both neutrals (same vertex count, finite, no degenerate triangle on either
+    /// side), aligns them, finds the virtual edges and assembles the normal matrix.
+    pub fn new(
+        source_neutral: &[[f32; 3]],
+        target_neutral: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+        params: &TransferParams,
+    ) -> ShapesmithResult<Self> {
+        let start = Instant::now();
+        let n = target_neutral.len();
+        if source_neutral.len() != n {
+            return Err(invalid!(
+                "the template has {} vertices but the target has {n}: transfer needs the same topology on both",
+                source_neutral.len()
+            ));
+        }
+        if n == 0 {
+            return Err(invalid!("the meshes have no vertices"));
+        }
+        validate_params(params)?;
+        validate_points(source_neutral, "template neutral")?;
+        validate_points(target_neutral, "target neutral")?;
+        validate_triangles(source_neutral, triangles).map_err(|e| invalid!("template: {e}"))?;
+        validate_triangles(target_neutral, triangles).map_err(|e| invalid!("target: {e}"))?;
+
+        let source: Vec<Vec3> = source_neutral.iter().map(to_f64).collect();
+        let target_original: Vec<Vec3> = target_neutral.iter().map(to_f64).collect();
+        let rotation = if params.align_rotation { best_rotation(&source, &target_original)? } else { IDENTITY };
+        let (source_centre, target_centre) = (centroid(&source), centroid(&target_original));
+        let back = transpose(&rotation);
+        let target: Vec<Vec3> = target_original
+            .iter()
+            .map(|p| add(mat_vec(&back, sub(*p, target_centre)), source_centre))
+            .collect();
+
+        let degenerate = |side: &str, t: usize| {
+            let tri = triangles[t];
+            invalid!("{side}: triangle {t} (vertices {}, {}, {}) is degenerate", tri[0], tri[1], tri[2])
+        };
+        let source_rest_inverse = (0..triangles.len())
+            .map(|t| inverse(&edge_frame(corners(&source, None, &triangles[t]))).ok_or_else(|| degenerate("template", t)))
+            .collect::<ShapesmithResult<Vec<_>>>()?;
+        let target_operators = (0..triangles.len())
+            .map(|t| TriangleOperator::new(corners(&target, None, &triangles[t])).ok_or_else(|| degenerate("target", t)))
+            .collect::<ShapesmithResult<Vec<_>>>()?;
+
+        let (piece, n_pieces) = connected_components(n, triangles);
+        let piece_scale = piece_scales(&source, &target, &piece, n_pieces);
+
+        let edges_start = Instant::now();
+        let virtual_edges = match &params.virtual_edges {
+            Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
+            _ => Vec::new(),
+        };
+        let virtual_edge_seconds = edges_start.elapsed().as_secs_f64();
+        let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight);
+        Ok(Self {
+            triangles: triangles.to_vec(),
+            source_diagonal: bbox_diagonal(source_neutral),
+            source_neutral: source,
+            source_rest_inverse,
+            target_neutral: target,
+            target_operators,
+            matrix,
+            virtual_edges,
+            edge_weight: params.edge_weight,
+            rotation,
+            source_centre,
+            target_centre,
+            piece,
+            piece_scale,
+            static_fraction: params.static_fraction,
+            setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds,
+            virtual_edge_seconds,
+        })
+    }
+
+    pub fn n_vertices(&self) -> usize {
+        self.target_neutral.len()
+    }
+
+    /// The virtual edges `(i, j)` used by the solve (empty for plain transfer).
+    pub fn virtual_edges(&self) -> &[(u32, u32)] {
+        &self.virtual_edges
+    }
+
+    /// Transfers every shape: `source_deltas` is K x N (shape-major), `names` has K entries.
+    pub fn transfer(&self, source_deltas: &[[f32; 3]], names: &[String], progress: &dyn Progress) -> ShapesmithResult<TransferResult> {
+        let start = Instant::now();
+        self.validate_deltas(source_deltas, names)?;
+        let n = self.n_vertices();
+        let done = AtomicUsize::new(0);
+        let shapes = (0..names.len())
+            .into_par_iter()
+            .map(|k| {
+                let delta = &source_deltas[k * n..(k + 1) * n];
+                let out = if self.is_inert(delta) {
+                    vec![[0.0; 3]; n]
+                } else {
+                    let gradients = self.shape_gradients(delta);
+                    self.solve_shape(delta, &gradients)?
+                };
+                let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress.checkpoint(finished as f64 / names.len() as f64)?;
+                Ok(self.to_target_frame(&out))
+            })
+            .collect::<ShapesmithResult<Vec<_>>>()?;
+        Ok(TransferResult {
+            deltas: shapes.into_iter().flatten().collect(),
+            inert: self.inert_names(source_deltas, names),
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    pub(super) fn validate_deltas(&self, source_deltas: &[[f32; 3]], names: &[String]) -> ShapesmithResult<()> {
+        let n = self.n_vertices();
+        if source_deltas.len() != names.len() * n {
+            return Err(invalid!(
+                "the template deltas hold {} vertex rows but {} shape names x {n} vertices need {}",
+                source_deltas.len(),
+                names.len(),
+                names.len() * n
+            ));
+        }
+        for (k, name) in names.iter().enumerate() {
+            validate_points(&source_deltas[k * n..(k + 1) * n], &format!("shape key '{name}'"))?;
+        }
+        Ok(())
+    }
+
+    pub(super) fn is_inert(&self, delta: &[[f32; 3]]) -> bool {
+        max_length(delta) <= INERT_FRACTION * self.source_diagonal
+    }
+
+    pub(super) fn inert_names(&self, source_deltas: &[[f32; 3]], names: &[String]) -> Vec<String> {
+        let n = self.n_vertices();
+        (0..names.len())
+            .filter(|&k| self.is_inert(&source_deltas[k * n..(k + 1) * n]))
+            .map(|k| names[k].clone())
+            .collect()
+    }
+
+    /// `S_kt - I` for every triangle of one source shape (S&P Eq. 1); zero on triangles whose
+    /// corners are all static (their rows are eliminated anyway).
+    pub(super) fn shape_gradients(&self, delta: &[[f32; 3]]) -> Vec<Mat3> {
+        let moving = self.moving_vertices(delta);
+        (0..self.triangles.len())
+            .map(|t| if self.triangles[t].iter().any(|&v| moving[v as usize]) { self.triangle_gradient(t, delta) } else { ZERO })
+            .collect()
+    }
+
+    /// `|D_k[n]| >= static_fraction x max_n |D_k[n]|`.
+    fn moving_vertices(&self, delta: &[[f32; 3]]) -> Vec<bool> {
+        let threshold = self.static_fraction * max_length(delta);
+        delta.iter().map(|d| length32(d) >= threshold).collect()
+    }
+
+    /// `S_kt - I` of one triangle of one source shape.
+    pub(super) fn triangle_gradient(&self, t: usize, delta: &[[f32; 3]]) -> Mat3 {
+        let tri = &self.triangles[t];
+        let deformed = tri.map(|v| add(self.source_neutral[v as usize], to_f64(&delta[v as usize])));
+        delta_gradient(&self.source_rest_inverse[t], deformed)
+    }
+
+    /// The target deltas (working frame) whose gradients best match `gradients` (`S_t - I`
+    /// per triangle) plus the virtual-edge springs, with the static vertices of the source
+    /// shape `delta` fixed at zero and floating pieces placed by their carried-over motion.
+    pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradients: &[Mat3]) -> ShapesmithResult<Vec<Vec3>> {
+        let n = self.n_vertices();
+        let moving = self.moving_vertices(delta);
+        // A piece with moving vertices but no static one floats: pin its first vertex.
+        let n_pieces = self.piece_scale.len();
+        let mut anchored = vec![false; n_pieces];
+        for v in 0..n {
+            if !moving[v] {
+                anchored[self.piece[v] as usize] = true;
+            }
+        }
+        let mut pinned = vec![false; n_pieces];
+        let mut position = vec![u32::MAX; n];
+        let mut kept = 0u32;
+        for v in 0..n {
+            let p = self.piece[v] as usize;
+            if !moving[v] {
+                continue;
+            }
+            if !anchored[p] && !pinned[p] {
+                pinned[p] = true;
+                continue;
+            }
+            position[v] = kept;
+            kept += 1;
+        }
+        let rhs = self.right_hand_side(gradients);
+        let mut out = self.matrix.solve_restricted(&position, kept as usize, &rhs)?;
+        if pinned.iter().any(|&p| p) {
+            self.place_floating_pieces(delta, &pinned, &mut out);
+        }
+        Ok(out)
+    }
+
+    /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
+    /// energy for deltas) plus `+-w_ve (S_ij - I)(B0_i - B0_j)` at the ends of each virtual
+    /// edge (paper 004: the edge vector transformed by the mean gradient at its ends).
+    fn right_hand_side(&self, gradients: &[Mat3]) -> Vec<Vec3> {
+        let mut rhs = vec![[0.0; 3]; self.n_vertices()];
+        for ((tri, op), h) in self.triangles.iter().zip(&self.target_operators).zip(gradients) {
+            for (&v, &grad) in tri.iter().zip(&op.hat_gradients) {
+                let v = v as usize;
+                rhs[v] = add(rhs[v], scale(mat_vec(h, grad), op.area));
+            }
+        }
+        if !self.virtual_edges.is_empty() {
+            let mean = self.vertex_mean_gradients(gradients);
+            for &(i, j) in &self.virtual_edges {
+                let (i, j) = (i as usize, j as usize);
+                let s_ij = mat_add_scaled(&mean[i], &mean[j], 1.0).map(|row| row.map(|x| 0.5 * x));
+                let target = scale(mat_vec(&s_ij, sub(self.target_neutral[i], self.target_neutral[j])), self.edge_weight);
+                rhs[i] = add(rhs[i], target);
+                rhs[j] = sub(rhs[j], target);
+            }
+        }
+        rhs
+    }
+
+    /// Mean of `S_t - I` over each vertex's one-ring (zero for a vertex in no triangle).
+    fn vertex_mean_gradients(&self, gradients: &[Mat3]) -> Vec<Mat3> {
+        let n = self.n_vertices();
+        let mut sum = vec![ZERO; n];
+        let mut count = vec![0usize; n];
+        for (tri, h) in self.triangles.iter().zip(gradients) {
+            for &v in tri {
+                sum[v as usize] = mat_add_scaled(&sum[v as usize], h, 1.0);
+                count[v as usize] += 1;
+            }
+        }
+        for v in 0..n {
+            if count[v] > 0 {
+                let inv = 1.0 / count[v] as f64;
+                sum[v] = sum[v].map(|row| row.map(|x| x * inv));
+            }
+        }
+        sum
+    }
+
+    /// Translates each pinned piece so that its mean delta is the source piece's mean delta
+    /// times the pieces' size ratio.
+    fn place_floating_pieces(&self, delta: &[[f32; 3]], pinned: &[bool], out: &mut [Vec3]) {
+        let n_pieces = pinned.len();
+        let mut solved = vec![[0.0; 3]; n_pieces];
+        let mut source = vec![[0.0; 3]; n_pieces];
+        let mut count = vec![0usize; n_pieces];
+        for v in 0..out.len() {
+            let p = self.piece[v] as usize;
+            if pinned[p] {
+                solved[p] = add(solved[p], out[v]);
+                source[p] = add(source[p], to_f64(&delta[v]));
+                count[p] += 1;
+            }
+        }
+        let shift: Vec<Vec3> = (0..n_pieces)
+            .map(|p| {
+                if !pinned[p] {
+                    return [0.0; 3];
+                }
+                let inv = 1.0 / count[p] as f64;
+                sub(scale(source[p], inv * self.piece_scale[p]), scale(solved[p], inv))
+            })
+            .collect();
+        for (d, &p) in out.iter_mut().zip(&self.piece) {
+            if pinned[p as usize] {
+                *d = add(*d, shift[p as usize]);
+            }
+        }
+    }
+
+    /// Working-frame deltas to f32 deltas in the target's own orientation.
+    pub(super) fn to_target_frame(&self, deltas: &[Vec3]) -> Vec<[f32; 3]> {
+        deltas.iter().map(|d| mat_vec(&self.rotation, *d).map(|x| x as f32)).collect()
+    }
+
+    /// A target-frame position as a working-frame position.
+    pub(super) fn to_working_frame(&self, p: &[f32; 3]) -> Vec3 {
+        add(mat_vec(&transpose(&self.rotation), sub(to_f64(p), self.target_centre)), self.source_centre)
+    }
+}
+
+fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
+    if !(params.edge_weight.is_finite() && params.edge_weight >= 0.0) {
+        return Err(invalid!("edge_weight must be a finite number >= 0, got {}", params.edge_weight));
+    }
+    if !(0.0..1.0).contains(&params.static_fraction) {
+        return Err(invalid!("static_fraction must lie in [0, 1), got {}", params.static_fraction));
+    }
+    if let Some(ve) = &params.virtual_edges {
+        if !(ve.tau_d.is_finite() && ve.tau_d > 0.0 && ve.tau_r.is_finite() && ve.tau_r > 0.0) {
+            return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {}, tau_r = {}", ve.tau_d, ve.tau_r));
+        }
+    }
+    Ok(())
+}
+
+/// Per piece, the RMS distance to the piece's centroid on the target over that on the
+/// source (1 where the source piece has no extent).
+fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize) -> Vec<f64> {
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); n_pieces];
+    for (v, &p) in piece.iter().enumerate() {
+        members[p as usize].push(v);
+    }
+    let rms = |points: &[Vec3], m: &[usize]| {
+        let c = centroid(&m.iter().map(|&v| points[v]).collect::<Vec<_>>());
+        (m.iter().map(|&v| dot(sub(points[v], c), sub(points[v], c))).sum::<f64>() / m.len().max(1) as f64).sqrt()
+    };
+    members
+        .iter()
+        .map(|m| {
+            let (s, t) = (rms(source, m), rms(target, m));
+            if s > 0.0 && t.is_finite() {
+                t / s
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+fn length32(d: &[f32; 3]) -> f64 {
+    super::gradients::length(to_f64(d))
+}
+
+fn max_length(delta: &[[f32; 3]]) -> f64 {
+    delta.iter().map(length32).fold(0.0, f64::max)
+}
+
+impl std::fmt::Debug for DeformationTransfer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeformationTransfer")
+            .field("vertices", &self.n_vertices())
+            .field("triangles", &self.triangles.len())
+            .field("virtual_edges", &self.virtual_edges.len())
+            .finish()
+    }
+}
+

@@ -1,0 +1,227 @@
+//! The penetration metric of SPEC section 3: the total length of the intersection curves
+//! between triangles that share no vertex, and the number of such intersecting pairs.
+//!
+//! Triangle-triangle test after Moller (1997): each triangle cuts the other's plane in a
+//! segment on the planes' common line; the overlap of the two segments is the pair's piece
+//! of the intersection curve. Coplanar pairs contribute no length (a touching, not a
+//! crossing). BVH-accelerated, rayon over triangles.
+
+use rayon::prelude::*;
+
+use super::bvh::{Aabb, Bvh};
+use super::gradients::{add, cross, dot, length, scale, sub, Vec3};
+
+/// Self-intersection of a surface.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Penetration {
+    /// Total length of the intersection segments, in the mesh's units.
+    pub length: f64,
+    /// Number of intersecting pairs of triangles that share no vertex.
+    pub pairs: usize,
+}
+
+/// Measures the self-intersection of `positions` with `triangles` (indices must be in range).
+pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Penetration {
+    let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
+    total(&crossings(&points, triangles, None))
+}
+
+/// The self-intersections of a rest mesh, kept so that each of its shapes is scored by
+/// re-testing only the triangles the shape moves: a pair of unmoved triangles crosses
+/// exactly as at rest.
+pub struct PenetrationBaseline<'a> {
+    neutral: &'a [[f32; 3]],
+    triangles: &'a [[u32; 3]],
+    /// `(a, b, length)` with `a < b`, in order of `a`.
+    rest: Vec<(u32, u32, f64)>,
+}
+
+impl<'a> PenetrationBaseline<'a> {
+    pub fn new(neutral: &'a [[f32; 3]], triangles: &'a [[u32; 3]]) -> Self {
+        let points: Vec<Vec3> = neutral.iter().map(|p| p.map(f64::from)).collect();
+        Self { neutral, triangles, rest: crossings(&points, triangles, None) }
+    }
+
+    /// The rest mesh's own penetration.
+    pub fn neutral(&self) -> Penetration {
+        total(&self.rest)
+    }
+
+    /// The penetration of `neutral + delta` (N rows). A vertex moves when its delta is not
+    /// exactly zero.
+    pub fn shape(&self, delta: &[[f32; 3]]) -> Penetration {
+        let points: Vec<Vec3> =
+            self.neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
+        let moved: Vec<bool> =
+            self.triangles.iter().map(|t| t.iter().any(|&v| delta[v as usize] != [0.0; 3])).collect();
+        let unmoved = self.rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]).copied();
+        let mut all: Vec<(u32, u32, f64)> = unmoved.collect();
+        all.extend(crossings(&points, self.triangles, Some(&moved)));
+        total(&all)
+    }
+}
+
+fn total(pairs: &[(u32, u32, f64)]) -> Penetration {
+    // Summed in a fixed order so the result does not depend on the thread count.
+    Penetration { length: pairs.iter().map(|p| p.2).sum(), pairs: pairs.len() }
+}
+
+/// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex. With
+/// `moved`, only pairs with at least one moved triangle are tested.
+fn crossings(points: &[Vec3], triangles: &[[u32; 3]], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
+    let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
+    let boxes: Vec<Aabb> = (0..triangles.len()).map(|t| Aabb::of_points(&corners(t))).collect();
+    let bvh = Bvh::new(&boxes);
+    let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
+    let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
+        .into_par_iter()
+        .map(|a| {
+            let mut found = Vec::new();
+            if !is_moved(a) {
+                return found;
+            }
+            bvh.for_each_overlap(&boxes[a], |b| {
+                let b = b as usize;
+                // Each pair once: from its lower index when both moved, else from the moved one.
+                if (b <= a && is_moved(b)) || a == b || triangles[a].iter().any(|v| triangles[b].contains(v)) {
+                    return;
+                }
+                if let Some(len) = intersection_length(corners(a), corners(b)) {
+                    found.push((a.min(b) as u32, a.max(b) as u32, len));
+                }
+            });
+            found
+        })
+        .collect();
+    let mut all: Vec<(u32, u32, f64)> = per_triangle.into_iter().flatten().collect();
+    all.sort_by_key(|&(a, b, _)| (a, b));
+    all
+}
+
+/// The length of the segment where two triangles cross, or `None` when they do not cross
+/// (or are coplanar).
+pub fn intersection_length(a: [Vec3; 3], b: [Vec3; 3]) -> Option<f64> {
+    let na = cross(sub(a[1], a[0]), sub(a[2], a[0]));
+    let nb = cross(sub(b[1], b[0]), sub(b[2], b[0]));
+    let line = cross(na, nb);
+    let line_len = length(line);
+    if line_len <= 1e-14 * length(na) * length(nb) {
+        return None;
+    }
+    let (a_lo, a_hi) = plane_cut(a, nb, b[0], line)?;
+    let (b_lo, b_hi) = plane_cut(b, na, a[0], line)?;
+    let overlap = (a_hi.min(b_hi) - a_lo.max(b_lo)) / line_len;
+    (overlap > 0.0).then_some(overlap)
+}
+
+/// Where triangle `t` cuts the plane through `origin` with normal `normal`, as an interval
+/// of the projection onto `line`; `None` when all corners lie strictly on one side.
+fn plane_cut(t: [Vec3; 3], normal: Vec3, origin: Vec3, line: Vec3) -> Option<(f64, f64)> {
+    let side = t.map(|p| dot(normal, sub(p, origin)));
+    if side.iter().all(|&s| s > 0.0) || side.iter().all(|&s| s < 0.0) {
+        return None;
+    }
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |p: Vec3| {
+        let x = dot(p, line);
+        lo = lo.min(x);
+        hi = hi.max(x);
+    };
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        if side[i] == 0.0 {
+            take(t[i]);
+        }
+        if (side[i] < 0.0 && side[j] > 0.0) || (side[i] > 0.0 && side[j] < 0.0) {
+            let f = side[i] / (side[i] - side[j]);
+            take(add(t[i], scale(sub(t[j], t[i]), f)));
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn crossing_triangles_give_the_known_segment() {
+        // A in z = 0; B upright in y = 0, cut by z = 0 between x = 0.5 and x = 1.5.
+        let a = [[-1.0, -1.0, 0.0], [3.0, -1.0, 0.0], [-1.0, 3.0, 0.0]];
+        let b = [[0.0, 0.0, -1.0], [2.0, 0.0, -1.0], [1.0, 0.0, 1.0]];
+        assert!((intersection_length(a, b).unwrap() - 1.0).abs() < 1e-12);
+        assert!((intersection_length(b, a).unwrap() - 1.0).abs() < 1e-12);
+        // Clipped by A's hypotenuse x + y = 2: shift B to x in [1.5, 2.5] at z = 0 -> 0.5.
+        let b2 = b.map(|p| [p[0] + 1.0, p[1], p[2]]);
+        assert!((intersection_length(a, b2).unwrap() - 0.5).abs() < 1e-12);
+        // Lifted above A: no crossing. Coplanar: no length.
+        let b3 = b.map(|p| [p[0], p[1], p[2] + 1.5]);
+        assert!(intersection_length(a, b3).is_none());
+        let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(intersection_length(a, flat).is_none());
+    }
+
+    #[test]
+    fn adjacent_triangles_do_not_count_and_a_piercing_one_does() {
+        // Triangle 1 shares vertex 0 with triangle 0 and cuts through it: adjacent, not counted.
+        let pts = [
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0],
+            [0.6, 0.3, -0.5], [0.2, 0.3, -1.0], [0.4, 0.3, 1.0], [0.3, 0.6, 1.0], [0.6, 0.3, 0.5],
+        ];
+        let pts32: Vec<[f32; 3]> = pts.iter().map(|p: &[f64; 3]| p.map(|x| x as f32)).collect();
+        assert!(intersection_length([pts[0], pts[1], pts[2]], [pts[0], pts[3], pts[7]]).unwrap() > 0.5);
+        let folded = [[0u32, 1, 2], [0, 3, 7]];
+        assert_eq!(measure_penetration(&pts32, &folded), Penetration::default());
+        // A third triangle, sharing no vertex, pierces the first (and misses the second).
+        let with_pierce = [[0u32, 1, 2], [0, 3, 7], [4, 5, 6]];
+        let p = measure_penetration(&pts32, &with_pierce);
+        assert_eq!(p.pairs, 1);
+        let expect = intersection_length(
+            [pts[0], pts[1], pts[2]].map(|q| q.map(|x| x as f32 as f64)),
+            [pts[4], pts[5], pts[6]].map(|q| q.map(|x| x as f32 as f64)),
+        )
+        .unwrap();
+        assert!((p.length - expect).abs() < 1e-12 && p.length > 0.0);
+    }
+
+    #[test]
+    fn baseline_scores_a_shape_like_a_full_sweep() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let pts: Vec<[f32; 3]> = (0..240).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let tris: Vec<[u32; 3]> = (0..80).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        let baseline = PenetrationBaseline::new(&pts, &tris);
+        assert_eq!(baseline.neutral(), measure_penetration(&pts, &tris));
+        // Move a third of the triangles.
+        let delta: Vec<[f32; 3]> =
+            (0..pts.len()).map(|v| if v % 9 < 3 { [0.2, -0.1, 0.05 * (v % 4) as f32] } else { [0.0; 3] }).collect();
+        let posed: Vec<[f32; 3]> = pts.iter().zip(&delta).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect();
+        let full = measure_penetration(&posed, &tris);
+        let fast = baseline.shape(&delta);
+        assert!(full.pairs > 5 && full != baseline.neutral());
+        assert_eq!(fast.pairs, full.pairs);
+        assert!((fast.length - full.length).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bvh_sweep_matches_all_pairs() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let pts: Vec<[f32; 3]> = (0..150).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let tris: Vec<[u32; 3]> = (0..50).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        let found = measure_penetration(&pts, &tris);
+        let p64: Vec<Vec3> = pts.iter().map(|p| p.map(f64::from)).collect();
+        let mut brute = Penetration::default();
+        for a in 0..tris.len() {
+            for b in a + 1..tris.len() {
+                if let Some(len) = intersection_length(tris[a].map(|v| p64[v as usize]), tris[b].map(|v| p64[v as usize])) {
+                    brute.length += len;
+                    brute.pairs += 1;
+                }
+            }
+        }
+        assert!(brute.pairs > 5, "the random soup should cross itself");
+        assert_eq!(found.pairs, brute.pairs);
+        assert!((found.length - brute.length).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,238 @@
+//! The sparse normal system of the transfer energy and its per-shape Dirichlet solve.
+//!
+//! Normal matrix (per coordinate, unknowns are the deltas `d = x - B0`):
+//! `A = sum_t area_t G_t^T G_t + w_ve sum_(i,j) (e_i - e_j)(e_i - e_j)^T`,
+//! the cotangent Laplacian of the target rest mesh plus one spring per virtual edge.
+//! It depends only on the target neutral: assembled once. Each shape fixes its static
+//! vertices at `d = 0` exactly by eliminating them, which leaves the principal submatrix on
+//! the shape's moving vertices: symbolic (AMD) and numeric Cholesky of that smaller matrix,
+//! `Par::Seq` inside so that rayon can run shapes side by side.
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+use super::gradients::{dot, TriangleOperator};
+use crate::error::{ShapesmithError, ShapesmithResult};
+
+/// The lower triangle of the symmetric normal matrix in compressed columns, sorted rows.
+#[derive(Clone, Debug)]
+pub struct NormalMatrix {
+    n: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl NormalMatrix {
+    /// Sums the per-triangle blocks `area_t grad_phi_i . grad_phi_j` and the springs
+    /// `w (e_i - e_j)(e_i - e_j)^T`.
+    pub fn assemble(
+        n: usize,
+        triangles: &[[u32; 3]],
+        operators: &[TriangleOperator],
+        springs: &[(u32, u32)],
+        spring_weight: f64,
+    ) -> Self {
+        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(6 * triangles.len() + 3 * springs.len());
+        for (tri, op) in triangles.iter().zip(operators) {
+            for a in 0..3 {
+                for b in 0..3 {
+                    let (r, c) = (tri[a] as usize, tri[b] as usize);
+                    if r >= c {
+                        entries.push((c, r, op.area * dot(op.hat_gradients[a], op.hat_gradients[b])));
+                    }
+                }
+            }
+        }
+        for &(i, j) in springs {
+            let (lo, hi) = ((i.min(j)) as usize, (i.max(j)) as usize);
+            entries.push((lo, lo, spring_weight));
+            entries.push((hi, hi, spring_weight));
+            entries.push((lo, hi, -spring_weight));
+        }
+        // (column, row) order, duplicates summed.
+        entries.sort_unstable_by_key(|&(c, r, _)| (c, r));
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::with_capacity(entries.len());
+        let mut values: Vec<f64> = Vec::with_capacity(entries.len());
+        let mut last: Option<(usize, usize)> = None;
+        for (c, r, v) in entries {
+            if last == Some((c, r)) {
+                if let Some(x) = values.last_mut() {
+                    *x += v;
+                }
+                continue;
+            }
+            last = Some((c, r));
+            row_idx.push(r);
+            values.push(v);
+            col_ptr[c + 1] += 1;
+        }
+        for c in 0..n {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        Self { n, col_ptr, row_idx, values }
+    }
+
+    /// `A x` for a vector stored per vertex (residual checks in tests).
+    #[cfg(test)]
+    pub fn apply(&self, x: &[f64]) -> Vec<f64> {
+        let mut y = vec![0.0; self.n];
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = self.row_idx[k];
+                y[r] += self.values[k] * x[c];
+                if r != c {
+                    y[c] += self.values[k] * x[r];
+                }
+            }
+        }
+        y
+    }
+
+    /// The principal submatrix on the vertices with `position[v] != u32::MAX`, renumbered to
+    /// `position[v]`. `position` must be increasing on the kept vertices, so the lower
+    /// triangle stays lower and rows stay sorted.
+    fn restricted(&self, position: &[u32], n_kept: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+        let mut col_ptr = Vec::with_capacity(n_kept + 1);
+        let mut row_idx = Vec::new();
+        let mut values = Vec::new();
+        col_ptr.push(0);
+        for c in 0..self.n {
+            if position[c] == u32::MAX {
+                continue;
+            }
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = position[self.row_idx[k]];
+                if r != u32::MAX {
+                    row_idx.push(r as usize);
+                    values.push(self.values[k]);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        (col_ptr, row_idx, values)
+    }
+
+    /// Solves `A_FF d_F = rhs_F` on the kept vertices for the three coordinates; the other
+    /// vertices are Dirichlet at zero. `rhs` is per vertex (all N); the result is per vertex
+    /// with zeros at eliminated vertices.
+    pub fn solve_restricted(&self, position: &[u32], n_kept: usize, rhs: &[[f64; 3]]) -> ShapesmithResult<Vec<[f64; 3]>> {
+        let mut out = vec![[0.0; 3]; self.n];
+        if n_kept == 0 {
+            return Ok(out);
+        }
+        let (col_ptr, row_idx, values) = self.restricted(position, n_kept);
+        let factor = Cholesky::factor(n_kept, &col_ptr, &row_idx, &values)?;
+        let mut b = faer::Mat::<f64>::zeros(n_kept, 3);
+        for v in 0..self.n {
+            let p = position[v];
+            if p != u32::MAX {
+                for a in 0..3 {
+                    b[(p as usize, a)] = rhs[v][a];
+                }
+            }
+        }
+        factor.solve_in_place(b.as_mut());
+        for v in 0..self.n {
+            let p = position[v];
+            if p != u32::MAX {
+                out[v] = [b[(p as usize, 0)], b[(p as usize, 1)], b[(p as usize, 2)]];
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A sparse LL^T factor (AMD ordering), sequential inside.
+struct Cholesky {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+}
+
+impl Cholesky {
+    fn factor(n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> ShapesmithResult<Self> {
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+        let matrix = SparseColMatRef::new(structure, values);
+        let solver_error = |what: &str, e: &dyn std::fmt::Debug| {
+            ShapesmithError::Solver(format!("the transfer system could not be factorised ({what}: {e:?})"))
+        };
+        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, Default::default(), Default::default())
+            .map_err(|e| solver_error("symbolic", &e))?;
+        let mut factor_values = vec![0.0; symbolic.len_val()];
+        let scratch = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
+        ]);
+        let mut buffer = MemBuffer::try_new(scratch).map_err(|e| solver_error("memory", &e))?;
+        symbolic
+            .factorize_numeric_llt(
+                &mut factor_values,
+                matrix,
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut buffer),
+                Default::default(),
+            )
+            .map_err(|e| solver_error("not positive definite", &e))?;
+        Ok(Self { symbolic, values: factor_values })
+    }
+
+    fn solve_in_place(&self, rhs: MatMut<'_, f64>) {
+        let mut buffer = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq));
+        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buffer));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(w: usize, h: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let mut pts = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                pts.push([x as f64, y as f64 * 1.1, 0.05 * ((x * y) as f64).sin()]);
+            }
+        }
+        let mut tris = Vec::new();
+        for y in 0..h - 1 {
+            for x in 0..w - 1 {
+                let v = (y * w + x) as u32;
+                tris.push([v, v + 1, v + w as u32 + 1]);
+                tris.push([v, v + w as u32 + 1, v + w as u32]);
+            }
+        }
+        (pts, tris)
+    }
+
+    #[test]
+    fn laplacian_kills_constants_and_restricted_solve_has_zero_residual() {
+        let (pts, tris) = grid(6, 5);
+        let ops: Vec<TriangleOperator> = tris
+            .iter()
+            .map(|t| TriangleOperator::new(t.map(|v| pts[v as usize])).unwrap())
+            .collect();
+        let a = NormalMatrix::assemble(pts.len(), &tris, &ops, &[(0, 29)], 0.7);
+        // Constants are in the null space (springs included).
+        let ones = vec![1.0; pts.len()];
+        assert!(a.apply(&ones).iter().all(|v| v.abs() < 1e-12));
+        // Fix the first row of the grid; solve; check the free rows of A d = b.
+        // Vertices 6.. are free, numbered from 0.
+        let position: Vec<u32> = (0..pts.len() as u32).map(|v| if v < 6 { u32::MAX } else { v - 6 }).collect();
+        let kept = pts.len() as u32 - 6;
+        let rhs: Vec<[f64; 3]> = (0..pts.len()).map(|v| [(v as f64).cos(), 1.0, -(v as f64) * 0.1]).collect();
+        let d = a.solve_restricted(&position, kept as usize, &rhs).unwrap();
+        assert!(d[..6].iter().all(|x| *x == [0.0; 3]));
+        for c in 0..3 {
+            let col: Vec<f64> = d.iter().map(|x| x[c]).collect();
+            let ad = a.apply(&col);
+            for v in 6..pts.len() {
+                assert!((ad[v] - rhs[v][c]).abs() < 1e-9, "vertex {v}: {} vs {}", ad[v], rhs[v][c]);
+            }
+        }
+    }
+}

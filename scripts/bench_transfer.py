@@ -1,0 +1,255 @@
+"""Transfer Shape Keys benchmark (SPEC section 4), run with the bpy Python:
+
+    python scripts/bench_transfer.py [-- --json OUT.json] [--pack-json PACK.json]
+
+1. Warp ground truth: the target is W(V0) for a known smooth map W (non-uniform scale
+   (1.0, 1.25, 0.85) and a bend), so the true shapes are W(V0 + D_k). Mean vertex error on each
+   shape's active vertices (moving at least 0.3 of its largest displacement), relative to the
+   bounding-box diagonal, for: the naive additive copy, plain deformation transfer, with
+   virtual edges, personalised with the J packed expressions as training data, and
+   personalised with J random single shapes (the control; mean over 5 seeds).
+2. Penetration on the MakeHuman identities (Target_*): intersection-curve length per shape
+   with and without virtual edges beside the template's own.
+3. Timings on the bundled rig and on a 4x denser subdivision of it.
+The packed expressions come from `shapesmith_native.pack_expressions` when the native core
+has it, else from a Pack Expressions JSON report (--pack-json, default docs/template_pack.json,
+the stored packing of the sample Template).
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import bpy
+import bmesh  # noqa: I001  (bmesh loads only after bpy)
+import numpy as np
+
+SCRIPTS = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, SCRIPTS)
+import batch  # noqa: E402
+
+SCALE = np.array([1.0, 1.25, 0.85])
+BEND = 0.03  # the bend moves the face's sides back by this fraction of the diagonal
+ACTIVE = 0.3  # SPEC 1's mu: a vertex is active in a shape moving >= 0.3 of its maximum
+CONTROL_SEEDS = 5
+
+
+def warp(points, centre, half_width, diagonal):
+    """W: scale about the centre, then bend the sides back (y grows with x^2)."""
+    p = (points - centre) * SCALE + centre
+    p[..., 1] += BEND * diagonal * ((points[..., 0] - centre[0]) / half_width) ** 2
+    return p.astype(np.float32)
+
+
+def mean_active_error(predicted, truth, diagonal):
+    """Mean over shapes of the mean error on the shape's active vertices, / diagonal."""
+    errors = []
+    for k in range(len(truth)):
+        size = np.linalg.norm(truth[k], axis=1)
+        active = size >= ACTIVE * size.max()
+        errors.append(np.linalg.norm(predicted[k] - truth[k], axis=1)[active].mean() / diagonal)
+    return float(np.mean(errors))
+
+
+def packed_expressions(nat, rig, target_neutral, pack_json):
+    if hasattr(nat, "pack_expressions"):
+        report = nat.pack_expressions(rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral)
+        return [e["shapes"] for e in report["expressions"]], "shapesmith_native.pack_expressions"
+    if pack_json and os.path.isfile(pack_json):
+        with open(pack_json) as f:
+            return [e["shapes"] for e in json.load(f)["expressions"]], pack_json
+    return None, "no packing available (native core without pack_expressions, no --pack-json file)"
+
+
+def warp_benchmark(nat, rig, pack_json):
+    points = rig.neutral.astype(np.float64)
+    low, high = points.min(0), points.max(0)
+    diagonal = float(np.linalg.norm(high - low))
+    centre, half_width = (low + high) / 2, (high[0] - low[0]) / 2
+
+    def w(p):
+        return warp(p, centre, half_width, diagonal)
+
+    target = w(points)
+    truth = np.stack([w(points + d) - target for d in rig.deltas])
+    target_diagonal = float(np.linalg.norm(target.max(0) - target.min(0)))
+
+    def transfer(**options):
+        deltas, report = nat.transfer_shapes(
+            rig.neutral, rig.deltas, target, rig.triangles, rig.names, measure_penetration=False, **options
+        )
+        return mean_active_error(deltas, truth, target_diagonal), report
+
+    rows = {"additive copy": mean_active_error(rig.deltas, truth, target_diagonal)}
+    rows["plain transfer"], _ = transfer(virtual_edges=False)
+    rows["virtual edges"], _ = transfer(virtual_edges=True)
+    index = {name: k for k, name in enumerate(rig.names)}
+    expressions, packing_source = packed_expressions(nat, rig, target, pack_json)
+    result = {"diagonal": target_diagonal, "packing": packing_source}
+    if expressions:
+        j = len(expressions)
+        weights = np.zeros((j, len(rig.names)), dtype=np.float32)
+        for row, members in enumerate(expressions):
+            weights[row, [index[m] for m in members]] = 1.0
+        examples = np.stack([w(points + np.tensordot(weights[row], rig.deltas, 1)) for row in range(j)])
+        started = time.perf_counter()
+        rows[f"personalised, {j} packed expressions"], report = transfer(
+            virtual_edges=True, examples=examples, example_weights=weights.tolist()
+        )
+        result["personalise_seconds"] = time.perf_counter() - started
+        result["personalise_native_seconds"] = report["seconds"]
+        controls = []
+        moving = [k for k in range(len(rig.names)) if np.abs(rig.deltas[k]).max() > 0]
+        for seed in range(CONTROL_SEEDS):
+            chosen = np.random.default_rng(seed).choice(moving, size=min(j, len(moving)), replace=False)
+            control_weights = np.zeros((len(chosen), len(rig.names)), dtype=np.float32)
+            control_weights[np.arange(len(chosen)), chosen] = 1.0
+            control_examples = np.stack([w(points + rig.deltas[k]) for k in chosen])
+            controls.append(transfer(virtual_edges=True, examples=control_examples, example_weights=control_weights.tolist())[0])
+        rows[f"personalised, {j} random single shapes (control, {CONTROL_SEEDS} seeds)"] = float(np.mean(controls))
+        result["control_spread"] = [float(min(controls)), float(max(controls))]
+        result["expressions"] = expressions
+    result["mean_active_error"] = rows
+    return result
+
+
+def penetration_benchmark(transfer_module, template, targets):
+    """Per target: total intersection-curve length with and without virtual edges beside the
+    template's, and the shapes that add more intersection to the target's neutral than to
+    the template's (with virtual edges, and plain)."""
+    result = {}
+    for target in targets:
+        report = transfer_module.transfer_object(template, target, compare_plain=True).report
+        rows = report["penetration"]
+        result[target.name] = {
+            "virtual_edges": report["virtual_edges"],
+            "length": sum(r["length"] for r in rows),
+            "plain_length": sum(r["plain_length"] for r in rows),
+            "template_length": sum(r["template_length"] for r in rows),
+            "neutral_length": report["neutral_penetration"]["length"],
+            "template_neutral_length": report["template_neutral_penetration"]["length"],
+            "worse_than_template": transfer_module.worse_than_template(report),
+            "plain_worse_than_template": transfer_module.worse_than_template(report, key="plain_length"),
+            "shapes": rows,
+        }
+    return result
+
+
+def subdivided(obj, name):
+    """A copy of `obj` with every edge cut once (about 4x the vertices); shape keys are
+    carried by bmesh as layers, so each key is subdivided exactly like the basis."""
+    mesh = bmesh.new()
+    mesh.from_mesh(obj.data)
+    bmesh.ops.subdivide_edges(mesh, edges=mesh.edges[:], cuts=1, use_grid_fill=True)
+    data = obj.data.copy()  # keeps the Key, whose blocks to_mesh fills from the layers
+    mesh.to_mesh(data)
+    mesh.free()
+    copy = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(copy)
+    return copy
+
+
+def timing_benchmark(nat, mesh_arrays, template, target, rest_positions, runs=3):
+    """Best-of-`runs` native seconds of all shapes with virtual edges (penetration not
+    measured), and of a personalisation with 8 single-shape training expressions."""
+    rig = mesh_arrays.read_rig(template)
+    neutral = rest_positions(target)
+    best = None
+    for _ in range(runs):
+        started = time.perf_counter()
+        _, report = nat.transfer_shapes(
+            rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, measure_penetration=False
+        )
+        wall = time.perf_counter() - started
+        if best is None or wall < best["wall"]:
+            best = {"wall": wall, "native": report["seconds"], "virtual_edges": report["virtual_edges"]}
+    chosen = np.arange(0, len(rig.names), max(1, len(rig.names) // 8))[:8]
+    weights = np.zeros((len(chosen), len(rig.names)), dtype=np.float32)
+    weights[np.arange(len(chosen)), chosen] = 1.0
+    examples = np.stack([neutral + 1.1 * rig.deltas[k] for k in chosen]).astype(np.float32)
+    started = time.perf_counter()
+    _, report = nat.transfer_shapes(
+        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names,
+        measure_penetration=False, examples=examples, example_weights=weights.tolist(),
+    )
+    return {
+        "vertices": len(rig.neutral),
+        "triangles": len(rig.triangles),
+        "shapes": len(rig.names),
+        "transfer": best,
+        "personalise_8_examples": {"wall": time.perf_counter() - started, "native": report["seconds"]},
+    }
+
+
+def print_report(result):
+    warp_result = result["warp"]
+    print(f"\n== Warp ground truth (mean error on active vertices / bbox diagonal; packing: {warp_result['packing']})")
+    for name, value in warp_result["mean_active_error"].items():
+        print(f"  {name:55s} {value:.2e}")
+    print("\n== Penetration on the identities (intersection-curve length added to each neutral, summed over the shapes)")
+    for name, row in result["penetration"].items():
+        k = len(row["shapes"])
+        added = row["length"] - k * row["neutral_length"]
+        plain = row["plain_length"] - k * row["neutral_length"]
+        template = row["template_length"] - k * row["template_neutral_length"]
+        print(
+            f"  {name}: {row['virtual_edges']} virtual edges; added with {added:.4f}, plain {plain:.4f}, template {template:.4f}; "
+            f"shapes adding more than on the template: {len(row['worse_than_template'])} "
+            f"(plain {len(row['plain_worse_than_template'])}): {', '.join(row['worse_than_template']) or 'none'}"
+        )
+    print("\n== Timings (best of 3, native seconds)")
+    for name, row in result["timings"].items():
+        t = row["transfer"]
+        print(
+            f"  {name}: {row['vertices']} vertices, {row['shapes']} shapes: transfer with virtual edges {t['wall']:.3f} s "
+            f"({', '.join(f'{k} {v:.3f}' for k, v in t['native'].items())}); "
+            f"personalise (8 examples) {row['personalise_8_examples']['wall']:.3f} s"
+        )
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="bench_transfer.py --")
+    parser.add_argument("--json", default=os.path.join(batch_cache(), "bench", "transfer.json"))
+    parser.add_argument(
+        "--pack-json",
+        default=os.path.join(SCRIPTS, "..", "docs", "template_pack.json"),
+        help="Pack Expressions JSON report of the Template (used when the native core has no pack_expressions)",
+    )
+    args = parser.parse_args(argv)
+    shapesmith = batch.load_shapesmith()
+    from importlib import import_module
+
+    mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
+    transfer_module = import_module(shapesmith.__name__ + ".blender.transfer")
+    rest_positions = transfer_module.rest_positions
+    nat = shapesmith.native.module()
+    sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
+    if not os.path.isfile(sample):
+        batch.run_sample(argparse.Namespace(output=sample))
+    bpy.ops.wm.open_mainfile(filepath=sample)
+    template = bpy.data.objects["Template"]
+    rig = mesh_arrays.read_rig(template)
+    targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
+    result = {
+        "warp": warp_benchmark(nat, rig, args.pack_json),
+        "penetration": penetration_benchmark(transfer_module, template, targets),
+        "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
+    }
+    dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")
+    result["timings"]["4x denser"] = timing_benchmark(nat, mesh_arrays, dense_template, dense_target, rest_positions)
+    print_report(result)
+    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+    with open(args.json, "w") as f:
+        json.dump(result, f, indent=2)
+    print(f"\nwrote {args.json}")
+
+
+def batch_cache():
+    return os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,116 @@
+"""Renders the README's before/after picture of Transfer Shape Keys, headless (bpy Python):
+
+    python scripts/render_transfer.py [-- --target Target_OldMan --shape mouthClose --output docs/transfer_mouthClose.png]
+
+The template's keys are transferred onto two copies of the target, one without and one with
+virtual edges; both are posed at the shape and rendered (Workbench, orthographic close-up of
+the region the shape moves) side by side: left plain, right with virtual edges. The
+intersection-curve lengths are printed for the caption.
+"""
+
+import argparse
+import os
+import sys
+from importlib import import_module
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+SCRIPTS = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, SCRIPTS)
+import batch  # noqa: E402
+from bench_transfer import batch_cache  # noqa: E402
+
+SIZE = (300, 250)
+
+
+def transferred_copy(modules, template, target, name, virtual_edges):
+    copy = target.copy()
+    copy.data = target.data.copy()
+    copy.name = name
+    bpy.context.scene.collection.objects.link(copy)
+    transfer = modules["transfer"].transfer_object(template, copy, virtual_edges=virtual_edges)
+    modules["shape_keys"].write_transferred_keys(transfer)
+    return copy, transfer
+
+
+def render(obj, shape, centre, extent, path):
+    scene = bpy.context.scene
+    for other in scene.objects:
+        other.hide_render = other != obj and other.type == "MESH"
+    obj.data.shape_keys.key_blocks[shape].value = 1.0
+    camera = bpy.data.objects.get("RenderCamera")
+    if camera is None:
+        camera = bpy.data.objects.new("RenderCamera", bpy.data.cameras.new("RenderCamera"))
+        scene.collection.objects.link(camera)
+    camera.data.type = "ORTHO"
+    camera.data.ortho_scale = extent
+    world_centre = obj.matrix_world @ Vector(centre)
+    # from the front (-Y), a little from below, where lips and lids show their overlap
+    camera.location = world_centre + Vector((0.0, -1.0, -0.25))
+    camera.rotation_euler = (Vector((0.0, 1.0, 0.25))).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = camera
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.light = "STUDIO"
+    scene.display.shading.show_cavity = True
+    scene.render.resolution_x, scene.render.resolution_y = SIZE
+    scene.render.resolution_percentage = 100
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+
+
+def side_by_side(paths, output):
+    images = [bpy.data.images.load(p) for p in paths]
+    width, height = images[0].size
+    pixels = [np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4) for image in images]
+    gap = np.ones((height, 6, 4), dtype=np.float32)
+    combined = np.concatenate([pixels[0], gap, pixels[1]], axis=1)
+    result = bpy.data.images.new("side_by_side", combined.shape[1], height, alpha=False)
+    result.pixels = combined.ravel()
+    # save through the scene's output settings: 8-bit RGB, full compression (a small PNG)
+    settings = bpy.context.scene.render.image_settings
+    settings.file_format, settings.color_mode, settings.color_depth, settings.compression = "PNG", "RGB", "8", 100
+    result.save_render(output)
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="render_transfer.py --")
+    parser.add_argument("--target", default="Target_OldMan")
+    parser.add_argument("--shape", default="mouthClose")
+    parser.add_argument("--output", help="default: docs/transfer_<shape>.png")
+    args = parser.parse_args(argv)
+    output = os.path.abspath(args.output or os.path.join(SCRIPTS, "..", "docs", f"transfer_{args.shape}.png"))
+    shapesmith = batch.load_shapesmith()
+    modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys")}
+    sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
+    if not os.path.isfile(sample):
+        batch.run_sample(argparse.Namespace(output=sample))
+    bpy.ops.wm.open_mainfile(filepath=sample)
+    template, target = bpy.data.objects["Template"], bpy.data.objects[args.target]
+
+    rig = import_module(f"{shapesmith.__name__}.blender.mesh_arrays").read_rig(template)
+    moved = np.linalg.norm(rig.deltas[rig.names.index(args.shape)], axis=1)
+    region = modules["transfer"].rest_positions(target)[moved > 0.2 * moved.max()]
+    centre = (region.min(0) + region.max(0)) / 2
+    extent = 1.5 * float(max(np.ptp(region[:, 0]), np.ptp(region[:, 2])))
+
+    os.makedirs(os.path.dirname(output), exist_ok=True)
+    paths = []
+    for label, virtual_edges in (("plain", False), ("virtual_edges", True)):
+        copy, transfer = transferred_copy(modules, template, target, f"{args.target}_{label}", virtual_edges)
+        row = next(r for r in transfer.report["penetration"] if r["name"] == args.shape)
+        print(
+            f"{args.shape} on {args.target}, {label}: intersection curve {row['length']:.4f} ({row['pairs']} pairs); "
+            f"template {row['template_length']:.4f} ({row['template_pairs']} pairs)"
+        )
+        path = os.path.join(batch_cache(), "render", f"{label}.png")
+        render(copy, args.shape, centre, extent, path)
+        paths.append(path)
+    side_by_side(paths, output)
+    print(f"wrote {output}")
+
+
+if __name__ == "__main__":
+    main()
