@@ -148,6 +148,17 @@ def test_score_layout_of_a_tracked_group_matches_the_layout_and_ranks_layouts(sa
     assert score.group == "NoseTip" and score.mean_error > 2 * document["reconstruction"]["mean"]
 
 
+def test_packed_expressions_stored_on_the_rig_join_the_test_poses(sample):
+    template = make_active(bpy.data.objects["Template"])
+    without = place()["reconstruction"]
+    assert without["packed_expressions"] == 0
+    assert bpy.ops.shapesmith.pack_expressions() == {"FINISHED"}
+    expressions = len(template.shapesmith.pack.result.expressions)
+    with_packed = place()["reconstruction"]
+    assert expressions > 0 and with_packed["packed_expressions"] == expressions
+    assert with_packed["poses"] == without["poses"] + expressions
+
+
 def test_export_writes_the_layout_as_json_and_csv(sample, tmp_path):
     make_active(bpy.data.objects["Template"])
     document = place()
