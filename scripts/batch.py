@@ -130,6 +130,61 @@ def run_analyze(args):
     write_json(args.json, report)
 
 
+def add_pack_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--target", help="target head of the same topology (importance by its distortion)")
+    parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
+    parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
+    parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
+    parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
+    parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
+    parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
+    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
+    parser.add_argument("--csv", help="write the shot list here")
+    parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
+    parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
+    parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
+    parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
+    parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
+
+
+def run_pack(args):
+    """Settings and refinements stored on the object apply; flags override them."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    packing = import_module(shapesmith.__name__ + ".blender.packing")
+    obj = find_object(args.object)
+    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
+    options.update({key: value for key, value in overrides.items() if value is not None})
+    options["fewest"] = args.fewest or options.get("fewest", False)
+    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
+    if args.target:
+        options["target"] = find_object(args.target)
+    report = packing.pack_object(obj, **options)
+    started = time.perf_counter()
+    packing.store_packing(obj, report)
+    for line in packing.summary_lines(report):
+        print(line)
+    if args.bake:
+        packing.bake_expressions(obj)
+    if args.sheet:
+        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
+        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
+        print(f"wrote {args.sheet}")
+    if args.csv:
+        packing.write_shot_list_csv(args.csv, report)
+    if args.output:
+        save_copy(args.output)
+    report.update(input=os.path.abspath(args.input), object=args.object)
+    report["seconds"]["write"] = time.perf_counter() - started
+    write_json(args.json, report)
+
+
 def add_landmarks_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help="mesh object with shape keys")
@@ -188,27 +243,6 @@ def run_landmarks(args):
         save_copy(args.output)
 
 
-def add_pack_args(parser):
-    parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--object", required=True, help="mesh object with shape keys")
-    parser.add_argument("--target", help="target head of the same topology (importance by its distortion)")
-    parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
-    parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
-    parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
-    parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
-    parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
-    parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
-    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
-    parser.add_argument("--csv", help="write the shot list here")
-    parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
-    parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
-    parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
-    parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
-    parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
-
-
-def run_pack(args):
-    """Settings and refinements stored on the object apply; flags override them."""
 def add_transfer_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--source", required=True, help="the template: mesh with shape keys")
@@ -217,7 +251,7 @@ def add_transfer_args(parser):
     parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer")
     parser.add_argument("--tau-d", type=float, default=0.015, help="virtual-edge distance, fraction of the bbox diagonal")
     parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
-    parser.add_argument("--edge-weight", type=float, default=1.0, help="weight of each virtual edge")
+    parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
     parser.add_argument(
         "--examples",
         help="training expressions to personalise with, comma separated object names (REF_01-style after the "
@@ -252,34 +286,6 @@ def run_transfer(args):
     from importlib import import_module
 
     shapesmith = load_shapesmith()
-    open_blend(args.input)
-    packing = import_module(shapesmith.__name__ + ".blender.packing")
-    obj = find_object(args.object)
-    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
-    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
-    options.update({key: value for key, value in overrides.items() if value is not None})
-    options["fewest"] = args.fewest or options.get("fewest", False)
-    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
-    if args.target:
-        options["target"] = find_object(args.target)
-    report = packing.pack_object(obj, **options)
-    started = time.perf_counter()
-    packing.store_packing(obj, report)
-    for line in packing.summary_lines(report):
-        print(line)
-    if args.bake:
-        packing.bake_expressions(obj)
-    if args.sheet:
-        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
-        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
-        print(f"wrote {args.sheet}")
-    if args.csv:
-        packing.write_shot_list_csv(args.csv, report)
-    if args.output:
-        save_copy(args.output)
-    report.update(input=os.path.abspath(args.input), object=args.object)
-    report["seconds"]["write"] = time.perf_counter() - started
-    write_json(args.json, report)
     started = time.perf_counter()
     open_blend(args.input)
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
