@@ -151,6 +151,40 @@ def add_pack_args(parser):
 
 def run_pack(args):
     """Settings and refinements stored on the object apply; flags override them."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    packing = import_module(shapesmith.__name__ + ".blender.packing")
+    obj = find_object(args.object)
+    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
+    options.update({key: value for key, value in overrides.items() if value is not None})
+    options["fewest"] = args.fewest or options.get("fewest", False)
+    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
+    if args.target:
+        options["target"] = find_object(args.target)
+    report = packing.pack_object(obj, **options)
+    started = time.perf_counter()
+    packing.store_packing(obj, report)
+    for line in packing.summary_lines(report):
+        print(line)
+    if args.bake:
+        packing.bake_expressions(obj)
+    if args.sheet:
+        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
+        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
+        print(f"wrote {args.sheet}")
+    if args.csv:
+        packing.write_shot_list_csv(args.csv, report)
+    if args.output:
+        save_copy(args.output)
+    report.update(input=os.path.abspath(args.input), object=args.object)
+    report["seconds"]["write"] = time.perf_counter() - started
+    write_json(args.json, report)
+
+
 def add_transfer_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--source", required=True, help="the template: mesh with shape keys")
@@ -194,34 +228,6 @@ def run_transfer(args):
     from importlib import import_module
 
     shapesmith = load_shapesmith()
-    open_blend(args.input)
-    packing = import_module(shapesmith.__name__ + ".blender.packing")
-    obj = find_object(args.object)
-    options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
-    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
-    options.update({key: value for key, value in overrides.items() if value is not None})
-    options["fewest"] = args.fewest or options.get("fewest", False)
-    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
-    if args.target:
-        options["target"] = find_object(args.target)
-    report = packing.pack_object(obj, **options)
-    started = time.perf_counter()
-    packing.store_packing(obj, report)
-    for line in packing.summary_lines(report):
-        print(line)
-    if args.bake:
-        packing.bake_expressions(obj)
-    if args.sheet:
-        reference_sheet = import_module(shapesmith.__name__ + ".blender.reference_sheet")
-        reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
-        print(f"wrote {args.sheet}")
-    if args.csv:
-        packing.write_shot_list_csv(args.csv, report)
-    if args.output:
-        save_copy(args.output)
-    report.update(input=os.path.abspath(args.input), object=args.object)
-    report["seconds"]["write"] = time.perf_counter() - started
-    write_json(args.json, report)
     started = time.perf_counter()
     open_blend(args.input)
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
