@@ -193,7 +193,7 @@ def add_transfer_args(parser):
     parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer")
     parser.add_argument("--tau-d", type=float, default=0.015, help="virtual-edge distance, fraction of the bbox diagonal")
     parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
-    parser.add_argument("--edge-weight", type=float, default=1.0, help="weight of each virtual edge")
+    parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
     parser.add_argument(
         "--examples",
         help="training expressions to personalise with, comma separated object names (REF_01-style after the "
