@@ -202,7 +202,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         soft_max=20.0,
     )
     edge_weight: bpy.props.FloatProperty(
-        name="Weight", description="Weight of each virtual edge against the shape-following energy", default=1.0, min=0.0, soft_max=100.0
+        name="Weight", description="Weight of each virtual edge against the shape-following energy", default=3.0, min=0.0, soft_max=100.0
     )
     overwrite: bpy.props.BoolProperty(
         name="Overwrite Existing Keys",

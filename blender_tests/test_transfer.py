@@ -102,20 +102,7 @@ def test_transfer_writes_the_templates_52_keys_with_their_settings(sample, targe
     assert result.virtual_edges > 0
 
 
-@pytest.mark.parametrize(
-    "virtual_edges",
-    (
-        False,
-        pytest.param(
-            True,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the virtual-edge target S_ij (B0_i - B0_j) (SPEC 3) is not the template's own edge: "
-                "on the template itself mouthClose moves up to 5% of the diagonal away from its key",
-            ),
-        ),
-    ),
-)
+@pytest.mark.parametrize("virtual_edges", (False, True))
 def test_the_template_onto_a_copy_of_itself_reproduces_its_keys(sample, virtual_edges):
     template = bpy.data.objects["Template"]
     twin = copy_of(template, "Twin")

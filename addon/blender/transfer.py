@@ -165,7 +165,7 @@ def transfer_object(
     virtual_edges=True,
     tau_d=0.015,
     tau_r=4.0,
-    edge_weight=1.0,
+    edge_weight=3.0,
     training_objects=(),
     pack_report=None,
     beta_reg=0.1,

@@ -14,7 +14,7 @@ use crate::transfer::{
 use crate::NoProgress;
 
 /// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
-///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=1.0,
+///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
 ///                 examples=None, example_weights=None, beta_reg=0.1, refine_weights=False,
 ///                 compare_plain=False, measure_penetration=True, align_rotation=True)
 ///     -> (deltas float32 (K, N, 3), report dict)
@@ -23,7 +23,7 @@ use crate::NoProgress;
 /// `example_weights` their J x K blend weights (packed expressions are 0/1 rows).
 #[pyfunction]
 #[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
-                    tau_d=0.015, tau_r=4.0, edge_weight=1.0, examples=None, example_weights=None, beta_reg=0.1,
+                    tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=0.1,
                     refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true))]
 #[allow(clippy::too_many_arguments)]
 fn transfer_shapes<'py>(

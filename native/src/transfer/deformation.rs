@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
 use super::gradients::{
-    add, corners, delta_gradient, dot, edge_frame, inverse, mat_add_scaled, mat_vec, scale, sub, to_f64, transpose, Mat3,
+    add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     TriangleOperator, Vec3, IDENTITY, ZERO,
 };
 use super::system::NormalMatrix;
@@ -30,6 +30,8 @@ pub struct DeformationTransfer {
     target_operators: Vec<TriangleOperator>,
     matrix: NormalMatrix,
     virtual_edges: Vec<(u32, u32)>,
+    /// Per virtual edge: `A_ij`, the mean target-rest / source-rest gradient at its ends.
+    edge_rest_maps: Vec<Mat3>,
     edge_weight: f64,
     /// Original target orientation = `rotation` x working frame.
     rotation: Mat3,
@@ -101,6 +103,17 @@ impl DeformationTransfer {
             _ => Vec::new(),
         };
         let virtual_edge_seconds = edges_start.elapsed().as_secs_f64();
+        // A_t = E_target E_source^{-1}, the rest-to-rest deformation gradient (S&P Eq. 1).
+        let rest_maps: Vec<Mat3> = (0..triangles.len())
+            .map(|t| mat_mul(&edge_frame(corners(&target, None, &triangles[t])), &source_rest_inverse[t]))
+            .collect();
+        let vertex_rest_maps = vertex_means(n, triangles, &rest_maps);
+        let edge_rest_maps = virtual_edges
+            .iter()
+            .map(|&(i, j)| {
+                mat_add_scaled(&vertex_rest_maps[i as usize], &vertex_rest_maps[j as usize], 1.0).map(|r| r.map(|x| 0.5 * x))
+            })
+            .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight);
         Ok(Self {
             triangles: triangles.to_vec(),
@@ -111,6 +124,7 @@ impl DeformationTransfer {
             target_operators,
             matrix,
             virtual_edges,
+            edge_rest_maps,
             edge_weight: params.edge_weight,
             rotation,
             source_centre,
@@ -239,7 +253,7 @@ impl DeformationTransfer {
             position[v] = kept;
             kept += 1;
         }
-        let rhs = self.right_hand_side(gradients);
+        let rhs = self.right_hand_side(delta, gradients);
         let mut out = self.matrix.solve_restricted(&position, kept as usize, &rhs)?;
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
@@ -248,9 +262,9 @@ impl DeformationTransfer {
     }
 
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
-    /// energy for deltas) plus `+-w_ve (S_ij - I)(B0_i - B0_j)` at the ends of each virtual
-    /// edge (paper 004: the edge vector transformed by the mean gradient at its ends).
-    fn right_hand_side(&self, gradients: &[Mat3]) -> Vec<Vec3> {
+    /// energy for deltas) plus `+-w_ve (f_k - f_0)` at the ends of each virtual edge, with
+    /// `f_0 = B0_i - B0_j` and `f_k` its target in this shape ([`Self::edge_change`]).
+    fn right_hand_side(&self, delta: &[[f32; 3]], gradients: &[Mat3]) -> Vec<Vec3> {
         let mut rhs = vec![[0.0; 3]; self.n_vertices()];
         for ((tri, op), h) in self.triangles.iter().zip(&self.target_operators).zip(gradients) {
             for (&v, &grad) in tri.iter().zip(&op.hat_gradients) {
@@ -258,37 +272,31 @@ impl DeformationTransfer {
                 rhs[v] = add(rhs[v], scale(mat_vec(h, grad), op.area));
             }
         }
-        if !self.virtual_edges.is_empty() {
-            let mean = self.vertex_mean_gradients(gradients);
-            for &(i, j) in &self.virtual_edges {
-                let (i, j) = (i as usize, j as usize);
-                let s_ij = mat_add_scaled(&mean[i], &mean[j], 1.0).map(|row| row.map(|x| 0.5 * x));
-                let target = scale(mat_vec(&s_ij, sub(self.target_neutral[i], self.target_neutral[j])), self.edge_weight);
-                rhs[i] = add(rhs[i], target);
-                rhs[j] = sub(rhs[j], target);
-            }
+        for (&(i, j), rest_map) in self.virtual_edges.iter().zip(&self.edge_rest_maps) {
+            let (i, j) = (i as usize, j as usize);
+            let change = self.edge_change(i, j, rest_map, sub(to_f64(&delta[i]), to_f64(&delta[j])));
+            let target = scale(change, self.edge_weight);
+            rhs[i] = add(rhs[i], target);
+            rhs[j] = sub(rhs[j], target);
         }
         rhs
     }
 
-    /// Mean of `S_t - I` over each vertex's one-ring (zero for a vertex in no triangle).
-    fn vertex_mean_gradients(&self, gradients: &[Mat3]) -> Vec<Mat3> {
-        let n = self.n_vertices();
-        let mut sum = vec![ZERO; n];
-        let mut count = vec![0usize; n];
-        for (tri, h) in self.triangles.iter().zip(gradients) {
-            for &v in tri {
-                sum[v as usize] = mat_add_scaled(&sum[v as usize], h, 1.0);
-                count[v as usize] += 1;
-            }
-        }
-        for v in 0..n {
-            if count[v] > 0 {
-                let inv = 1.0 / count[v] as f64;
-                sum[v] = sum[v].map(|row| row.map(|x| x * inv));
-            }
-        }
-        sum
+    /// `f_k - f_0` for the virtual edge `(i, j)` whose source ends move apart by `motion`
+    /// (`D_k,i - D_k,j`): `f_k = A_ij e_k + rho (f_0 - A_ij e_0)`, with `e_0`, `e_k` the source
+    /// pair's vector at rest and in the shape, `A_ij` the rest-to-rest map at the ends and
+    /// `rho = (1 - min(1, |e_k - e_0| / |e_0|))^2`. The pair keeps the source's final
+    /// configuration (in the target's frame) where it moves a lot, so lips the template closes
+    /// stay as far apart as the template's, whatever the target's gap; where it barely moves,
+    /// the target's own rest vector. For the template onto itself `A = I`, `f_0 = e_0` and
+    /// `f_k = e_k` exactly. See the module's Deviations.
+    fn edge_change(&self, i: usize, j: usize, rest_map: &Mat3, motion: Vec3) -> Vec3 {
+        let f0 = sub(self.target_neutral[i], self.target_neutral[j]);
+        let e0 = sub(self.source_neutral[i], self.source_neutral[j]);
+        let rest_length = length(e0);
+        let keep_own = if rest_length > 0.0 { (1.0 - (length(motion) / rest_length).min(1.0)).powi(2) } else { 1.0 };
+        let mismatch = sub(f0, mat_vec(rest_map, e0));
+        sub(add(mat_vec(rest_map, add(e0, motion)), scale(mismatch, keep_own)), f0)
     }
 
     /// Translates each pinned piece so that its mean delta is the source piece's mean delta
@@ -390,3 +398,22 @@ impl std::fmt::Debug for DeformationTransfer {
     }
 }
 
+
+/// Mean of a per-triangle matrix over each vertex's one-ring (zero for a vertex in no triangle).
+fn vertex_means(n: usize, triangles: &[[u32; 3]], per_triangle: &[Mat3]) -> Vec<Mat3> {
+    let mut sum = vec![ZERO; n];
+    let mut count = vec![0usize; n];
+    for (tri, h) in triangles.iter().zip(per_triangle) {
+        for &v in tri {
+            sum[v as usize] = mat_add_scaled(&sum[v as usize], h, 1.0);
+            count[v as usize] += 1;
+        }
+    }
+    for v in 0..n {
+        if count[v] > 0 {
+            let inv = 1.0 / count[v] as f64;
+            sum[v] = sum[v].map(|row| row.map(|x| x * inv));
+        }
+    }
+    sum
+}

@@ -18,7 +18,8 @@
 //! | `G_t` (gradient operator of the target rest triangle) | `gradients::TriangleOperator` |
 //! | `sum_t area_t G_t^T G_t` (+ virtual-edge springs) | `system::NormalMatrix` |
 //! | `tau_d`, `tau_r` (paper 004, section 4) | [`VirtualEdgeParams`] |
-//! | `w_ve`, `S_ij` (virtual-edge weight, mean gradient at the ends) | [`TransferParams::edge_weight`], `deformation::vertex_mean_gradients` |
+//! | `w_ve` (virtual-edge weight) | [`TransferParams::edge_weight`] |
+//! | `A_ij` (rest-to-rest gradient at the ends of a virtual edge; replaces `S_ij`) | `DeformationTransfer::edge_rest_maps` |
 //! | `alpha_jk` (EBFR blend weights of example `j`) | `weights` of [`DeformationTransfer::personalise`] |
 //! | `beta`, `kappa`, `theta` (EBFR regulariser, its adaptive weight) | [`PersonaliseParams`] |
 //!
@@ -42,18 +43,32 @@
 //!   ([`TransferParams::align_rotation`]) the target is rotated onto the source (Kabsch) for
 //!   the solve and the deltas rotated back; for targets in the template's orientation the
 //!   rotation is close to the identity.
-//! - **Virtual edges** join vertices of one piece only (see [`find_virtual_edges`]). Their
-//!   springs need no rescaling: both the area-weighted gradient energy and the spring energy
-//!   are squared lengths, and `w_ve = 1` makes a virtual edge weigh about as much as one mesh
-//!   edge of the cotangent Laplacian (whose weights are `(cot a + cot b) / 2 ~ 0.6`).
-//!   `S_ij` is the mean of the source gradients averaged over the one-rings of `i` and `j`.
-//!   As in the paper, the springs hold a gap at its transformed rest vector: a layer that
-//!   translates has `S ~ I`, so gaps that the template closes (blinks, a closed mouth) are
-//!   held partly open, and transfer onto the template itself is exact only without virtual
-//!   edges (on the MakeHuman head, 41 edges, mouthClose and jawOpen then miss the template
-//!   by up to 5% of the bbox diagonal at the lips; the mean error is 2e-4). (A rank-one correction mapping the template's own pair vector exactly would close
-//!   gaps by the template's fraction; tried, it leaves no margin, and thick lips crossed at
-//!   any weight up to 30, so it was not kept.)
+//! - **Virtual edges** join vertices of one piece only (see [`find_virtual_edges`]).
+//! - **Virtual-edge target.** SPEC/paper: `|(x_i - x_j) - S_ij (B0_i - B0_j)|^2`, `S_ij` the
+//!   mean source gradient at the ends. A lip that moves as a whole has `S ~ I`, so that spring
+//!   holds the gap at its rest vector and resists the lips' relative motion: the template onto
+//!   itself (MakeHuman head, 41 edges) missed mouthClose/jawOpen by 5.3% of the diagonal.
+//!   Here the target is `f_k = A_ij e_k + rho (f_0 - A_ij e_0)`: `e_0`, `e_k` the source pair's
+//!   vector at rest and in shape k, `f_0 = B0_i - B0_j`, `A_ij` the mean rest-to-rest gradient
+//!   `E_target E_source^{-1}` of the triangles around i and j, `rho = (1 - min(1, |e_k - e_0|
+//!   / |e_0|))^2` (`DeformationTransfer::edge_change`). A pair that moves a lot ends where the
+//!   source pair ends, mapped into the target (closed lips stay as closed as the template's,
+//!   whatever the target's rest gap); a pair that barely moves keeps the target's own rest
+//!   vector. Self-transfer is exact (`A = I`, `f_0 = e_0`: measured 3e-16 of the diagonal).
+//!   Tried and dropped: `f_0 + A_ij (e_k - e_0)` (carries the template's full closing onto
+//!   thicker lips: the two-layer test crosses at any weight), closing scaled by the gap ratio
+//!   `|f_0| / |e_0|` and the similarity mapping `e_0` onto `e_k` (both cross on diagonal pairs
+//!   at any weight up to 1000; 28-42 pairs). Measured on the three MakeHuman targets, shapes
+//!   whose intersection curve beyond the target's neutral exceeds the template's own beyond its
+//!   neutral (52 shapes): plain 30 / 30 / 19 (OldMan / YoungWoman / Boy), SPEC formula
+//!   20 / 26 / 14, this target at `w_ve = 3` 19 / 29 / 13; total added curve (m) plain
+//!   1.94 / 1.68 / -1.25, SPEC 1.07 / 1.36 / -1.47, this 1.07 / 1.77 / -1.56; jawOpen added
+//!   curve plain 0.032 / 0.102 / -0.078, SPEC 0.074 / 0.164 / -0.045, this -0.039 / 0.110 /
+//!   -0.046 (template 0.186).
+//! - **`w_ve = 3`, not 1.** With this target the springs hold the gap at the template's own
+//!   final gap, not at the rest gap, so they need more pull against the gradient term: on the
+//!   two-layer lip test (template gap 0.1 closed by 90%, target gap 0.04) `w_ve = 1` leaves 28
+//!   crossing pairs, `w_ve = 3` none (minimum gap 3e-4; 3.5e-3 at 10).
 //! - **Personalisation** follows EBFR in the gradient domain: per triangle, the K target
 //!   gradients minimise `sum_j |sum_k alpha_jk M_k - A_j|^2 + beta sum_k w_k |M_k - S_k|^2`
 //!   with EBFR's adaptive weight `w_k = ((1 + |S_k|) / (kappa + |S_k|))^theta`, normalised
@@ -89,7 +104,8 @@ pub use virtual_edges::{find_virtual_edges, VirtualEdgeParams};
 pub struct TransferParams {
     /// Virtual edges against penetration; `None` is plain deformation transfer.
     pub virtual_edges: Option<VirtualEdgeParams>,
-    /// `w_ve`, the weight of each virtual-edge spring relative to the gradient energy.
+    /// `w_ve`, the weight of each virtual-edge spring relative to the gradient energy (SPEC: 1;
+    /// 3 here, see Deviations).
     pub edge_weight: f64,
     /// A vertex moving less than this fraction of a shape's largest displacement is static.
     pub static_fraction: f64,
@@ -99,7 +115,7 @@ pub struct TransferParams {
 
 impl Default for TransferParams {
     fn default() -> Self {
-        Self { virtual_edges: Some(VirtualEdgeParams::default()), edge_weight: 1.0, static_fraction: 1e-4, align_rotation: true }
+        Self { virtual_edges: Some(VirtualEdgeParams::default()), edge_weight: 3.0, static_fraction: 1e-4, align_rotation: true }
     }
 }
 

@@ -123,6 +123,22 @@ fn template_onto_itself_returns_its_shapes() {
 }
 
 #[test]
+fn template_onto_itself_with_virtual_edges_returns_its_shapes() {
+    // Closing and opening the two-layer lip: the springs must carry the layers' relative
+    // motion, not hold the gap at rest.
+    let (pts, tris) = lips(0.1);
+    let closing = lip_closing(&pts, 0.1, 0.045);
+    let opening: Vec<[f32; 3]> = closing.iter().map(|d| d.map(|x| -2.0 * x)).collect();
+    let deltas: Vec<[f32; 3]> = closing.iter().chain(&opening).copied().collect();
+    let names = vec!["mouthClose".to_string(), "mouthOpen".to_string()];
+    let params = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.1, ..Default::default() }), ..Default::default() };
+    let dt = DeformationTransfer::new(&pts, &pts, &tris, &params).unwrap();
+    assert!(dt.virtual_edges().len() > 10);
+    let out = dt.transfer(&deltas, &names, &NoProgress).unwrap();
+    assert!(max_error(&out.deltas, &deltas) < 1e-6, "{}", max_error(&out.deltas, &deltas));
+}
+
+#[test]
 fn similarity_of_the_target_gives_the_same_similarity_of_the_shapes() {
     let (pts, tris, pieces) = head();
     let (deltas, names) = head_shapes(&pts, &pieces);
