@@ -1,6 +1,6 @@
 """Transfer Shape Keys benchmark (SPEC section 4), run with the bpy Python:
 
-    python scripts/bench_transfer.py [-- --json OUT.json] [--pack-json PACK.json]
+    python scripts/bench_transfer.py [-- --json OUT.json]
 
 1. Warp ground truth: the target is W(V0) for a known smooth map W (non-uniform scale
    (1.0, 1.25, 0.85) and a bend), so the true shapes are W(V0 + D_k). Mean vertex error on each
@@ -11,9 +11,7 @@
 2. Penetration on the MakeHuman identities (Target_*): intersection-curve length per shape
    with and without virtual edges beside the template's own.
 3. Timings on the bundled rig and on a 4x denser subdivision of it.
-The packed expressions come from `shapesmith_native.pack_expressions` when the native core
-has it, else from a Pack Expressions JSON report (--pack-json, default docs/template_pack.json,
-the stored packing of the sample Template).
+The packed expressions come from `shapesmith_native.pack_expressions` on the warped target.
 """
 
 import argparse
@@ -53,17 +51,12 @@ def mean_active_error(predicted, truth, diagonal):
     return float(np.mean(errors))
 
 
-def packed_expressions(nat, rig, target_neutral, pack_json):
-    if hasattr(nat, "pack_expressions"):
-        report = nat.pack_expressions(rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral)
-        return [e["shapes"] for e in report["expressions"]], "shapesmith_native.pack_expressions"
-    if pack_json and os.path.isfile(pack_json):
-        with open(pack_json) as f:
-            return [e["shapes"] for e in json.load(f)["expressions"]], pack_json
-    return None, "no packing available (native core without pack_expressions, no --pack-json file)"
+def packed_expressions(nat, rig, target_neutral):
+    report = nat.pack_expressions(rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral)
+    return [e["shapes"] for e in report["expressions"]], "shapesmith_native.pack_expressions"
 
 
-def warp_benchmark(nat, rig, pack_json):
+def warp_benchmark(nat, rig):
     points = rig.neutral.astype(np.float64)
     low, high = points.min(0), points.max(0)
     diagonal = float(np.linalg.norm(high - low))
@@ -86,7 +79,7 @@ def warp_benchmark(nat, rig, pack_json):
     rows["plain transfer"], _ = transfer(virtual_edges=False)
     rows["virtual edges"], _ = transfer(virtual_edges=True)
     index = {name: k for k, name in enumerate(rig.names)}
-    expressions, packing_source = packed_expressions(nat, rig, target, pack_json)
+    expressions, packing_source = packed_expressions(nat, rig, target)
     result = {"diagonal": target_diagonal, "packing": packing_source}
     if expressions:
         j = len(expressions)
@@ -213,11 +206,6 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_transfer.py --")
     parser.add_argument("--json", default=os.path.join(batch_cache(), "bench", "transfer.json"))
-    parser.add_argument(
-        "--pack-json",
-        default=os.path.join(SCRIPTS, "..", "docs", "template_pack.json"),
-        help="Pack Expressions JSON report of the Template (used when the native core has no pack_expressions)",
-    )
     args = parser.parse_args(argv)
     shapesmith = batch.load_shapesmith()
     from importlib import import_module
@@ -234,7 +222,7 @@ def main():
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {
-        "warp": warp_benchmark(nat, rig, args.pack_json),
+        "warp": warp_benchmark(nat, rig),
         "penetration": penetration_benchmark(transfer_module, template, targets),
         "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
     }
