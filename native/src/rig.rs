@@ -76,7 +76,7 @@ impl<'a> RigView<'a> {
 
     /// `max_n |D_k[n]|`.
     pub fn max_displacement(&self, k: usize) -> f64 {
-        self.delta(k).iter().map(|d| norm(d)).fold(0.0, f64::max)
+        self.delta(k).iter().map(norm).fold(0.0, f64::max)
     }
 
     /// Shapes whose largest displacement is below [`INERT_FRACTION`] of the diagonal.

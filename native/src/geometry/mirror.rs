@@ -138,9 +138,10 @@ pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) ->
     };
     let active: Vec<Vec<u32>> = (0..k_count).map(|k| rig.active_vertices(k, params.mu)).collect();
 
-    let mut out = Symmetry::default();
-    out.self_symmetric =
-        live.iter().copied().filter(|&k| mirror_error(k, k) < params.pair_tolerance).collect();
+    let mut out = Symmetry {
+        self_symmetric: live.iter().copied().filter(|&k| mirror_error(k, k) < params.pair_tolerance).collect(),
+        ..Symmetry::default()
+    };
 
     let mut candidates = Vec::new();
     for (a, &i) in live.iter().enumerate() {
