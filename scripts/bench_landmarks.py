@@ -1,6 +1,6 @@
 """Place Landmarks benchmark (SPEC sections 2 and 4), run with the bpy Python:
 
-    python scripts/bench_landmarks.py [-- --sample PATH] [--json OUT] [--picture OUT.png]
+    python scripts/bench_landmarks.py [-- --input SAMPLE.blend] [--json OUT] [--picture OUT.png]
 
 On the bundled Template (about 5k vertices) and its 4x denser version: landmarks M per
 epsilon in {0.3, 0.5, 0.7}, visibility and solve seconds, rays per second, reconstruction
@@ -171,7 +171,7 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_landmarks.py --")
     cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
-    parser.add_argument("--sample", default=os.path.join(cache, "sample-%d.%d.blend" % bpy.app.version[:2]))
+    parser.add_argument("--input", default=os.path.join(cache, "sample-%d.%d.blend" % bpy.app.version[:2]))
     parser.add_argument("--json", default=os.path.join(cache, "bench", "landmarks.json"))
     parser.add_argument("--picture", default=os.path.join(ROOT, "docs", "landmarks_front.png"))
     parser.add_argument("--conventional-picture", default=os.path.join(ROOT, "docs", "landmarks_conventional68.png"))
@@ -182,9 +182,9 @@ def main():
 
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
     picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
-    if not os.path.isfile(args.sample):
-        batch.run_sample(argparse.Namespace(output=args.sample))
-    batch.open_blend(args.sample)
+    if not os.path.isfile(args.input):
+        batch.run_sample(argparse.Namespace(output=args.input))
+    batch.open_blend(args.input)
     template = bpy.data.objects["Template"]
     started = time.perf_counter()
     dense = dense_copy(template)
