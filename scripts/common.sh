@@ -2,10 +2,12 @@
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 CACHE=${SHAPESMITH_CACHE:-$HOME/.cache/shapesmith}
 export SHAPESMITH_CACHE=$CACHE
-# Rust builds live outside the clone so a fresh clone on the same machine reuses them; the
-# wheel build (zig, manylinux_2_28) has its own target dir so the two never rebuild HiGHS.
-export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$CACHE/target}
-WHEEL_TARGET_DIR=$CACHE/target-wheel
+# Rust builds stay inside the clone: cargo judges a workspace crate fresh by its files' times
+# at the paths it last built from, so a target dir shared by two clones can hand one clone a
+# library built from the other's sources. The wheel build (zig, manylinux_2_28) has its own
+# target dir so the two never rebuild HiGHS over each other.
+export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$ROOT/target}
+WHEEL_TARGET_DIR=$ROOT/target/wheel
 export CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2}
 # The Blenders the tests run on: the current LTS (Python 3.11) and the newest release (3.13).
 BPY_LTS=4.5.15
