@@ -126,27 +126,34 @@ const SCREEN_MARGIN: f64 = 1e-3;
 
 /// Finds symmetric pairs (greedy by smallest mirror error), mirror antagonists, and falls
 /// back to names for shapes geometry leaves unpaired. Inert shapes take part in nothing.
+pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) -> Symmetry {
+    let active: Vec<Vec<u32>> = (0..rig.n_shapes()).map(|k| rig.active_vertices(k, params.mu)).collect();
+    find_symmetry_given(rig, map, params, &rig.inert_shapes(), &active)
+}
+
+/// [`find_symmetry`] for a caller that already holds the inert shapes and the binary
+/// blendshapes at `params.mu` (the packer), so that neither is computed twice.
 ///
 /// The K^2 mirror errors are screened with one Gram product ([`delta_inner_products`]):
 /// `|M D_i - D_j|^2 = |M D_i|^2 + |D_j|^2 - 2 <M D_i, D_j>`, so only the few pairs that may
 /// pass are measured with a full pass over the vertices.
-pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) -> Symmetry {
+pub fn find_symmetry_given(
+    rig: &RigView,
+    map: &MirrorMap,
+    params: &SymmetryParams,
+    inert: &[usize],
+    active: &[Vec<u32>],
+) -> Symmetry {
     let k_count = rig.n_shapes();
-    let inert = rig.inert_shapes();
     let live: Vec<usize> = (0..k_count).filter(|k| !inert.contains(k)).collect();
-    let norms: Vec<f64> = (0..k_count).map(|k| field_norm(rig.delta(k))).collect();
-    let mirrored_norms_sq: Vec<f64> = (0..k_count)
-        .map(|k| {
-            let delta = rig.delta(k);
-            map.partner.iter().flatten().map(|&m| norm(&delta[m as usize]).powi(2)).sum()
-        })
-        .collect();
-    let gram = delta_inner_products(rig, |k, n| map.mirrored_at(rig.delta(k), n).map(f64::from));
+    let products = delta_inner_products(rig, |k, n| map.mirrored_at(rig.delta(k), n).map(f64::from));
+    let (gram, mirrored_norms_sq) = (&products.gram, &products.left_norms_sq);
+    let norms: Vec<f64> = products.right_norms_sq.iter().map(|s| s.sqrt()).collect();
     // Both directions: on a mesh with unmatched vertices one direction alone would pair a
     // small shape with any large one (the mirrored field is zero where no partner exists).
     let estimated_error = |i: usize, j: usize| {
-        let forward = mirrored_norms_sq[i] + norms[j].powi(2) - 2.0 * gram[(i, j)];
-        let backward = mirrored_norms_sq[j] + norms[i].powi(2) - 2.0 * gram[(j, i)];
+        let forward = mirrored_norms_sq[i] + products.right_norms_sq[j] - 2.0 * gram[(i, j)];
+        let backward = mirrored_norms_sq[j] + products.right_norms_sq[i] - 2.0 * gram[(j, i)];
         forward.max(backward).max(0.0).sqrt() / norms[i].max(norms[j])
     };
     let mirror_error = |i: usize, j: usize| {
@@ -159,8 +166,6 @@ pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) ->
             .then(|| mirror_error(i, j))
             .filter(|&e| e < params.pair_tolerance)
     };
-    // Each shape enters at most one pair below, so its active set is computed at most once.
-    let active = |k: usize| rig.active_vertices(k, params.mu);
 
     let mut out = Symmetry::default();
     out.self_symmetric = live.iter().copied().filter(|&k| passes(k, k).is_some()).collect();
@@ -184,7 +189,7 @@ pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) ->
         }
         used[i] = true;
         used[j] = true;
-        let iou = intersection_over_union(&active(i), &active(j));
+        let iou = intersection_over_union(&active[i], &active[j]);
         let cosine = cosine(rig.delta(i), rig.delta(j));
         if iou > params.antagonist_iou && cosine < 0.0 {
             out.antagonists.push(Antagonist { first: i, second: j, iou, cosine });
@@ -204,7 +209,7 @@ pub fn find_symmetry(rig: &RigView, map: &MirrorMap, params: &SymmetryParams) ->
             if j <= i || used[i] || used[j] || inert.contains(&j) {
                 continue;
             }
-            let iou = intersection_over_union(&active(i), &active(j));
+            let iou = intersection_over_union(&active[i], &active[j]);
             let cosine = cosine(rig.delta(i), rig.delta(j));
             used[i] = true;
             used[j] = true;
@@ -279,13 +284,24 @@ fn mirrored_difference_norm(map: &MirrorMap, a: &[[f32; 3]], b: &[[f32; 3]]) -> 
 /// for K = 52) stay in cache, and the memory used does not grow with N.
 const GRAM_BLOCK_VERTICES: usize = 1024;
 
-/// `G[(i, j)] = <L_i, D_j>` (K x K, f64): the inner products of the fields `L_i`, given per
-/// shape and vertex by `left(i, n)`, with every delta field `D_j`. One matrix product per
+/// What [`delta_inner_products`] returns.
+pub struct InnerProducts {
+    /// `gram[(i, j)] = <L_i, D_j>` (K x K).
+    pub gram: Mat<f64>,
+    /// `|L_i|^2`.
+    pub left_norms_sq: Vec<f64>,
+    /// `|D_j|^2`.
+    pub right_norms_sq: Vec<f64>,
+}
+
+/// The inner products of the fields `L_i`, given per shape and vertex by `left(i, n)`, with
+/// every delta field `D_j`, in f64, and the squared norms of both. One matrix product per
 /// block of vertices replaces K^2 scalar passes over the mesh: the cost stays linear in N
 /// and runs at the speed of the matrix kernel.
-pub fn delta_inner_products(rig: &RigView, left: impl Fn(usize, usize) -> [f64; 3]) -> Mat<f64> {
+pub fn delta_inner_products(rig: &RigView, left: impl Fn(usize, usize) -> [f64; 3]) -> InnerProducts {
     let (n_vertices, k_count) = (rig.n_vertices(), rig.n_shapes());
     let mut gram = Mat::<f64>::zeros(k_count, k_count);
+    let (mut left_norms_sq, mut right_norms_sq) = (vec![0.0; k_count], vec![0.0; k_count]);
     let capacity = 3 * GRAM_BLOCK_VERTICES.min(n_vertices) * k_count;
     let (mut left_block, mut right_block) = (vec![0.0; capacity], vec![0.0; capacity]);
     for start in (0..n_vertices).step_by(GRAM_BLOCK_VERTICES) {
@@ -298,12 +314,14 @@ pub fn delta_inner_products(rig: &RigView, left: impl Fn(usize, usize) -> [f64; 
                 l[3 * v..3 * v + 3].copy_from_slice(&left(k, start + v));
                 r[3 * v..3 * v + 3].copy_from_slice(&d.map(f64::from));
             }
+            left_norms_sq[k] += l.iter().map(|x| x * x).sum::<f64>();
+            right_norms_sq[k] += r.iter().map(|x| x * x).sum::<f64>();
         }
         let l = MatRef::from_column_major_slice(&left_block[..rows * k_count], rows, k_count);
         let r = MatRef::from_column_major_slice(&right_block[..rows * k_count], rows, k_count);
         matmul(&mut gram, Accum::Add, l.transpose(), r, 1.0, Par::Seq);
     }
-    gram
+    InnerProducts { gram, left_norms_sq, right_norms_sq }
 }
 
 #[cfg(test)]
@@ -431,7 +449,8 @@ mod tests {
         let rig = RigView::new(&pts, &deltas, &[], &names).unwrap();
         let map = MirrorMap::new(&pts, 0, 1e-3);
         assert!(!map.unmatched.is_empty() && map.unmatched.len() < n);
-        let gram = delta_inner_products(&rig, |k, v| map.mirrored_at(rig.delta(k), v).map(f64::from));
+        let products = delta_inner_products(&rig, |k, v| map.mirrored_at(rig.delta(k), v).map(f64::from));
+        let gram = &products.gram;
         for i in 0..4 {
             for j in 0..4 {
                 let direct: f64 = (0..n)
@@ -442,6 +461,9 @@ mod tests {
                     .sum();
                 assert!((gram[(i, j)] - direct).abs() <= 1e-9 * direct.abs().max(1.0), "{i} {j}: {} vs {direct}", gram[(i, j)]);
             }
+            let mirrored: f64 = (0..n).map(|v| norm(&map.mirrored_at(rig.delta(i), v)).powi(2)).sum();
+            assert!((products.left_norms_sq[i] - mirrored).abs() <= 1e-9 * mirrored);
+            assert!((products.right_norms_sq[i] - field_norm(rig.delta(i)).powi(2)).abs() <= 1e-9 * mirrored.max(1.0));
         }
     }
 

@@ -74,7 +74,7 @@ pub fn triangle_distortion(scores: &[f64], triangles: &[[u32; 3]], active: &[Vec
 /// One Gram matrix product, accumulated over blocks of vertices.
 pub fn cosine_matrix(rig: &RigView) -> Vec<Vec<f64>> {
     let k_count = rig.n_shapes();
-    let gram = delta_inner_products(rig, |k, n| rig.delta(k)[n].map(f64::from));
+    let gram = delta_inner_products(rig, |k, n| rig.delta(k)[n].map(f64::from)).gram;
     let norms: Vec<f64> = (0..k_count).map(|k| gram[(k, k)].sqrt()).collect();
     (0..k_count)
         .map(|i| {
