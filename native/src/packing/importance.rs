@@ -2,10 +2,9 @@
 //! triangle distortion against a target neutral (Eqs. (6)-(7), with the SPEC's `- 2`) and
 //! the optional uniqueness (Eq. (8)), combined as Eq. (4) plus a floor.
 
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, Par};
 use rayon::prelude::*;
 
+use crate::geometry::mirror::delta_inner_products;
 use crate::rig::{norm, RigView};
 
 /// Added to every importance so that a shape of zero importance is still packed (SPEC
@@ -72,13 +71,10 @@ pub fn triangle_distortion(scores: &[f64], triangles: &[[u32; 3]], active: &[Vec
 
 /// Cosines of the flattened delta fields of every two shapes (K x K, symmetric, 1 on the
 /// diagonal of moving shapes, 0 for inert ones). Used for the cosine antagonists and Eq. (8).
-/// One Gram matrix product: the shapes are the columns of a 3N x K matrix.
+/// One Gram matrix product, accumulated over blocks of vertices.
 pub fn cosine_matrix(rig: &RigView) -> Vec<Vec<f64>> {
     let k_count = rig.n_shapes();
-    let rows = 3 * rig.n_vertices();
-    let fields = Mat::<f64>::from_fn(rows, k_count, |r, k| rig.delta(k)[r / 3][r % 3] as f64);
-    let mut gram = Mat::<f64>::zeros(k_count, k_count);
-    matmul(&mut gram, Accum::Replace, fields.transpose(), &fields, 1.0, Par::Seq);
+    let gram = delta_inner_products(rig, |k, n| rig.delta(k)[n].map(f64::from)).gram;
     let norms: Vec<f64> = (0..k_count).map(|k| gram[(k, k)].sqrt()).collect();
     (0..k_count)
         .map(|i| {

@@ -6,9 +6,11 @@ use super::conflicts::{validate_shape_pairs, ConflictGraph, ShapeRelations};
 use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
 use super::PackingParams;
 use crate::error::{ShapesmithError, ShapesmithResult};
-use crate::geometry::mirror::{find_symmetry, MirrorMap, SymmetryParams};
+use crate::geometry::mirror::{find_symmetry_given, MirrorMap, SymmetryParams};
 use crate::invalid;
-use crate::rig::{validate_points, validate_triangles, RigView};
+use rayon::prelude::*;
+
+use crate::rig::{norm, validate_points, validate_triangles, RigView, INERT_FRACTION};
 
 pub struct Prepared {
     /// Binary blendshapes $b_k$ (Eq. (2)), sorted vertex lists; empty for inert shapes.
@@ -43,8 +45,7 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
         validate_triangles(target, rig.triangles).map_err(|e| invalid!("target neutral: {e}"))?;
     }
 
-    let inert = rig.inert_shapes();
-    let active: Vec<Vec<u32>> = (0..k_count).map(|k| rig.active_vertices(k, params.mu)).collect();
+    let (inert, active) = binary_blendshapes(rig, params.mu);
     let excluded: Vec<usize> = {
         let mut e: Vec<usize> = params.exclude.iter().copied().filter(|k| !inert.contains(k)).collect();
         e.sort_unstable();
@@ -77,7 +78,7 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
 
     // Mirror antagonists are found whether or not pairs are used: they decide poseability.
     let map = MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance);
-    let symmetry = find_symmetry(
+    let symmetry = find_symmetry_given(
         rig,
         &map,
         &SymmetryParams {
@@ -86,6 +87,8 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
             mu: params.mu,
             use_names: true,
         },
+        &inert,
+        &active,
     );
     let cosines = cosine_matrix(rig);
     let mut antagonists: Vec<(usize, usize)> =
@@ -117,6 +120,23 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
     })?;
     let cosines = (params.beta > 0.0).then_some(cosines);
     Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists })
+}
+
+/// The inert shapes and the binary blendshapes $b_k$ (Eq. (2)), exactly as
+/// [`RigView::inert_shapes`] and [`RigView::active_vertices`] give them, but with one norm
+/// per vertex and shape (those recompute the maximum and the diagonal on every call).
+pub fn binary_blendshapes(rig: &RigView, mu: f64) -> (Vec<usize>, Vec<Vec<u32>>) {
+    let floor = INERT_FRACTION * rig.bbox_diagonal();
+    let active: Vec<Option<Vec<u32>>> = (0..rig.n_shapes())
+        .into_par_iter()
+        .map(|k| {
+            let norms: Vec<f64> = rig.delta(k).iter().map(norm).collect();
+            let max = norms.iter().copied().fold(0.0, f64::max);
+            (max > floor).then(|| (0..norms.len() as u32).filter(|&n| norms[n as usize] >= mu * max).collect())
+        })
+        .collect();
+    let inert = (0..active.len()).filter(|&k| active[k].is_none()).collect();
+    (inert, active.into_iter().map(Option::unwrap_or_default).collect())
 }
 
 fn validate_params(p: &PackingParams, rig: &RigView) -> ShapesmithResult<()> {

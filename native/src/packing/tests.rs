@@ -582,3 +582,24 @@ fn cancellation_stops_the_loop() {
     let result = pack_expressions(&inst.rig(), None, &PackingParams::default(), &StopAfter(1.into()));
     assert_eq!(result.unwrap_err(), ShapesmithError::Cancelled);
 }
+
+#[test]
+fn one_pass_binary_blendshapes_equal_the_rig_definitions() {
+    let (points, triangles) = grid(6);
+    let n = points.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let names: Vec<String> = (0..5).map(|k| format!("s{k}")).collect();
+    let mut deltas: Vec<[f32; 3]> = (0..5 * n).map(|_| [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.0]).collect();
+    deltas[3 * n..4 * n].fill([0.0; 3]);
+    deltas[4 * n..].fill([0.0, 0.0, 1e-9]); // below the inert floor, yet not zero
+    let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
+    for mu in [0.1, MU, 0.9, 1.0] {
+        let (inert, active) = super::setup::binary_blendshapes(&rig, mu);
+        assert_eq!(inert, rig.inert_shapes());
+        assert_eq!(inert, vec![3, 4]);
+        for (k, set) in active.iter().enumerate() {
+            assert_eq!(*set, rig.active_vertices(k, mu), "shape {k}, mu {mu}");
+        }
+        assert!(active[0].len() < n && !active[0].is_empty());
+    }
+}
