@@ -66,7 +66,9 @@ def read_triangles(obj):
 
 def read_rig(obj):
     """The object's rig: deltas of every shape key against the reference key (SPEC 0: a key
-    relative to another key is still taken against the reference, with a warning)."""
+    relative to another key is still taken against the reference, with a warning). The
+    `REF_` keys Pack Expressions baked are mixes of the others, not shapes of the rig: every
+    tool leaves them out."""
     check_mesh(obj, need_shape_keys=True)
     keys = obj.data.shape_keys
     reference = keys.reference_key
@@ -74,7 +76,10 @@ def read_rig(obj):
     neutral = np.empty(n * 3, dtype=np.float32)
     reference.data.foreach_get("co", neutral)
     neutral = neutral.reshape(n, 3)
-    blocks = [kb for kb in keys.key_blocks if kb != reference]
+    baked = {b.name for b in obj.shapesmith.pack.baked}
+    blocks = [kb for kb in keys.key_blocks if kb != reference and kb.name not in baked]
+    if not blocks:
+        raise MeshDataError(f"'{obj.name}' has only the shape keys Bake wrote: no shapes to work on")
     deltas = np.empty((len(blocks), n, 3), dtype=np.float32)
     warnings = []
     buffer = np.empty(n * 3, dtype=np.float32)

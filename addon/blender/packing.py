@@ -44,7 +44,7 @@ def _check_named_pairs(pairs, what):
 
 
 def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, **params):
-    """Reads the rig (without the keys a previous Bake wrote), runs the native packer and
+    """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
     returns its report with timings and shape-key warnings added. Writes nothing.
 
     `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
@@ -54,12 +54,7 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
     if max_expressions is not None and max_expressions < 1:
         raise MeshDataError(f"the maximum number of expressions must be at least 1 (got {max_expressions})")
     rig = read_rig(obj)
-    baked = {b.name for b in obj.shapesmith.pack.baked}
-    keep = [k for k, name in enumerate(rig.names) if name not in baked]
-    if not keep:
-        raise MeshDataError(f"'{obj.name}' has only the shape keys Bake wrote: nothing to pack")
-    names = [rig.names[k] for k in keep]
-    deltas = np.ascontiguousarray(rig.deltas[keep])
+    names, deltas = rig.names, rig.deltas
     target_neutral = None
     if target is not None:
         check_mesh(target, need_shape_keys=False)
