@@ -120,6 +120,19 @@ def test_running_again_replaces_the_previous_layout(sample):
     assert len([g for g in template.vertex_groups if g.name.startswith("Landmarks")]) == 1
 
 
+def test_undo_restores_the_previous_layout(sample):
+    make_active(bpy.data.objects["Template"])
+    first = sorted(lm["vertex"] for lm in place(max_per_shape=2)["landmarks"])
+    bpy.ops.ed.undo_push(message="first layout")
+    second = sorted(lm["vertex"] for lm in place(max_per_shape=1)["landmarks"])
+    bpy.ops.ed.undo_push(message="second layout")
+    assert second != first
+    bpy.ops.ed.undo()
+    template = bpy.data.objects["Template"]
+    assert sorted(lm["vertex"] for lm in json.loads(template.shapesmith.landmarks.document)["landmarks"]) == first
+    assert sorted(e.parent_vertices[0] for e in layout_empties(template)) == first
+
+
 def test_the_layout_survives_save_and_reload(sample, tmp_path):
     template = make_active(bpy.data.objects["Template"])
     document = place()

@@ -69,6 +69,16 @@ def snapshot(obj):
 # --- what a rigger gets ------------------------------------------------------------------
 
 
+def test_undo_removes_the_transferred_keys(sample):
+    target = bpy.data.objects["Target_Boy"]
+    bpy.ops.ed.undo_push(message="before transfer")
+    assert transfer_onto(target) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="after transfer")
+    assert len(bpy.data.objects["Target_Boy"].data.shape_keys.key_blocks) == 53
+    bpy.ops.ed.undo()
+    assert bpy.data.objects["Target_Boy"].data.shape_keys is None
+
+
 @pytest.mark.parametrize("target_name", TARGETS)
 def test_transfer_writes_the_templates_52_keys_with_their_settings(sample, target_name):
     template = bpy.data.objects["Template"]
