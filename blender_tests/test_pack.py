@@ -126,6 +126,14 @@ def test_export_shot_list_writes_json_and_csv_from_the_stored_result(sample, tmp
     assert [r["shapes"].split() for r in rows] == groups
 
 
+def test_export_to_an_unwritable_place_is_reported(sample, tmp_path):
+    pack(bpy.data.objects["Template"])
+    path = tmp_path / "missing folder" / "shots.json"
+    with pytest.raises(RuntimeError, match="No such file"):
+        bpy.ops.shapesmith.export_shot_list(filepath=str(path))
+    assert not path.parent.exists()
+
+
 def test_a_higher_threshold_packs_into_no_more_expressions(sample):
     template = bpy.data.objects["Template"]
     loose = len(pack(template, mu=0.2).expressions)

@@ -17,6 +17,26 @@ def poll_mesh(cls, context):
     return True
 
 
+def poll_packed(cls, context):
+    """A mesh in Object Mode that carries a Pack Expressions result."""
+    if not poll_mesh(cls, context):
+        return False
+    if not context.active_object.shapesmith.pack.result.done:
+        cls.poll_message_set("Pack the expressions first")
+        return False
+    return True
+
+
+def poll_landmarks(cls, context):
+    """A mesh in Object Mode that carries a landmark layout."""
+    if not poll_mesh(cls, context):
+        return False
+    if not context.active_object.shapesmith.landmarks.done:
+        cls.poll_message_set("Run Place Landmarks first")
+        return False
+    return True
+
+
 def expected_errors():
     """Errors that are the user's to fix: reported with `report({'ERROR'})`, the operator
     cancelled (and the .blend left as it was). Anything else is a bug and propagates."""

@@ -6,10 +6,9 @@ import os
 import bpy
 from bpy_extras.io_utils import ExportHelper
 
-from ..blender.mesh_arrays import MeshDataError
 from ..blender.packing import stored_report, write_shot_list_csv, write_shot_list_json
 from ..blender.reference_sheet import render_reference_sheet
-from .pose_expressions import poll_packed
+from .base import expected_errors, poll_packed
 
 
 class SHAPESMITH_OT_export_shot_list(bpy.types.Operator, ExportHelper):
@@ -26,14 +25,14 @@ class SHAPESMITH_OT_export_shot_list(bpy.types.Operator, ExportHelper):
         return poll_packed(cls, context)
 
     def execute(self, context):
+        csv_path = os.path.splitext(self.filepath)[0] + ".csv"
         try:
             report = stored_report(context.active_object)
-        except MeshDataError as error:
+            write_shot_list_json(self.filepath, report)
+            write_shot_list_csv(csv_path, report)
+        except (OSError, *expected_errors()) as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
-        csv_path = os.path.splitext(self.filepath)[0] + ".csv"
-        write_shot_list_json(self.filepath, report)
-        write_shot_list_csv(csv_path, report)
         self.report({"INFO"}, f"wrote {self.filepath} and {csv_path}")
         return {"FINISHED"}
 
@@ -56,7 +55,7 @@ class SHAPESMITH_OT_render_reference_sheet(bpy.types.Operator, ExportHelper):
     def execute(self, context):
         try:
             width, height = render_reference_sheet(context.active_object, self.filepath, self.tile_width, self.tile_height)
-        except MeshDataError as error:
+        except (OSError, *expected_errors()) as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self.report({"INFO"}, f"wrote {self.filepath} ({width} x {height})")

@@ -3,18 +3,8 @@ them for a scanning session, or bake each into a `REF_01`-style shape key."""
 
 import bpy
 
-from ..blender.mesh_arrays import MeshDataError
 from ..blender.packing import animate_expressions, bake_expressions, preview_expression
-from .base import poll_mesh
-
-
-def poll_packed(cls, context):
-    if not poll_mesh(cls, context):
-        return False
-    if not context.active_object.shapesmith.pack.result.done:
-        cls.poll_message_set("Pack the expressions first")
-        return False
-    return True
+from .base import expected_errors, poll_packed
 
 
 class SHAPESMITH_OT_preview_expression(bpy.types.Operator):
@@ -34,7 +24,7 @@ class SHAPESMITH_OT_preview_expression(bpy.types.Operator):
         index = obj.shapesmith.pack.active_expression if self.index < 0 else self.index
         try:
             preview_expression(obj, index)
-        except MeshDataError as error:
+        except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         return {"FINISHED"}
@@ -53,7 +43,7 @@ class SHAPESMITH_OT_animate_expressions(bpy.types.Operator):
     def execute(self, context):
         try:
             count = animate_expressions(context.active_object, context.scene)
-        except MeshDataError as error:
+        except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self.report({"INFO"}, f"expressions keyframed on frames 1 to {count}")
@@ -73,7 +63,7 @@ class SHAPESMITH_OT_bake_expressions(bpy.types.Operator):
     def execute(self, context):
         try:
             names = bake_expressions(context.active_object)
-        except MeshDataError as error:
+        except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self.report({"INFO"}, f"baked {len(names)} shape keys ({names[0]} to {names[-1]})" if names else "nothing to bake")

@@ -4,7 +4,7 @@ import bpy
 from bpy_extras.io_utils import ExportHelper
 
 from ..blender.landmark_picture import render_landmarks
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_landmarks
 
 
 class SHAPESMITH_OT_render_landmarks(bpy.types.Operator, ExportHelper):
@@ -19,12 +19,7 @@ class SHAPESMITH_OT_render_landmarks(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        if not poll_mesh(cls, context):
-            return False
-        if not context.active_object.shapesmith.landmarks.done:
-            cls.poll_message_set("Run Place Landmarks first")
-            return False
-        return True
+        return poll_landmarks(cls, context)
 
     def execute(self, context):
         try:
