@@ -10,7 +10,8 @@
    personalised with J random single shapes (the control; mean over 5 seeds).
 2. Penetration on the MakeHuman identities (Target_*): intersection-curve length per shape
    with and without virtual edges beside the template's own.
-3. Timings on the bundled rig and on a 4x denser subdivision of it.
+3. Timings on the bundled rig, on a 4x denser subdivision of it (19k vertices) and on a
+   25k-vertex version whose face, where the shapes move, is cut once more.
 The packed expressions come from `shapesmith_native.pack_expressions` on the warped target.
 """
 
@@ -32,6 +33,7 @@ SCALE = np.array([1.0, 1.25, 0.85])
 BEND = 0.03  # the bend moves the face's sides back by this fraction of the diagonal
 ACTIVE = 0.3  # SPEC 1's mu: a vertex is active in a shape moving >= 0.3 of its maximum
 CONTROL_SEEDS = 5
+FACE_EDGES = 4100  # edges cut again in the 25k timing mesh (19,337 -> 25,272 vertices)
 
 
 def warp(points, centre, half_width, diagonal):
@@ -130,18 +132,50 @@ def penetration_benchmark(transfer_module, template, targets):
     return result
 
 
-def subdivided(obj, name):
+def subdivided(obj, name, face_edges=0, template=None):
     """A copy of `obj` with every edge cut once (about 4x the vertices); shape keys are
-    carried by bmesh as layers, so each key is subdivided exactly like the basis."""
+    carried by bmesh as layers, so each key is subdivided exactly like the basis. With
+    `face_edges`, that many more edges are cut again: those whose ends both move most in
+    some shape of `template` (a subdivided copy with the same topology; `obj` itself when it
+    has the keys), so template and target get the same cuts. Faces left with more than four
+    corners are triangulated."""
     mesh = bmesh.new()
     mesh.from_mesh(obj.data)
     bmesh.ops.subdivide_edges(mesh, edges=mesh.edges[:], cuts=1, use_grid_fill=True)
+    if face_edges:
+        mesh.edges.ensure_lookup_table()
+        chosen = most_moving_edges(template or obj, face_edges)
+        bmesh.ops.subdivide_edges(mesh, edges=[mesh.edges[e] for e in chosen], cuts=1, use_grid_fill=True)
+        bmesh.ops.triangulate(mesh, faces=[f for f in mesh.faces if len(f.verts) > 4])
     data = obj.data.copy()  # keeps the Key, whose blocks to_mesh fills from the layers
     mesh.to_mesh(data)
     mesh.free()
     copy = bpy.data.objects.new(name, data)
     bpy.context.scene.collection.objects.link(copy)
     return copy
+
+
+def most_moving_edges(template, count):
+    """Indices of the `count` edges of the once-subdivided `template` whose less moving end
+    moves most, each vertex's motion being its largest displacement over the shapes relative
+    to that shape's largest."""
+    mesh = bmesh.new()
+    mesh.from_mesh(template.data)
+    bmesh.ops.subdivide_edges(mesh, edges=mesh.edges[:], cuts=1, use_grid_fill=True)
+    layers = mesh.verts.layers.shape
+    basis = np.array([v.co for v in mesh.verts])
+    motion = np.zeros(len(basis))
+    reference = template.data.shape_keys.reference_key.name
+    for name in layers.keys():
+        if name == reference:
+            continue
+        layer = layers[name]
+        size = np.linalg.norm(np.array([v[layer] for v in mesh.verts]) - basis, axis=1)
+        if size.max() > 0:
+            motion = np.maximum(motion, size / size.max())
+    ends = np.array([[e.verts[0].index, e.verts[1].index] for e in mesh.edges])
+    mesh.free()
+    return np.sort(np.argsort(-motion[ends].min(axis=1), kind="stable")[:count]).tolist()
 
 
 def timing_benchmark(nat, mesh_arrays, template, target, rest_positions, runs=3):
@@ -228,6 +262,9 @@ def main():
     }
     dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")
     result["timings"]["4x denser"] = timing_benchmark(nat, mesh_arrays, dense_template, dense_target, rest_positions)
+    face_template = subdivided(template, "TemplateDenseFace", FACE_EDGES)
+    face_target = subdivided(targets[0], "TargetDenseFace", FACE_EDGES, template=template)
+    result["timings"]["25k, denser face"] = timing_benchmark(nat, mesh_arrays, face_template, face_target, rest_positions)
     print_report(result)
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:

@@ -114,7 +114,7 @@ impl DeformationTransfer {
                 mat_add_scaled(&vertex_rest_maps[i as usize], &vertex_rest_maps[j as usize], 1.0).map(|r| r.map(|x| 0.5 * x))
             })
             .collect();
-        let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight);
+        let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
         Ok(Self {
             triangles: triangles.to_vec(),
             source_diagonal: bbox_diagonal(source_neutral),
@@ -159,8 +159,7 @@ impl DeformationTransfer {
                 let out = if self.is_inert(delta) {
                     vec![[0.0; 3]; n]
                 } else {
-                    let gradients = self.shape_gradients(delta);
-                    self.solve_shape(delta, &gradients)?
+                    self.solve_shape(delta, |t| self.triangle_gradient(t, delta))?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -224,10 +223,12 @@ impl DeformationTransfer {
         delta_gradient(&self.source_rest_inverse[t], deformed)
     }
 
-    /// The target deltas (working frame) whose gradients best match `gradients` (`S_t - I`
-    /// per triangle) plus the virtual-edge springs, with the static vertices of the source
+    /// The target deltas (working frame) whose gradients best match `gradient(t)` (`S_t - I`
+    /// of triangle t) plus the virtual-edge springs, with the static vertices of the source
     /// shape `delta` fixed at zero and floating pieces placed by their carried-over motion.
-    pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradients: &[Mat3]) -> ShapesmithResult<Vec<Vec3>> {
+    /// `gradient` is asked only for triangles with a moving corner: the others touch only
+    /// eliminated rows.
+    pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
         let n = self.n_vertices();
         let moving = self.moving_vertices(delta);
         // A piece with moving vertices but no static one floats: pin its first vertex.
@@ -253,7 +254,7 @@ impl DeformationTransfer {
             position[v] = kept;
             kept += 1;
         }
-        let rhs = self.right_hand_side(delta, gradients);
+        let rhs = self.right_hand_side(delta, &moving, gradient);
         let mut out = self.matrix.solve_restricted(&position, kept as usize, &rhs)?;
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
@@ -264,12 +265,16 @@ impl DeformationTransfer {
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
     /// energy for deltas) plus `+-w_ve (f_k - f_0)` at the ends of each virtual edge, with
     /// `f_0 = B0_i - B0_j` and `f_k` its target in this shape ([`Self::edge_change`]).
-    fn right_hand_side(&self, delta: &[[f32; 3]], gradients: &[Mat3]) -> Vec<Vec3> {
+    fn right_hand_side(&self, delta: &[[f32; 3]], moving: &[bool], gradient: impl Fn(usize) -> Mat3) -> Vec<Vec3> {
         let mut rhs = vec![[0.0; 3]; self.n_vertices()];
-        for ((tri, op), h) in self.triangles.iter().zip(&self.target_operators).zip(gradients) {
+        for (t, (tri, op)) in self.triangles.iter().zip(&self.target_operators).enumerate() {
+            if !tri.iter().any(|&v| moving[v as usize]) {
+                continue;
+            }
+            let h = gradient(t);
             for (&v, &grad) in tri.iter().zip(&op.hat_gradients) {
                 let v = v as usize;
-                rhs[v] = add(rhs[v], scale(mat_vec(h, grad), op.area));
+                rhs[v] = add(rhs[v], scale(mat_vec(&h, grad), op.area));
             }
         }
         for (&(i, j), rest_map) in self.virtual_edges.iter().zip(&self.edge_rest_maps) {

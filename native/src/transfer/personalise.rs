@@ -135,7 +135,7 @@ impl DeformationTransfer {
                                 *g = mat_add_scaled(g, &sum, inverse_weight);
                             }
                         }
-                        self.solve_shape(delta, &gradients)?
+                        self.solve_shape(delta, |t| gradients[t])?
                     };
                     let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                     progress.checkpoint(finished as f64 / total)?;

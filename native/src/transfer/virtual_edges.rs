@@ -3,15 +3,24 @@
 //! each pair keeps the layers from passing through each other during transfer.
 //!
 //! Candidates `F_i = { j : d_ij < tau_d }` from a k-d tree; kept when the geodesic distance
-//! (Dijkstra on the edge graph, stopped at `tau_r x d_ij`) exceeds `tau_r x d_ij` (the
-//! paper's `G_i = { j in F_i : g_ij / d_ij > tau_r }`). Then, shortest first, at most
+//! `g_ij` (shortest path on the edge graph) exceeds `tau_r x d_ij` (the paper's
+//! `G_i = { j in F_i : g_ij / d_ij > tau_r }`). Then, shortest first, at most
 //! `max_per_vertex` edges per vertex, and once a pair is taken the one-ring neighbours of
 //! both ends take no further edge (the paper's thinning).
+//!
+//! The result is exactly that definition, computed lazily: a breadth-first pass per vertex
+//! proves most pairs close with no heap (the lengths of the paths it finds bound `g_ij` from
+//! above), and the rest are checked by an A* search bounded at `tau_r x d_ij` only when the
+//! thinning reaches them unblocked. Far pairs need a search over a ball of radius
+//! `tau_r x d_ij`; most of them sit beside a shorter pair that blocks them first. Same edges,
+//! measured on 2 cores against one bounded Dijkstra per vertex: 0.22 -> 0.09 s on the 19k
+//! subdivided MakeHuman head, 0.44 -> 0.20 s on its 25k version with a denser face.
 
-use std::cmp::Ordering;
+use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use rayon::prelude::*;
+
 
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::{connected_components, Adjacency};
@@ -49,147 +58,237 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
     let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
     let tree = PointTree::new(neutral);
     let (labels, _) = connected_components(n, triangles);
-    let adjacency = Adjacency::from_triangles(n, triangles);
+    let graph = EdgeGraph::new(&points, triangles);
 
-    let mut candidates: Vec<(f64, u32, u32)> = (0..n)
+    // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
+    let mut uncertain: Vec<(f64, u32, u32)> = (0..n)
         .into_par_iter()
+        .with_min_len(512) // each split allocates its own O(N) scratch
         .map_init(
-            || DijkstraScratch::new(n),
-            |scratch, i| {
-                let close: Vec<(usize, f64)> = tree
+            || SurfaceSearch::new(n),
+            |search, i| {
+                let ball: Vec<(usize, f64)> = tree
                     .within(points[i], radius)
                     .into_iter()
-                    .filter(|&(j, d)| j > i && d < radius && labels[j] == labels[i])
+                    .filter(|&(j, d)| j != i && d < radius && labels[j] == labels[i])
                     .collect();
-                if close.is_empty() {
-                    return Vec::new();
-                }
-                scratch
-                    .far_along_surface(&points, &adjacency, i, &close, params.tau_r)
+                search
+                    .not_proven_close(&graph, i, &ball, params.tau_r)
                     .into_iter()
                     .map(|(j, d)| (d, i as u32, j as u32))
-                    .collect()
+                    .collect::<Vec<_>>()
             },
         )
         .flatten()
         .collect();
-    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    uncertain.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
 
     let mut used = vec![0usize; n];
     let mut blocked = vec![false; n];
-    let mut edges = Vec::new();
-    for (_, i, j) in candidates {
+    let free = |used: &[usize], blocked: &[bool], i: u32, j: u32| {
         let (a, b) = (i as usize, j as usize);
-        if blocked[a] || blocked[b] || used[a] >= params.max_per_vertex || used[b] >= params.max_per_vertex {
-            continue;
-        }
-        used[a] += 1;
-        used[b] += 1;
-        edges.push((i, j));
-        for &end in &[a, b] {
-            for &nb in adjacency.neighbours(end) {
-                blocked[nb as usize] = true;
+        !blocked[a] && !blocked[b] && used[a] < params.max_per_vertex && used[b] < params.max_per_vertex
+    };
+    let mut edges = Vec::new();
+    let mut next = 0;
+    while next < uncertain.len() {
+        // The next pairs the thinning would take if they are far; checked in parallel, then
+        // taken in order (a pair blocked by an earlier one of the batch is skipped).
+        let batch: Vec<usize> =
+            (next..uncertain.len()).filter(|&k| free(&used, &blocked, uncertain[k].1, uncertain[k].2)).take(FAR_CHECK_BATCH).collect();
+        let Some(&last) = batch.last() else { break };
+        let far: Vec<bool> = batch
+            .par_iter()
+            .with_min_len(16)
+            .map_init(
+                || SurfaceSearch::new(n),
+                |search, &k| {
+                    let (d, i, j) = uncertain[k];
+                    search.is_far(&graph, &points, i as usize, j as usize, params.tau_r * d)
+                },
+            )
+            .collect();
+        for (&k, &is_far) in batch.iter().zip(&far) {
+            let (_, i, j) = uncertain[k];
+            if !is_far || !free(&used, &blocked, i, j) {
+                continue;
+            }
+            used[i as usize] += 1;
+            used[j as usize] += 1;
+            edges.push((i, j));
+            for end in [i, j] {
+                for &nb in graph.adjacency.neighbours(end as usize) {
+                    blocked[nb as usize] = true;
+                }
             }
         }
+        next = last + 1;
     }
     edges
 }
 
-/// Reusable Dijkstra state: distances reset only where touched, so a bounded search costs
-/// the size of its ball, not N.
-struct DijkstraScratch {
+fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+}
+
+/// The heuristic's weight of the quick search that proves most uncertain pairs close.
+const GREEDY_WEIGHT: f64 = 3.0;
+
+/// Pairs checked for farness at once by the thinning: enough to keep both cores busy, few
+/// enough that pairs blocked by an earlier one of the same batch are rarely checked.
+const FAR_CHECK_BATCH: usize = 128;
+
+/// The mesh's edge graph with each edge's length beside its target (compressed rows).
+struct EdgeGraph {
+    adjacency: Adjacency,
+    lengths: Vec<f64>,
+}
+
+impl EdgeGraph {
+    fn new(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
+        let adjacency = Adjacency::from_triangles(points.len(), triangles);
+        let lengths = (0..points.len())
+            .flat_map(|v| adjacency.neighbours(v).iter().map(move |&u| distance(&points[u as usize], &points[v])))
+            .collect();
+        Self { adjacency, lengths }
+    }
+}
+
+/// A heap entry: a non-negative estimate's bits (which order as the estimates do) and the
+/// vertex, so the min-heap compares integers; ties go to the lower vertex index.
+type Entry = Reverse<(u64, u32)>;
+
+fn entry(estimate: f64, vertex: usize) -> Entry {
+    Reverse((estimate.to_bits(), vertex as u32))
+}
+
+/// Reusable per-thread search state: distances and marks reset only where touched, so a
+/// search costs the size of its ball, not N.
+struct SurfaceSearch {
     distance: Vec<f64>,
     touched: Vec<u32>,
-    /// Per vertex: its index in the current candidate list plus one (0: not a candidate).
-    candidate: Vec<u32>,
+    /// Per vertex: the current source plus one when the vertex lies in its Euclidean ball.
+    in_ball: Vec<u32>,
+    queue: Vec<u32>,
+    heap: BinaryHeap<Entry>,
 }
 
-#[derive(PartialEq)]
-struct Entry(f64, u32);
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Min-heap on distance, ties by vertex index for determinism.
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl DijkstraScratch {
+impl SurfaceSearch {
     fn new(n: usize) -> Self {
-        Self { distance: vec![f64::INFINITY; n], touched: Vec::new(), candidate: vec![0; n] }
+        Self {
+            distance: vec![f64::INFINITY; n],
+            touched: Vec::new(),
+            in_ball: vec![0; n],
+            queue: Vec::new(),
+            heap: BinaryHeap::new(),
+        }
     }
 
-    /// The candidates `(j, d_ij)` whose edge-graph distance from `source` exceeds
-    /// `ratio x d_ij`. The search stops once every candidate is settled or the front passes
-    /// `ratio x max d_ij`.
-    fn far_along_surface(
-        &mut self,
-        points: &[[f64; 3]],
-        adjacency: &Adjacency,
-        source: usize,
-        candidates: &[(usize, f64)],
-        ratio: f64,
-    ) -> Vec<(usize, f64)> {
-        let bound = ratio * candidates.iter().map(|c| c.1).fold(0.0, f64::max);
-        for (slot, &(j, _)) in candidates.iter().enumerate() {
-            self.candidate[j] = slot as u32 + 1;
+    /// The pairs `(j, d_ij)`, `j > source`, of the Euclidean `ball` around `source` that a
+    /// breadth-first pass inside the ball does not reach within `ratio x d_ij`. Each vertex
+    /// is reached along the first path found, whose length bounds `g_ij` from above, so every
+    /// pair left out is close; on smooth skin that is all of them.
+    fn not_proven_close(&mut self, graph: &EdgeGraph, source: usize, ball: &[(usize, f64)], ratio: f64) -> Vec<(usize, f64)> {
+        let mut pending = ball.iter().filter(|&&(j, _)| j > source).count();
+        if pending == 0 {
+            return Vec::new();
         }
-        let mut settled = vec![false; candidates.len()];
-        let mut pending = candidates.len();
-        let mut far = Vec::new();
-        let mut heap = BinaryHeap::new();
+        let stamp = source as u32 + 1;
+        for &(j, _) in ball {
+            self.in_ball[j] = stamp;
+        }
+        self.queue.clear();
+        self.queue.push(source as u32);
         self.distance[source] = 0.0;
         self.touched.push(source as u32);
-        heap.push(Entry(0.0, source as u32));
-        while let Some(Entry(g, v)) = heap.pop() {
-            let v = v as usize;
-            if g > self.distance[v] {
-                continue;
-            }
-            if g > bound || pending == 0 {
-                break;
-            }
-            let slot = self.candidate[v];
-            if slot > 0 && !settled[slot as usize - 1] {
-                let (j, d) = candidates[slot as usize - 1];
-                settled[slot as usize - 1] = true;
-                pending -= 1;
-                if g > ratio * d {
-                    far.push((j, d));
-                }
-            }
-            for &u in adjacency.neighbours(v) {
+        let mut head = 0;
+        while head < self.queue.len() && pending > 0 {
+            let v = self.queue[head] as usize;
+            head += 1;
+            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
+            for (&u, &step) in graph.adjacency.targets[row.clone()].iter().zip(&graph.lengths[row]) {
                 let u = u as usize;
-                let step = points[u].iter().zip(&points[v]).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+                if self.in_ball[u] != stamp {
+                    continue;
+                }
+                let through_v = self.distance[v] + step;
+                if self.distance[u].is_infinite() {
+                    self.touched.push(u as u32);
+                    self.queue.push(u as u32);
+                    pending -= usize::from(u > source);
+                }
+                // Queued vertices keep the shortest path seen so far (a later, shorter one
+                // matters where edge lengths vary a lot, e.g. beside split n-gons).
+                self.distance[u] = self.distance[u].min(through_v);
+            }
+        }
+        let open = ball.iter().copied().filter(|&(j, d)| j > source && self.distance[j] > ratio * d).collect();
+        self.reset_distances();
+        open
+    }
+
+    /// Whether every edge path from `source` to `target` is longer than `deadline`. A
+    /// greedy search (weighted A*) usually finds a short enough path at once; only when it
+    /// does not is the exact search run.
+    fn is_far(&mut self, graph: &EdgeGraph, points: &[[f64; 3]], source: usize, target: usize, deadline: f64) -> bool {
+        !self.reaches_within(graph, points, source, target, deadline, GREEDY_WEIGHT)
+            && !self.reaches_within(graph, points, source, target, deadline, 1.0)
+    }
+
+    /// A* from `source` to `target` ordered by `g + weight x h`, `h` the Euclidean distance
+    /// to `target`, pruned where `g + h` exceeds `deadline` (no path through there can make
+    /// it). With `weight = 1` the heuristic is consistent (edges are straight), so the search
+    /// is exact: it reaches `target` iff some path is no longer than `deadline`. With a larger
+    /// weight, reaching `target` still proves such a path, but missing it proves nothing.
+    #[allow(clippy::too_many_arguments)]
+    fn reaches_within(
+        &mut self,
+        graph: &EdgeGraph,
+        points: &[[f64; 3]],
+        source: usize,
+        target: usize,
+        deadline: f64,
+        weight: f64,
+    ) -> bool {
+        let to_target = |v: usize| distance(&points[v], &points[target]);
+        self.heap.clear();
+        self.distance[source] = 0.0;
+        self.touched.push(source as u32);
+        self.heap.push(entry(weight * to_target(source), source));
+        let mut reached = false;
+        'search: while let Some(Reverse((bits, v))) = self.heap.pop() {
+            let v = v as usize;
+            let g = self.distance[v];
+            if (g + weight * to_target(v)).to_bits() != bits {
+                continue; // superseded by a shorter path
+            }
+            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
+            for (&u, &step) in graph.adjacency.targets[row.clone()].iter().zip(&graph.lengths[row]) {
+                let u = u as usize;
                 let next = g + step;
-                if next < self.distance[u] {
+                if u == target && next <= deadline {
+                    reached = true;
+                    break 'search;
+                }
+                let h = to_target(u);
+                if next < self.distance[u] && next + h <= deadline {
                     if self.distance[u].is_infinite() {
                         self.touched.push(u as u32);
                     }
                     self.distance[u] = next;
-                    heap.push(Entry(next, u as u32));
+                    self.heap.push(entry(next + weight * h, u));
                 }
             }
         }
-        // Not reached within the bound: farther than ratio x d along the surface.
-        far.extend(candidates.iter().zip(&settled).filter(|(_, &done)| !done).map(|(&c, _)| c));
-        for &(j, _) in candidates {
-            self.candidate[j] = 0;
-        }
+        self.reset_distances();
+        reached
+    }
+
+    fn reset_distances(&mut self) {
         for &v in &self.touched {
             self.distance[v as usize] = f64::INFINITY;
         }
         self.touched.clear();
-        far.sort_by_key(|&(j, _)| j);
-        far
     }
 }
 
@@ -255,6 +354,71 @@ pub(crate) mod tests {
                     assert!(!ring.contains(&i) && !ring.contains(&j));
                 }
             }
+        }
+    }
+
+    /// The paper's definition, computed the slow way: full Dijkstra from every vertex, every
+    /// close pair with `g > tau_r d` kept, then the same thinning, shortest first.
+    fn by_definition(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: &VirtualEdgeParams) -> Vec<(u32, u32)> {
+        let n = neutral.len();
+        let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
+        let radius = params.tau_d * bbox_diagonal(neutral);
+        let adjacency = Adjacency::from_triangles(n, triangles);
+        let mut far = Vec::new();
+        for i in 0..n {
+            let mut g = vec![f64::INFINITY; n];
+            let mut done = vec![false; n];
+            g[i] = 0.0;
+            while let Some(v) = (0..n).filter(|&v| !done[v] && g[v].is_finite()).min_by(|&a, &b| g[a].total_cmp(&g[b])) {
+                done[v] = true;
+                for &u in adjacency.neighbours(v) {
+                    g[u as usize] = g[u as usize].min(g[v] + distance(&points[v], &points[u as usize]));
+                }
+            }
+            for j in i + 1..n {
+                let d = distance(&points[i], &points[j]);
+                if d < radius && g[j] > params.tau_r * d {
+                    far.push((d, i as u32, j as u32));
+                }
+            }
+        }
+        far.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let (mut used, mut blocked, mut edges) = (vec![0; n], vec![false; n], Vec::new());
+        for (_, i, j) in far {
+            let (a, b) = (i as usize, j as usize);
+            if blocked[a] || blocked[b] || used[a] >= params.max_per_vertex || used[b] >= params.max_per_vertex {
+                continue;
+            }
+            used[a] += 1;
+            used[b] += 1;
+            edges.push((i, j));
+            for end in [a, b] {
+                for &nb in adjacency.neighbours(end) {
+                    blocked[nb as usize] = true;
+                }
+            }
+        }
+        edges
+    }
+
+    #[test]
+    fn lazy_search_gives_the_edges_of_the_definition() {
+        // A jittered strip (uneven edges, so breadth-first paths are not shortest) and, with
+        // the wider thresholds, close pairs around the folds whose short paths leave the
+        // Euclidean ball: both of the lazy search's shortcuts are exercised.
+        let (mut pts, tris) = folded_strip(12, 0.04);
+        let mut state = 12345u64;
+        for p in pts.iter_mut() {
+            for coordinate in &mut p[..2] {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                *coordinate += ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.06;
+            }
+        }
+        for (tau_d, tau_r) in [(0.05, 4.0), (0.1, 4.0), (0.2, 2.0), (0.3, 1.5)] {
+            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
+            let expected = by_definition(&pts, &tris, &params);
+            assert!(!expected.is_empty(), "tau_d {tau_d}, tau_r {tau_r}: no edges to compare");
+            assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
         }
     }
 
