@@ -249,6 +249,11 @@ class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
     worse: bpy.props.BoolProperty(
         name="Worse", description="Adds more intersection to the target's neutral than to the template's"
     )
+    where: bpy.props.StringProperty(
+        name="Where",
+        description="Where most of the extra intersection lies: inside one piece (lips, lids) or between pieces "
+        "(skin through a separate eyeball, lashes or teeth)",
+    )
 
 
 class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):

@@ -379,6 +379,12 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
         assert {"io", "factorisation", "virtual_edges", "solves"} <= set(target["seconds"])
         row = target["penetrations"][0]
         assert {"name", "length", "pairs", "template_length", "template_pairs", "plain_length", "plain_pairs"} <= set(row)
+        # The curve is split by place; the MakeHuman heads' eyeballs and lashes are separate
+        # pieces crossing the skin at rest.
+        for row in target["penetrations"]:
+            assert 0.0 <= row["between_pieces"] <= row["length"] + 1e-9
+            assert 0.0 <= row["template_between_pieces"] <= row["template_length"] + 1e-9
+        assert 0.0 < target["neutral_penetration"]["between_pieces"] <= target["neutral_penetration"]["length"]
     bpy.ops.wm.open_mainfile(filepath=str(out_blend))
     for name in TARGETS:
         assert len(bpy.data.objects[name].data.shape_keys.key_blocks) == 53

@@ -126,6 +126,11 @@ def penetration_benchmark(transfer_module, template, targets):
             "neutral_length": report["neutral_penetration"]["length"],
             "template_neutral_length": report["template_neutral_penetration"]["length"],
             "worse_than_template": transfer_module.worse_than_template(report),
+            "worse_added_beyond_template": {
+                row["name"]: dict(zip(("inside_one_piece", "between_pieces"), transfer_module.added_beyond_template(report, row)))
+                for row in rows
+                if row["name"] in transfer_module.worse_than_template(report)
+            },
             "plain_worse_than_template": transfer_module.worse_than_template(report, key="plain_length"),
             "shapes": rows,
         }
@@ -224,8 +229,13 @@ def print_report(result):
         print(
             f"  {name}: {row['virtual_edges']} virtual edges; added with {added:.4f}, plain {plain:.4f}, template {template:.4f}; "
             f"shapes adding more than on the template: {len(row['worse_than_template'])} "
-            f"(plain {len(row['plain_worse_than_template'])}): {', '.join(row['worse_than_template']) or 'none'}"
+            f"(plain {len(row['plain_worse_than_template'])})"
         )
+        for shape, extra in row["worse_added_beyond_template"].items():
+            print(
+                f"    {shape:22s} {extra['inside_one_piece']:+.4f} m inside one piece, "
+                f"{extra['between_pieces']:+.4f} m between pieces beyond the template"
+            )
     print("\n== Timings (best of 3, native seconds)")
     for name, row in result["timings"].items():
         t = row["transfer"]

@@ -269,21 +269,36 @@ def store_transfer(transfer, written, skipped):
         item.length, item.pairs = row["length"], row["pairs"]
         item.template_length, item.template_pairs = row["template_length"], row["template_pairs"]
         item.worse = row["name"] in worse
+        item.where = where_added(report, row)
     result.done = True
+
+
+def added_beyond_template(report, row, key="length"):
+    """How much more intersection curve the shape adds to the target's neutral than it adds to
+    the template's, split into (inside one piece: lips or lids through each other, between
+    pieces: skin through a separate eyeball, lashes or teeth). `key="plain_length"` judges
+    plain transfer."""
+    between_key = key.replace("length", "between_pieces")
+    target_rest, template_rest = report["neutral_penetration"], report["template_neutral_penetration"]
+    between = (row[between_key] - target_rest["between_pieces"]) - (
+        row["template_between_pieces"] - template_rest["between_pieces"]
+    )
+    total = (row[key] - target_rest["length"]) - (row["template_length"] - template_rest["length"])
+    return total - between, between
 
 
 def worse_than_template(report, key="length", tolerance=1e-3):
     """Names of shapes that add more intersection curve to the target's neutral than they add
     to the template's (beyond `tolerance` x the bbox diagonal); `key="plain_length"` judges
     plain transfer."""
-    target_rest = report["neutral_penetration"]["length"]
-    template_rest = report["template_neutral_penetration"]["length"]
     margin = tolerance * report["diagonal"]
-    return [
-        row["name"]
-        for row in report["penetration"]
-        if row[key] - target_rest > row["template_length"] - template_rest + margin
-    ]
+    return [row["name"] for row in report["penetration"] if sum(added_beyond_template(report, row, key)) > margin]
+
+
+def where_added(report, row):
+    """Where most of a shape's extra intersection lies, for the panel and the summary."""
+    within, between = added_beyond_template(report, row)
+    return "inside one piece" if within >= between else "between pieces"
 
 
 def summary_lines(transfer, written, skipped):
@@ -297,6 +312,7 @@ def summary_lines(transfer, written, skipped):
         f"virtual edges: {report['virtual_edges']}"
         + (f"; personalised with {len(transfer.training)} training expressions" if transfer.training else ""),
         "seconds: " + ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
-        f"shapes adding more intersection than on the template: {', '.join(worse) or 'none'}",
+        "shapes adding more intersection than on the template: "
+        + (", ".join(f"{row['name']} ({where_added(report, row)})" for row in report["penetration"] if row["name"] in worse) or "none"),
     ]
     return lines + [f"warning: {w}" for w in transfer.warnings]

@@ -58,7 +58,7 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         for shape in worse[:8]:
             added = shape.length - result.neutral_length
             template_added = shape.template_length - result.template_neutral_length
-            col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template")
+            col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template, {shape.where}")
 
 
 def register():

@@ -1,5 +1,8 @@
 //! The penetration metric of SPEC section 3: the total length of the intersection curves
-//! between triangles that share no vertex, and the number of such intersecting pairs.
+//! between triangles that share no vertex, and the number of such intersecting pairs. The
+//! length is also split by where it lies: inside one connected piece (lips or lids passing
+//! through each other, what virtual edges act on) or between two pieces (skin through a
+//! separate eyeball, lashes or teeth).
 //!
 //! Triangle-triangle test after Moller (1997): each triangle cuts the other's plane in a
 //! segment on the planes' common line; the overlap of the two segments is the pair's piece
@@ -10,6 +13,7 @@ use rayon::prelude::*;
 
 use super::bvh::{Aabb, Bvh};
 use super::gradients::{add, cross, dot, length, scale, sub, Vec3};
+use crate::geometry::topology::connected_components;
 
 /// Self-intersection of a surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -18,12 +22,20 @@ pub struct Penetration {
     pub length: f64,
     /// Number of intersecting pairs of triangles that share no vertex.
     pub pairs: usize,
+    /// The part of `length` where triangles of two different connected pieces cross.
+    pub between_pieces: f64,
 }
 
 /// Measures the self-intersection of `positions` with `triangles` (indices must be in range).
 pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Penetration {
     let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
-    total(&crossings(&points, triangles, None))
+    total(&crossings(&points, triangles, None), &triangle_pieces(positions.len(), triangles))
+}
+
+/// The connected piece of each triangle.
+fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let (label, _) = connected_components(n_vertices, triangles);
+    triangles.iter().map(|t| label[t[0] as usize]).collect()
 }
 
 /// The self-intersections of a rest mesh, kept so that each of its shapes is scored by
@@ -34,17 +46,19 @@ pub struct PenetrationBaseline<'a> {
     triangles: &'a [[u32; 3]],
     /// `(a, b, length)` with `a < b`, in order of `a`.
     rest: Vec<(u32, u32, f64)>,
+    /// The connected piece of each triangle.
+    piece: Vec<u32>,
 }
 
 impl<'a> PenetrationBaseline<'a> {
     pub fn new(neutral: &'a [[f32; 3]], triangles: &'a [[u32; 3]]) -> Self {
         let points: Vec<Vec3> = neutral.iter().map(|p| p.map(f64::from)).collect();
-        Self { neutral, triangles, rest: crossings(&points, triangles, None) }
+        Self { neutral, triangles, rest: crossings(&points, triangles, None), piece: triangle_pieces(neutral.len(), triangles) }
     }
 
     /// The rest mesh's own penetration.
     pub fn neutral(&self) -> Penetration {
-        total(&self.rest)
+        total(&self.rest, &self.piece)
     }
 
     /// The penetration of `neutral + delta` (N rows). A vertex moves when its delta is not
@@ -57,13 +71,17 @@ impl<'a> PenetrationBaseline<'a> {
         let unmoved = self.rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]).copied();
         let mut all: Vec<(u32, u32, f64)> = unmoved.collect();
         all.extend(crossings(&points, self.triangles, Some(&moved)));
-        total(&all)
+        total(&all, &self.piece)
     }
 }
 
-fn total(pairs: &[(u32, u32, f64)]) -> Penetration {
+fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
     // Summed in a fixed order so the result does not depend on the thread count.
-    Penetration { length: pairs.iter().map(|p| p.2).sum(), pairs: pairs.len() }
+    Penetration {
+        length: pairs.iter().map(|p| p.2).sum(),
+        pairs: pairs.len(),
+        between_pieces: pairs.iter().filter(|p| piece[p.0 as usize] != piece[p.1 as usize]).map(|p| p.2).sum(),
+    }
 }
 
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex. With
@@ -184,6 +202,16 @@ mod tests {
         )
         .unwrap();
         assert!((p.length - expect).abs() < 1e-12 && p.length > 0.0);
+        // The piercing triangle is a piece of its own: all of the curve lies between pieces.
+        assert_eq!(p.between_pieces, p.length);
+        // Joined to the first piece by a bridge triangle above them all (it crosses nothing),
+        // the same crossing lies inside one piece.
+        let mut bridged = pts32.clone();
+        bridged.push([5.0, 5.0, 5.0]);
+        let joined = [[0u32, 1, 2], [0, 3, 7], [4, 5, 6], [6, 8, 7]];
+        let q = measure_penetration(&bridged, &joined);
+        assert_eq!((q.pairs, q.length), (p.pairs, p.length));
+        assert_eq!(q.between_pieces, 0.0);
     }
 
     #[test]

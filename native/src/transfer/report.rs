@@ -32,18 +32,24 @@ pub struct TrainingExpressions<'a> {
     pub weights: &'a [f64],
 }
 
-/// One shape's penetration: on the result, on the template, and with plain transfer.
+/// One shape's penetration: on the result, on the template, and with plain transfer
+/// (`between_pieces`: the part of the length where two separate pieces cross, see
+/// [`Penetration`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ShapePenetration {
     pub name: String,
     pub length: f64,
     pub pairs: usize,
+    pub between_pieces: f64,
     pub template_length: f64,
     pub template_pairs: usize,
+    pub template_between_pieces: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_length: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_pairs: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plain_between_pieces: Option<f64>,
 }
 
 /// Wall-clock seconds per stage.
@@ -128,10 +134,13 @@ pub fn transfer_shapes(
                     name: names[k].clone(),
                     length: result.length,
                     pairs: result.pairs,
+                    between_pieces: result.between_pieces,
                     template_length: template.length,
                     template_pairs: template.pairs,
+                    template_between_pieces: template.between_pieces,
                     plain_length: plain.map(|p| p.length),
                     plain_pairs: plain.map(|p| p.pairs),
+                    plain_between_pieces: plain.map(|p| p.between_pieces),
                 }
             })
             .collect();
