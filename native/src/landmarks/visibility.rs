@@ -6,7 +6,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::bvh::{cross, dot, sub, TriangleBvh};
+use crate::geometry::bvh::{cross, dot, sub, TriangleBvh};
 use crate::error::ShapesmithResult;
 use crate::progress::Progress;
 use crate::rig::RigView;

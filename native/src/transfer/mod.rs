@@ -81,7 +81,6 @@
 //!   to the personalised shapes, alternated a fixed number of times.
 
 mod alignment;
-mod bvh;
 mod deformation;
 mod gradients;
 mod penetration;

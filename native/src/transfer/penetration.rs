@@ -11,8 +11,8 @@
 
 use rayon::prelude::*;
 
-use super::bvh::{Aabb, Bvh};
 use super::gradients::{add, cross, dot, length, scale, sub, Vec3};
+use crate::geometry::bvh::{Aabb, TriangleBvh};
 use crate::geometry::topology::connected_components;
 
 /// Self-intersection of a surface.
@@ -88,8 +88,7 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 /// `moved`, only pairs with at least one moved triangle are tested.
 fn crossings(points: &[Vec3], triangles: &[[u32; 3]], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
-    let boxes: Vec<Aabb> = (0..triangles.len()).map(|t| Aabb::of_points(&corners(t))).collect();
-    let bvh = Bvh::new(&boxes);
+    let bvh = TriangleBvh::build(points, triangles);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
     let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
         .into_par_iter()
@@ -98,7 +97,7 @@ fn crossings(points: &[Vec3], triangles: &[[u32; 3]], moved: Option<&[bool]>) ->
             if !is_moved(a) {
                 return found;
             }
-            bvh.for_each_overlap(&boxes[a], |b| {
+            bvh.for_each_overlap(&Aabb::of_points(&corners(a)), |b| {
                 let b = b as usize;
                 // Each pair once: from its lower index when both moved, else from the moved one.
                 if (b <= a && is_moved(b)) || a == b || triangles[a].iter().any(|v| triangles[b].contains(v)) {

@@ -1,18 +1,28 @@
-//! A bounding-volume hierarchy over triangles for occlusion rays: "does anything lie on this
-//! segment?". Binned surface-area-heuristic build, flat node array, stack traversal.
-//!
-//! Generic on purpose (points and triangle indices in, boolean queries out) so that it can
-//! move to `geometry/` and serve transfer's penetration tests as well.
+//! A bounding-volume hierarchy over a mesh's triangles, for the two queries the tools ask:
+//! occlusion rays ("does anything lie on this segment?", landmark visibility) and box overlaps
+//! (candidate pairs for the triangle-triangle tests of transfer's penetration metric).
+//! Binned surface-area-heuristic build, flat node array, stack traversal.
 
 /// Axis-aligned box; `lo > hi` on every axis when empty.
 #[derive(Clone, Copy, Debug)]
-struct Aabb {
+pub struct Aabb {
     lo: [f64; 3],
     hi: [f64; 3],
 }
 
 impl Aabb {
     const EMPTY: Aabb = Aabb { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] };
+
+    pub fn of_points(points: &[[f64; 3]]) -> Self {
+        let mut b = Aabb::EMPTY;
+        points.iter().for_each(|p| b.grow_point(p));
+        b
+    }
+
+    /// Closed boxes: touching counts as overlapping.
+    pub fn overlaps(&self, other: &Aabb) -> bool {
+        (0..3).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
+    }
 
     fn grow_point(&mut self, p: &[f64; 3]) {
         for (a, &x) in p.iter().enumerate() {
@@ -70,7 +80,10 @@ struct PreparedTriangle {
 
 pub struct TriangleBvh {
     nodes: Vec<Node>,
+    /// In leaf order, with each one's box and index in the caller's triangle list.
     triangles: Vec<PreparedTriangle>,
+    boxes: Vec<Aabb>,
+    original: Vec<u32>,
 }
 
 const LEAF_SIZE: usize = 4;
@@ -85,14 +98,7 @@ impl TriangleBvh {
     pub fn build(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
         let corners: Vec<[[f64; 3]; 3]> =
             triangles.iter().map(|t| t.map(|v| points[v as usize])).collect();
-        let bounds: Vec<Aabb> = corners
-            .iter()
-            .map(|c| {
-                let mut b = Aabb::EMPTY;
-                c.iter().for_each(|p| b.grow_point(p));
-                b
-            })
-            .collect();
+        let bounds: Vec<Aabb> = corners.iter().map(|c| Aabb::of_points(c)).collect();
         let centroids: Vec<[f64; 3]> = corners
             .iter()
             .map(|c| std::array::from_fn(|a| (c[0][a] + c[1][a] + c[2][a]) / 3.0))
@@ -109,7 +115,38 @@ impl TriangleBvh {
                 PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) }
             })
             .collect();
-        Self { nodes, triangles }
+        let boxes = order.iter().map(|&t| bounds[t as usize]).collect();
+        Self { nodes, triangles, boxes, original: order }
+    }
+
+    /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
+    /// whose bounding box overlaps `query`.
+    pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
+        if self.triangles.is_empty() || !self.nodes[0].bounds.overlaps(query) {
+            return;
+        }
+        // Nodes on the stack overlap the query.
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (b, &t) in self.boxes[range.clone()].iter().zip(&self.original[range]) {
+                    if b.overlaps(query) {
+                        visit(t);
+                    }
+                }
+                continue;
+            }
+            for child in [node.first, node.first + 1] {
+                if self.nodes[child as usize].bounds.overlaps(query) {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
+        }
     }
 
     /// Whether the ray `origin + t * direction` meets a triangle at some `t` in `(0, t_max)`.
@@ -332,6 +369,32 @@ mod tests {
             hits += brute as usize;
         }
         assert!(hits > 100 && hits < 2900, "the test should see both hits and misses, saw {hits} hits");
+    }
+
+    /// Random small boxes' triangles: the overlap query finds exactly the triangles whose
+    /// boxes a brute-force sweep finds.
+    #[test]
+    fn overlap_query_matches_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let points: Vec<[f64; 3]> = (0..900)
+            .map(|i| {
+                let base = (i / 3) as f64;
+                std::array::from_fn(|a| ((base * (a + 1) as f64 * 0.618).fract()) + 0.1 * rng.random::<f64>())
+            })
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..300).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let bvh = TriangleBvh::build(&points, &triangles);
+        let boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::of_points(&t.map(|v| points[v as usize]))).collect();
+        let mut seen = 0;
+        for query in &boxes {
+            let mut found = Vec::new();
+            bvh.for_each_overlap(query, |t| found.push(t));
+            found.sort_unstable();
+            let expect: Vec<u32> = (0..triangles.len() as u32).filter(|&t| boxes[t as usize].overlaps(query)).collect();
+            assert_eq!(found, expect);
+            seen += expect.len();
+        }
+        assert!(seen > 2 * boxes.len(), "the boxes should overlap more than themselves, saw {seen}");
     }
 
     #[test]
