@@ -110,14 +110,32 @@ def warp_benchmark(nat, rig):
     return result
 
 
-def penetration_benchmark(transfer_module, template, targets):
+def penetration_benchmark(transfer_module, rig, template, targets):
     """Per target: total intersection-curve length with and without virtual edges beside the
     template's, and the shapes that add more intersection to the target's neutral than to
-    the template's (with virtual edges, and plain)."""
+    the template's (with virtual edges, and plain). For each of those, the extra curve inside
+    one piece and between pieces, and the piece pairs whose crossing triangle pairs grew most
+    beyond the template's (a diagnosis: pairs counted with Blender's BVHTree overlap)."""
+    pieces = PieceCrossings(rig)
+    template_rest = pieces.count(rig.neutral)
     result = {}
     for target in targets:
-        report = transfer_module.transfer_object(template, target, compare_plain=True).report
+        transfer = transfer_module.transfer_object(template, target, compare_plain=True)
+        report = transfer.report
         rows = report["penetration"]
+        worse = transfer_module.worse_than_template(report)
+        target_rest = pieces.count(transfer.target_neutral)
+        explained = {}
+        for row in rows:
+            if row["name"] not in worse:
+                continue
+            k = transfer.names.index(row["name"])
+            inside, between = transfer_module.added_beyond_template(report, row)
+            grown = pieces.growth(
+                pieces.count(transfer.target_neutral + transfer.deltas[k]), target_rest,
+                pieces.count(rig.neutral + rig.deltas[k]), template_rest,
+            )
+            explained[row["name"]] = {"inside_one_piece": inside, "between_pieces": between, "piece_pairs": grown[:2]}
         result[target.name] = {
             "virtual_edges": report["virtual_edges"],
             "length": sum(r["length"] for r in rows),
@@ -125,16 +143,65 @@ def penetration_benchmark(transfer_module, template, targets):
             "template_length": sum(r["template_length"] for r in rows),
             "neutral_length": report["neutral_penetration"]["length"],
             "template_neutral_length": report["template_neutral_penetration"]["length"],
-            "worse_than_template": transfer_module.worse_than_template(report),
-            "worse_added_beyond_template": {
-                row["name"]: dict(zip(("inside_one_piece", "between_pieces"), transfer_module.added_beyond_template(report, row)))
-                for row in rows
-                if row["name"] in transfer_module.worse_than_template(report)
-            },
+            "worse_than_template": worse,
+            "worse_explained": explained,
             "plain_worse_than_template": transfer_module.worse_than_template(report, key="plain_length"),
             "shapes": rows,
         }
     return result
+
+
+class PieceCrossings:
+    """Counts crossing triangle pairs (sharing no vertex) per pair of connected pieces, each
+    piece named by its size and place (the sample head's skin, eyeballs, lashes, teeth and
+    tongue are pieces of their own)."""
+
+    def __init__(self, rig):
+        self.triangles = [tuple(map(int, t)) for t in rig.triangles]
+        n = len(rig.neutral)
+        parent = np.arange(n)
+
+        def root(v):
+            while parent[v] != v:
+                parent[v] = parent[parent[v]]
+                v = parent[v]
+            return v
+
+        for a, b, c in self.triangles:
+            for u, v in ((a, b), (b, c)):
+                ru, rv = root(u), root(v)
+                parent[max(ru, rv)] = min(ru, rv)
+        roots, label = np.unique([root(v) for v in range(n)], return_inverse=True)
+        names = []
+        for k in range(len(roots)):
+            members = label == k
+            centre = rig.neutral[members].mean(0)
+            names.append(f"{members.sum()} vertices at ({centre[0]:+.3f}, {centre[2]:.3f})")
+        skin = int(np.argmax(np.bincount(label)))
+        names[skin] = "skin"
+        self.piece_of_triangle = [names[label[t[0]]] for t in self.triangles]
+
+    def count(self, positions):
+        from mathutils.bvhtree import BVHTree
+
+        tree = BVHTree.FromPolygons([tuple(map(float, p)) for p in positions], self.triangles, all_triangles=True)
+        counts = {}
+        for a, b in tree.overlap(tree):
+            if a < b and not set(self.triangles[a]) & set(self.triangles[b]):
+                key = " - ".join(sorted((self.piece_of_triangle[a], self.piece_of_triangle[b])))
+                counts[key] = counts.get(key, 0) + 1
+        return counts
+
+    @staticmethod
+    def growth(shape, rest, template_shape, template_rest):
+        """Piece pairs by how many more crossing pairs the shape adds than the template's
+        shape adds, most first (only those that grew)."""
+        keys = set(shape) | set(rest) | set(template_shape) | set(template_rest)
+
+        def extra(key):
+            return (shape.get(key, 0) - rest.get(key, 0)) - (template_shape.get(key, 0) - template_rest.get(key, 0))
+
+        return [[key, extra(key)] for key in sorted(keys, key=lambda k: (-extra(k), k)) if extra(key) > 0]
 
 
 def subdivided(obj, name, face_edges=0, template=None):
@@ -231,10 +298,11 @@ def print_report(result):
             f"shapes adding more than on the template: {len(row['worse_than_template'])} "
             f"(plain {len(row['plain_worse_than_template'])})"
         )
-        for shape, extra in row["worse_added_beyond_template"].items():
+        for shape, extra in row["worse_explained"].items():
             print(
                 f"    {shape:22s} {extra['inside_one_piece']:+.4f} m inside one piece, "
-                f"{extra['between_pieces']:+.4f} m between pieces beyond the template"
+                f"{extra['between_pieces']:+.4f} m between pieces beyond the template; grew most: "
+                + "; ".join(f"{pair} (+{count})" for pair, count in extra["piece_pairs"])
             )
     print("\n== Timings (best of 3, native seconds)")
     for name, row in result["timings"].items():
@@ -267,7 +335,7 @@ def main():
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {
         "warp": warp_benchmark(nat, rig),
-        "penetration": penetration_benchmark(transfer_module, template, targets),
+        "penetration": penetration_benchmark(transfer_module, rig, template, targets),
         "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
     }
     dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")

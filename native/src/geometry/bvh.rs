@@ -119,6 +119,31 @@ impl TriangleBvh {
         Self { nodes, triangles, boxes, original: order }
     }
 
+    /// The same hierarchy over moved corners (`points` indexed by the `triangles` given to
+    /// `build`): boxes recomputed bottom-up, the tree kept. Far cheaper than a build; the
+    /// boxes only loosen as the pose departs from the one built on, the answers stay exact.
+    pub fn refitted(&self, points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
+        let corners: Vec<[[f64; 3]; 3]> = self.original.iter().map(|&t| triangles[t as usize].map(|v| points[v as usize])).collect();
+        let boxes: Vec<Aabb> = corners.iter().map(|c| Aabb::of_points(c)).collect();
+        let prepared = corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
+        let mut nodes = self.nodes.clone();
+        if !boxes.is_empty() {
+            // Children come after their parent in the array.
+            for i in (0..nodes.len()).rev() {
+                let Node { first, count, .. } = nodes[i];
+                let mut bounds = Aabb::EMPTY;
+                if count > 0 {
+                    boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
+                } else {
+                    bounds.grow(&nodes[first as usize].bounds);
+                    bounds.grow(&nodes[first as usize + 1].bounds);
+                }
+                nodes[i].bounds = bounds;
+            }
+        }
+        Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
+    }
+
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
     /// whose bounding box overlaps `query`.
     pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
@@ -395,6 +420,17 @@ mod tests {
             seen += expect.len();
         }
         assert!(seen > 2 * boxes.len(), "the boxes should overlap more than themselves, saw {seen}");
+        // Refitted to moved corners, the tree answers like one built on them.
+        let moved: Vec<[f64; 3]> = points.iter().map(|p| [p[0] + 0.3 * p[1] * p[1], p[1] - 0.2 * p[2], p[2]]).collect();
+        let refitted = bvh.refitted(&moved, &triangles);
+        let moved_boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::of_points(&t.map(|v| moved[v as usize]))).collect();
+        for query in &moved_boxes {
+            let mut found = Vec::new();
+            refitted.for_each_overlap(query, |t| found.push(t));
+            found.sort_unstable();
+            let expect: Vec<u32> = (0..triangles.len() as u32).filter(|&t| moved_boxes[t as usize].overlaps(query)).collect();
+            assert_eq!(found, expect);
+        }
     }
 
     #[test]

@@ -29,7 +29,7 @@ pub struct Penetration {
 /// Measures the self-intersection of `positions` with `triangles` (indices must be in range).
 pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Penetration {
     let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
-    total(&crossings(&points, triangles, None), &triangle_pieces(positions.len(), triangles))
+    total(&crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None), &triangle_pieces(positions.len(), triangles))
 }
 
 /// The connected piece of each triangle.
@@ -46,6 +46,8 @@ pub struct PenetrationBaseline<'a> {
     triangles: &'a [[u32; 3]],
     /// `(a, b, length)` with `a < b`, in order of `a`.
     rest: Vec<(u32, u32, f64)>,
+    /// Built on the rest pose, refitted to each shape.
+    bvh: TriangleBvh,
     /// The connected piece of each triangle.
     piece: Vec<u32>,
 }
@@ -53,7 +55,9 @@ pub struct PenetrationBaseline<'a> {
 impl<'a> PenetrationBaseline<'a> {
     pub fn new(neutral: &'a [[f32; 3]], triangles: &'a [[u32; 3]]) -> Self {
         let points: Vec<Vec3> = neutral.iter().map(|p| p.map(f64::from)).collect();
-        Self { neutral, triangles, rest: crossings(&points, triangles, None), piece: triangle_pieces(neutral.len(), triangles) }
+        let bvh = TriangleBvh::build(&points, triangles);
+        let rest = crossings(&points, triangles, &bvh, None);
+        Self { neutral, triangles, rest, bvh, piece: triangle_pieces(neutral.len(), triangles) }
     }
 
     /// The rest mesh's own penetration.
@@ -70,7 +74,7 @@ impl<'a> PenetrationBaseline<'a> {
             self.triangles.iter().map(|t| t.iter().any(|&v| delta[v as usize] != [0.0; 3])).collect();
         let unmoved = self.rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]).copied();
         let mut all: Vec<(u32, u32, f64)> = unmoved.collect();
-        all.extend(crossings(&points, self.triangles, Some(&moved)));
+        all.extend(crossings(&points, self.triangles, &self.bvh.refitted(&points, self.triangles), Some(&moved)));
         total(&all, &self.piece)
     }
 }
@@ -84,11 +88,11 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
     }
 }
 
-/// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex. With
+/// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
+/// over `points`. With
 /// `moved`, only pairs with at least one moved triangle are tested.
-fn crossings(points: &[Vec3], triangles: &[[u32; 3]], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
+fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
-    let bvh = TriangleBvh::build(points, triangles);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
     let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
         .into_par_iter()
