@@ -89,8 +89,7 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 }
 
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
-/// over `points`. With
-/// `moved`, only pairs with at least one moved triangle are tested.
+/// over `points`. With `moved`, only pairs with at least one moved triangle are tested.
 fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
