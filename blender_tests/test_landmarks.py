@@ -133,6 +133,23 @@ def test_undo_restores_the_previous_layout(sample):
     assert sorted(e.parent_vertices[0] for e in layout_empties(template)) == first
 
 
+def test_progress_reaches_the_caller_and_stopping_keeps_the_previous_layout(sample, shapesmith):
+    import importlib
+
+    landmarks = importlib.import_module(shapesmith.__name__ + ".blender.landmarks")
+    template = make_active(bpy.data.objects["Template"])
+    first = place(epsilon=0.5)
+    seen = []
+    document = landmarks.place_landmarks(template, epsilon=0.5, progress=seen.append)
+    assert seen and all(0.0 <= f <= 1.0 for f in seen) and max(seen) == 1.0
+    without = landmarks.place_landmarks(template, epsilon=0.5)
+    assert [lm["vertex"] for lm in document["landmarks"]] == [lm["vertex"] for lm in without["landmarks"]]
+    with pytest.raises(shapesmith.native.module().CancelledError):
+        landmarks.place_landmarks(template, epsilon=0.5, progress=lambda fraction: fraction < 0.3)
+    assert json.loads(template.shapesmith.landmarks.document) == first
+    assert len(layout_empties(template)) == len(first["landmarks"])
+
+
 def test_the_layout_survives_save_and_reload(sample, tmp_path):
     template = make_active(bpy.data.objects["Template"])
     document = place()

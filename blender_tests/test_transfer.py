@@ -360,6 +360,46 @@ def test_degenerate_triangles_on_the_target_are_refused(sample):
     refused(target, "degenerate")
 
 
+# --- progress ----------------------------------------------------------------------------
+
+
+def test_progress_reaches_the_caller_on_its_thread_and_can_stop_the_work(sample, shapesmith):
+    """The operators drive Blender's progress cursor through this callback; it must run on the
+    calling (main) thread, reach 1, and stop the work when it answers False."""
+    import importlib
+    import threading
+
+    transfer = importlib.import_module(shapesmith.__name__ + ".blender.transfer")
+    template, target = bpy.data.objects["Template"], bpy.data.objects["Target_Boy"]
+    seen, threads = [], set()
+
+    def record(fraction):
+        seen.append(fraction)
+        threads.add(threading.get_ident())
+
+    result = transfer.transfer_object(template, target, progress=record)
+    assert len(seen) >= 52 and all(0.0 <= f <= 1.0 for f in seen) and max(seen) == 1.0
+    assert threads == {threading.get_ident()}
+    assert result.deltas.shape == (52, len(target.data.vertices), 3)
+    before = snapshot(target)
+    with pytest.raises(shapesmith.native.module().CancelledError):
+        transfer.transfer_object(template, target, progress=lambda fraction: fraction < 0.5)
+
+    class Stop(Exception):
+        pass
+
+    def interrupt(fraction):
+        raise Stop
+
+    with pytest.raises(Stop):
+        transfer.transfer_object(template, target, progress=interrupt)
+    assert snapshot(target) == before
+    # The progress cursor does not change what the operator writes.
+    assert transfer_onto(target) == {"FINISHED"}
+    written = np.stack([key_positions(target, name) - rest(target) for name in template_names()])
+    assert np.abs(written - result.deltas).max() < 1e-6
+
+
 # --- batch -------------------------------------------------------------------------------
 
 

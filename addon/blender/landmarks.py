@@ -119,16 +119,18 @@ def score_vertices(obj, rig, vertices):
     return dict(score, noise=SCORE_NOISE, packed_expressions=0 if poses is None else len(poses))
 
 
-def place_landmarks(obj, cameras=None, axis=0, **params):
+def place_landmarks(obj, cameras=None, axis=0, progress=None, **params):
     """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
     nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
-    max_per_shape, radius). Raises MeshDataError or the core's errors on bad input."""
+    max_per_shape, radius); `progress(fraction)`, when given, is called as the work advances
+    and stops it by returning False (CancelledError). Raises MeshDataError or the core's
+    errors on bad input."""
     started = time.perf_counter()
     rig = read_rig(obj)
     parts = mesh_parts(obj)
     read = time.perf_counter()
     layout = native.module().place_landmarks(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, **params
+        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, progress=progress, **params
     )
     vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
     if not vertices:

@@ -171,10 +171,12 @@ def transfer_object(
     beta_reg=0.1,
     refine_weights=False,
     compare_plain=False,
+    progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
     transfer and returns a `Transfer`. Writes nothing; raises MeshDataError (or the core's
-    InvalidInputError) for anything the user has to fix."""
+    InvalidInputError) for anything the user has to fix. `progress(fraction)`, when given, is
+    called as the work advances and stops it by returning False (CancelledError)."""
     started = time.perf_counter()
     rig, target_neutral = _read_pair(source, target)
     examples = example_weights = None
@@ -201,6 +203,7 @@ def transfer_object(
         refine_weights=refine_weights,
         compare_plain=compare_plain,
         measure_penetration=True,
+        progress=progress,
     )
     # The template's own neutral intersection, so each shape is judged by what it adds: the
     # MakeHuman heads' eyes, teeth and lashes already cross the skin at rest.

@@ -1,5 +1,8 @@
-"""Poll checks that explain why a button is disabled, and the one place that turns expected
-errors (bad mesh, bad input, infeasible program) into an operator report."""
+"""Poll checks that explain why a button is disabled, the one place that turns expected
+errors (bad mesh, bad input, infeasible program) into an operator report, and the progress
+cursor of long native work."""
+
+from contextlib import contextmanager
 
 from .. import native
 from ..blender.mesh_arrays import MeshDataError
@@ -45,3 +48,15 @@ def expected_errors():
         return errors + native.error_types()
     except native.NativeUnavailableError:
         return errors
+
+
+@contextmanager
+def progress_cursor(context):
+    """Blender's progress cursor for the length of a long native call; yields the callback
+    (fraction in [0, 1]) that the native core calls on this, the main, thread."""
+    window_manager = context.window_manager
+    window_manager.progress_begin(0, 100)
+    try:
+        yield lambda fraction: window_manager.progress_update(int(100 * fraction))
+    finally:
+        window_manager.progress_end()

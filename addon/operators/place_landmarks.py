@@ -4,7 +4,7 @@ moving, visible landmark; built as empties on the vertices, replacing the previo
 import bpy
 
 from ..blender.landmarks import build_layout, camera_positions, place_landmarks, settings_params
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
@@ -26,9 +26,11 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
         settings = scene.shapesmith.landmarks
         try:
             cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
-            document = place_landmarks(
-                obj, cameras=cameras, axis=int(scene.shapesmith.symmetry_axis), **settings_params(settings)
-            )
+            with progress_cursor(context) as progress:
+                document = place_landmarks(
+                    obj, cameras=cameras, axis=int(scene.shapesmith.symmetry_axis), progress=progress,
+                    **settings_params(settings),
+                )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

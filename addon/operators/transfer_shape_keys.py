@@ -5,7 +5,7 @@ import bpy
 
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, transfer_object, worse_than_template
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class TransferOperator:
@@ -27,18 +27,20 @@ class TransferOperator:
         settings = context.scene.shapesmith.transfer
         target = context.active_object
         try:
-            transfer = transfer_object(
-                settings.source,
-                target,
-                virtual_edges=settings.virtual_edges,
-                tau_d=settings.tau_d,
-                tau_r=settings.tau_r,
-                edge_weight=settings.edge_weight,
-                training_objects=self.training_objects(settings),
-                beta_reg=settings.beta_reg,
-                refine_weights=settings.refine_weights,
-                compare_plain=settings.compare_plain,
-            )
+            with progress_cursor(context) as progress:
+                transfer = transfer_object(
+                    settings.source,
+                    target,
+                    virtual_edges=settings.virtual_edges,
+                    tau_d=settings.tau_d,
+                    tau_r=settings.tau_r,
+                    edge_weight=settings.edge_weight,
+                    training_objects=self.training_objects(settings),
+                    beta_reg=settings.beta_reg,
+                    refine_weights=settings.refine_weights,
+                    compare_plain=settings.compare_plain,
+                    progress=progress,
+                )
             written, skipped, warnings = write_transferred_keys(
                 transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
             )

@@ -25,3 +25,17 @@ impl Progress for NoProgress {
         true
     }
 }
+
+/// One stage of a longer job: reports the stage's own fraction as its share
+/// `[start, start + span]` of the whole job's.
+pub struct Stage<'a> {
+    pub whole: &'a dyn Progress,
+    pub start: f64,
+    pub span: f64,
+}
+
+impl Progress for Stage<'_> {
+    fn report(&self, fraction: f64) -> bool {
+        self.whole.report(self.start + self.span * fraction.clamp(0.0, 1.0))
+    }
+}

@@ -7,10 +7,10 @@ use serde::Serialize;
 
 use super::arrays;
 use super::errors::py_err;
+use super::progress::run_detached;
 use crate::ilp::SolveStatus;
 use crate::invalid;
 use crate::landmarks::{place_landmarks as place, score_layout as score, LandmarkLayout, LandmarkParams, ScoreParams};
-use crate::progress::NoProgress;
 use crate::rig::RigView;
 
 #[derive(Serialize)]
@@ -107,13 +107,16 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
 
 /// place_landmarks(neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
 ///                 rays=64, symmetric=False, max_per_shape=2, radius=0.03, cameras=None,
-///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0) -> dict
+///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0,
+///                 progress=None) -> dict
 ///
 /// `cameras`: optional (C, 3) float32 camera positions in the mesh's local space.
+/// `progress(fraction)` is called on the calling thread as the work advances; returning
+/// `False` stops it (`CancelledError`).
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
                     rays=64, symmetric=false, max_per_shape=2, radius=0.03, cameras=None,
-                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0))]
+                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn place_landmarks<'py>(
     py: Python<'py>,
@@ -134,6 +137,7 @@ fn place_landmarks<'py>(
     time_limit: Option<f64>,
     share_limit: f64,
     min_visibility: f64,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
@@ -158,12 +162,10 @@ fn place_landmarks<'py>(
         time_limit,
         ..LandmarkParams::default()
     };
-    let layout = py
-        .detach(|| {
-            let rig = RigView::new(points, delta_rows, &tris, &names)?;
-            place(&rig, &params, &NoProgress)
-        })
-        .map_err(py_err(py))?;
+    let layout = run_detached(py, progress.as_ref(), |progress| {
+        let rig = RigView::new(points, delta_rows, &tris, &names)?;
+        place(&rig, &params, progress)
+    })?;
     arrays::to_python(py, &report(layout, &names, &params))
 }
 

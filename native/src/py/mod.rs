@@ -6,6 +6,7 @@ mod arrays;
 mod errors;
 mod landmarks;
 mod packing;
+mod progress;
 mod transfer;
 
 use pyo3::prelude::*;

@@ -6,25 +6,30 @@ use pyo3::prelude::*;
 
 use super::arrays;
 use super::errors::py_err;
+use super::progress::run_detached;
 use crate::invalid;
 use crate::transfer::{
     find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, PersonaliseParams,
     TrainingExpressions, TransferParams, TransferShapesParams, VirtualEdgeParams,
 };
-use crate::NoProgress;
 
 /// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
 ///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
 ///                 examples=None, example_weights=None, beta_reg=0.1, refine_weights=False,
-///                 compare_plain=False, measure_penetration=True, align_rotation=True)
+///                 compare_plain=False, measure_penetration=True, align_rotation=True,
+///                 progress=None)
 ///     -> (deltas float32 (K, N, 3), report dict)
+///
+/// `progress(fraction)` is called on the calling thread as the shapes are solved; returning
+/// `False` stops the work (`CancelledError`).
 ///
 /// `examples` are J training expressions of the target, float32 (J, N, 3) positions;
 /// `example_weights` their J x K blend weights (packed expressions are 0/1 rows).
 #[pyfunction]
 #[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
                     tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=0.1,
-                    refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true))]
+                    refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true,
+                    progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn transfer_shapes<'py>(
     py: Python<'py>,
@@ -44,6 +49,7 @@ fn transfer_shapes<'py>(
     compare_plain: bool,
     measure_penetration: bool,
     align_rotation: bool,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let source = arrays::points(&source_neutral, "source_neutral").map_err(py_err(py))?;
     let target = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
@@ -82,12 +88,10 @@ fn transfer_shapes<'py>(
         compare_plain,
         measure_penetration,
     };
-    let (deltas, report) = py
-        .detach(|| {
-            let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
-            run_transfer(source, delta_rows, target, &tris, &names, training, &params, &NoProgress)
-        })
-        .map_err(py_err(py))?;
+    let (deltas, report) = run_detached(py, progress.as_ref(), |progress| {
+        let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
+        run_transfer(source, delta_rows, target, &tris, &names, training, &params, progress)
+    })?;
     let flat: Vec<f32> = deltas.into_iter().flatten().collect();
     let array = PyArray1::from_vec(py, flat).reshape([names.len(), n, 3])?;
     Ok((array.into_any(), arrays::to_python(py, &report)?))

@@ -1,6 +1,7 @@
 //! [`transfer_shapes`]: the whole transfer as the add-on runs it (set up, transfer or
 //! personalise, score penetration), with the report SPEC section 3 asks for.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -9,7 +10,7 @@ use super::penetration::PenetrationBaseline;
 use super::{DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::invalid;
-use crate::progress::{NoProgress, Progress};
+use crate::progress::{NoProgress, Progress, Stage};
 
 /// Everything [`transfer_shapes`] can be asked to do.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -94,19 +95,22 @@ pub fn transfer_shapes(
     params: &TransferShapesParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<(Vec<[f32; 3]>, TransferReport)> {
+    // Measuring penetration (three sweeps per shape) takes longer than the solves.
+    let solved_at = if params.measure_penetration { 0.3 } else { 1.0 };
+    let solving = Stage { whole: progress, start: 0.0, span: solved_at };
     let dt = DeformationTransfer::new(source_neutral, target_neutral, triangles, &params.transfer)?;
     let n = dt.n_vertices();
     let mut seconds = StageSeconds { factorisation: dt.setup_seconds, virtual_edges: dt.virtual_edge_seconds, ..Default::default() };
     let (deltas, inert, weights) = match examples {
         Some(ex) if !ex.positions.is_empty() => {
-            let out = dt.personalise(source_deltas, names, ex.positions, ex.weights, &params.personalise, progress)?;
+            let out = dt.personalise(source_deltas, names, ex.positions, ex.weights, &params.personalise, &solving)?;
             seconds.personalisation = out.seconds;
             let k = names.len();
             let rows = out.weights.chunks(k.max(1)).map(|r| r.to_vec()).collect();
             (out.deltas, out.inert, rows)
         }
         _ => {
-            let out = dt.transfer(source_deltas, names, progress)?;
+            let out = dt.transfer(source_deltas, names, &solving)?;
             seconds.solves = out.seconds;
             (out.deltas, out.inert, Vec::new())
         }
@@ -123,6 +127,7 @@ pub fn transfer_shapes(
         let start = Instant::now();
         let on_target = PenetrationBaseline::new(target_neutral, triangles);
         let on_template = PenetrationBaseline::new(source_neutral, triangles);
+        let done = AtomicUsize::new(0);
         let per_shape = (0..names.len())
             .into_par_iter()
             .map(|k| {
@@ -130,7 +135,7 @@ pub fn transfer_shapes(
                 let result = on_target.shape(&deltas[rows.clone()]);
                 let template = on_template.shape(&source_deltas[rows.clone()]);
                 let plain = plain.as_ref().map(|d| on_target.shape(&d[rows]));
-                ShapePenetration {
+                let row = ShapePenetration {
                     name: names[k].clone(),
                     length: result.length,
                     pairs: result.pairs,
@@ -141,9 +146,12 @@ pub fn transfer_shapes(
                     plain_length: plain.map(|p| p.length),
                     plain_pairs: plain.map(|p| p.pairs),
                     plain_between_pieces: plain.map(|p| p.between_pieces),
-                }
+                };
+                let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress.checkpoint(solved_at + (1.0 - solved_at) * finished as f64 / names.len() as f64)?;
+                Ok(row)
             })
-            .collect();
+            .collect::<ShapesmithResult<Vec<_>>>()?;
         seconds.penetration = start.elapsed().as_secs_f64();
         (per_shape, Some(on_target.neutral()))
     } else {
