@@ -21,7 +21,6 @@ use std::collections::BinaryHeap;
 
 use rayon::prelude::*;
 
-
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::{connected_components, Adjacency};
 use crate::rig::bbox_diagonal;
@@ -186,8 +185,8 @@ impl SurfaceSearch {
 
     /// The pairs `(j, d_ij)`, `j > source`, of the Euclidean `ball` around `source` that a
     /// breadth-first pass inside the ball does not reach within `ratio x d_ij`. Each vertex
-    /// is reached along the first path found, whose length bounds `g_ij` from above, so every
-    /// pair left out is close; on smooth skin that is all of them.
+    /// keeps the shortest of the paths that reached it; any path's length bounds `g_ij` from
+    /// above, so every pair left out is close. On smooth skin that is all of them.
     fn not_proven_close(&mut self, graph: &EdgeGraph, source: usize, ball: &[(usize, f64)], ratio: f64) -> Vec<(usize, f64)> {
         let mut pending = ball.iter().filter(|&&(j, _)| j > source).count();
         if pending == 0 {
