@@ -26,11 +26,12 @@
 //! # Deviations
 //! - **Static vertices exactly put, by elimination.** Each shape fixes its static vertices
 //!   (`|D_k[n]| < 1e-4 max_n |D_k[n]|`) at `B0` by removing them from the system (Dirichlet),
-//!   not by heavy soft anchors. The normal matrix is assembled once; each shape factorises
-//!   (symbolic AMD + numeric) only the principal submatrix on its own moving vertices, which
-//!   is a small part of the mesh for most face units. This replaces "symbolic once, numeric
-//!   once per shape": the anchors, hence the pattern, differ per shape, and the reduced
-//!   factorisation is cheaper than a full-size numeric one. Static vertices are exact zeros,
+//!   not by heavy soft anchors. The normal matrix is assembled and ordered (AMD) once; each
+//!   shape factorises (symbolic in that order restricted, then numeric) only the principal
+//!   submatrix on its own moving vertices, which is a small part of the mesh for most face
+//!   units. This replaces "symbolic once, numeric once per shape": the anchors, hence the
+//!   pattern, differ per shape, and the reduced factorisation is cheaper than a full-size
+//!   numeric one. Static vertices are exact zeros,
 //!   and a triangle whose corners are all static gets a zero gradient.
 //! - **Pieces that move as a whole.** A piece (connected component) with no static vertex in
 //!   a shape is fixed by pinning one vertex, solving, and translating the piece so that the
