@@ -63,6 +63,22 @@ def test_pairs_can_be_edited_by_hand(sample):
     assert len(template.shapesmith.pairs) == 18
 
 
+def test_undo_brings_back_the_pairs_as_edited(sample):
+    """Analyze Rig replaces the pair list, hand edits included; the list lives in the file's
+    data (not in Python state), so undoing the step brings the edited list back."""
+    template = make_active(bpy.data.objects["Template"])
+    bpy.ops.shapesmith.analyze_rig()
+    assert bpy.ops.shapesmith.remove_pair() == {"FINISHED"}
+    edited = [(p.first, p.second) for p in template.shapesmith.pairs]
+    bpy.ops.ed.undo_push(message="pairs edited")
+    assert bpy.ops.shapesmith.analyze_rig() == {"FINISHED"}
+    assert len(bpy.data.objects["Template"].shapesmith.pairs) == 18
+    bpy.ops.ed.undo_push(message="analysed again")
+    bpy.ops.ed.undo()
+    assert [(p.first, p.second) for p in bpy.data.objects["Template"].shapesmith.pairs] == edited
+    assert len(edited) == 17
+
+
 def test_a_mesh_without_shape_keys_is_refused_and_left_unchanged(sample):
     target = make_active(bpy.data.objects["Target_OldMan"])
     with pytest.raises(RuntimeError, match="no shape keys"):
