@@ -17,14 +17,42 @@ pub enum ShapesmithError {
     #[error("{0}")]
     Solver(String),
     /// The caller asked to stop through [`crate::Progress`].
-    #[error("cancelled")]
+    #[error("stopped at the caller's request")]
     Cancelled,
 }
 
 pub type ShapesmithResult<T> = Result<T, ShapesmithError>;
 
+/// `work()`, with a panic (a bug) turned into a [`ShapesmithError::Solver`] that says so, so
+/// that an entry point answers with an error rather than unwinding into its caller.
+pub fn contain_panics<T>(work: impl FnOnce() -> ShapesmithResult<T>) -> ShapesmithResult<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)).unwrap_or_else(|panic| Err(internal_error(panic.as_ref())))
+}
+
+/// The error for a caught panic, with its message when it has one.
+pub fn internal_error(panic: &(dyn std::any::Any + Send)) -> ShapesmithError {
+    let message = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned());
+    ShapesmithError::Solver(format!("internal error, please report it: {}", message.unwrap_or_else(|| "panic".into())))
+}
+
 /// Shorthand for an [`ShapesmithError::InvalidInput`] with a formatted message.
 #[macro_export]
 macro_rules! invalid {
     ($($arg:tt)*) => { $crate::error::ShapesmithError::InvalidInput(format!($($arg)*)) };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_an_error_that_names_it() {
+        let caught: ShapesmithResult<u32> = contain_panics(|| panic!("index 7 out of range"));
+        match caught {
+            Err(ShapesmithError::Solver(message)) => assert!(message.contains("index 7 out of range"), "{message}"),
+            other => panic!("expected a Solver error, got {other:?}"),
+        }
+        assert_eq!(contain_panics(|| Ok(3)), Ok(3));
+        assert_eq!(contain_panics::<u32>(|| Err(ShapesmithError::Cancelled)), Err(ShapesmithError::Cancelled));
+    }
 }

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 use super::arrays;
 use super::errors::py_err;
+use super::run::detached;
 use crate::analysis::{analyze_rig as analyze, AnalysisParams};
 use crate::geometry::mirror::SymmetryParams;
 use crate::rig::RigView;
@@ -36,12 +37,10 @@ fn analyze_rig<'py>(
         mirror_tolerance,
         symmetry: SymmetryParams { pair_tolerance, antagonist_iou, mu, use_names },
     };
-    let report = py
-        .detach(|| {
-            let rig = RigView::new(points, delta_rows, &tris, &names)?;
-            analyze(&rig, &params)
-        })
-        .map_err(py_err(py))?;
+    let report = detached(py, || {
+        let rig = RigView::new(points, delta_rows, &tris, &names)?;
+        analyze(&rig, &params)
+    })?;
     arrays::to_python(py, &report)
 }
 

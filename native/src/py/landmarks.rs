@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::arrays;
 use super::errors::py_err;
-use super::progress::run_detached;
+use super::run::{detached, detached_with_progress};
 use crate::ilp::SolveStatus;
 use crate::invalid;
 use crate::landmarks::{place_landmarks as place, score_layout as score, LandmarkLayout, LandmarkParams, ScoreParams};
@@ -162,7 +162,7 @@ fn place_landmarks<'py>(
         time_limit,
         ..LandmarkParams::default()
     };
-    let layout = run_detached(py, progress.as_ref(), |progress| {
+    let layout = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
         place(&rig, &params, progress)
     })?;
@@ -211,12 +211,10 @@ fn score_layout<'py>(
         }
     };
     let params = ScoreParams { noise, seed, extra_poses, random_mixes };
-    let result = py
-        .detach(|| {
-            let rig = RigView::new(points, delta_rows, &tris, &names)?;
-            score(&rig, &landmarks, &params)
-        })
-        .map_err(py_err(py))?;
+    let result = detached(py, || {
+        let rig = RigView::new(points, delta_rows, &tris, &names)?;
+        score(&rig, &landmarks, &params)
+    })?;
     arrays::to_python(py, &result)
 }
 

@@ -1,12 +1,12 @@
 //! The `shapesmith_native` Python module: a thin layer that extracts arrays under the GIL,
-//! runs the core inside `py.detach`, and converts results back. No numerics here.
+//! runs the core with the GIL released (`run`), and converts results back. No numerics here.
 
 mod analysis;
 mod arrays;
 mod errors;
 mod landmarks;
 mod packing;
-mod progress;
+mod run;
 mod transfer;
 
 use pyo3::prelude::*;

@@ -7,6 +7,7 @@ use serde_json::{json, Value};
 
 use super::arrays;
 use super::errors::py_err;
+use super::run::detached;
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::packing::{self, Packing, PackingParams};
@@ -93,12 +94,10 @@ fn run<'py>(
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
     let target = target_neutral.as_ref().map(|t| arrays::points(t, "target_neutral")).transpose().map_err(py_err(py))?;
     let params = options.params(&names).map_err(py_err(py))?;
-    let packing = py
-        .detach(|| {
-            let rig = RigView::new(points, delta_rows, &tris, &names)?;
-            packer(&rig, target, &params, &NoProgress)
-        })
-        .map_err(py_err(py))?;
+    let packing = detached(py, || {
+        let rig = RigView::new(points, delta_rows, &tris, &names)?;
+        packer(&rig, target, &params, &NoProgress)
+    })?;
     arrays::to_python(py, &named(&packing, &names, options.echo()))
 }
 

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 
 use super::arrays;
 use super::errors::py_err;
-use super::progress::run_detached;
+use super::run::{detached, detached_with_progress};
 use crate::invalid;
 use crate::transfer::{
     find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, PersonaliseParams,
@@ -88,7 +88,7 @@ fn transfer_shapes<'py>(
         compare_plain,
         measure_penetration,
     };
-    let (deltas, report) = run_detached(py, progress.as_ref(), |progress| {
+    let (deltas, report) = detached_with_progress(py, progress.as_ref(), |progress| {
         let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
         run_transfer(source, delta_rows, target, &tris, &names, training, &params, progress)
     })?;
@@ -110,16 +110,14 @@ fn find_virtual_edges<'py>(
     let points = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
     let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
-    let edges = py
-        .detach(|| {
-            crate::rig::validate_points(points, "target_neutral")?;
-            crate::rig::validate_triangle_indices(points.len(), &tris)?;
-            if !(tau_d > 0.0 && tau_r > 0.0) {
-                return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {tau_d}, tau_r = {tau_r}"));
-            }
-            Ok(find_edges(points, &tris, &params))
-        })
-        .map_err(py_err(py))?;
+    let edges = detached(py, || {
+        crate::rig::validate_points(points, "target_neutral")?;
+        crate::rig::validate_triangle_indices(points.len(), &tris)?;
+        if !(tau_d > 0.0 && tau_r > 0.0) {
+            return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {tau_d}, tau_r = {tau_r}"));
+        }
+        Ok(find_edges(points, &tris, &params))
+    })?;
     let flat: Vec<i32> = edges.iter().flat_map(|&(i, j)| [i as i32, j as i32]).collect();
     Ok(PyArray1::from_vec(py, flat).reshape([edges.len(), 2])?.into_any())
 }
@@ -136,7 +134,7 @@ fn measure_penetration<'py>(
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
-    let report = py.detach(|| measure_rig_penetration(points, delta_rows, &tris)).map_err(py_err(py))?;
+    let report = detached(py, || measure_rig_penetration(points, delta_rows, &tris))?;
     arrays::to_python(py, &report)
 }
 

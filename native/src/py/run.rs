@@ -1,8 +1,10 @@
-//! Long native work with a progress callback. The work runs on a scoped thread with the GIL
-//! released while the calling thread relays its progress to the Python callback, so the
-//! callback runs on the caller's thread (in Blender the main thread, where it may update the
-//! UI) and never races the work for the GIL. The callback returning `False` stops the work
-//! (`CancelledError`); an exception it raises stops the work and propagates.
+//! How the bindings run core work: with the GIL released, a panic (a bug) answered as a
+//! `SolverError` rather than pyo3's `PanicException`, and, for long work, a progress callback.
+//! With a callback the work runs on a scoped thread while the calling thread relays its
+//! progress to the callback, so the callback runs on the caller's thread (in Blender the main
+//! thread, where it may update the UI) and never races the work for the GIL. The callback
+//! returning `False` stops the work (`CancelledError`); an exception it raises stops the work
+//! and propagates.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError, Sender};
@@ -12,7 +14,7 @@ use std::time::Duration;
 use pyo3::prelude::*;
 
 use super::errors::py_err;
-use crate::error::{ShapesmithError, ShapesmithResult};
+use crate::error::{contain_panics, internal_error, ShapesmithResult};
 use crate::progress::{NoProgress, Progress};
 
 /// How often the calling thread looks at a worker that has not reported.
@@ -34,14 +36,19 @@ impl Progress for Relay {
     }
 }
 
+/// Runs `work` with the GIL released.
+pub fn detached<T: Send>(py: Python<'_>, work: impl FnOnce() -> ShapesmithResult<T> + Send) -> PyResult<T> {
+    py.detach(|| contain_panics(work)).map_err(py_err(py))
+}
+
 /// Runs `work` with the GIL released, reporting to `callback(fraction)` when one is given.
-pub fn run_detached<T: Send>(
+pub fn detached_with_progress<T: Send>(
     py: Python<'_>,
     callback: Option<&Bound<'_, PyAny>>,
     work: impl FnOnce(&dyn Progress) -> ShapesmithResult<T> + Send,
 ) -> PyResult<T> {
     let Some(callback) = callback else {
-        return py.detach(|| work(&NoProgress)).map_err(py_err(py));
+        return detached(py, || work(&NoProgress));
     };
     let callback = callback.clone().unbind();
     let (sender, receiver) = mpsc::channel();
@@ -73,9 +80,7 @@ pub fn run_detached<T: Send>(
                     Err(_) => break,
                 }
             }
-            worker
-                .join()
-                .unwrap_or_else(|_| Err(ShapesmithError::Solver("internal error: the native work panicked".into())))
+            worker.join().unwrap_or_else(|panic| Err(internal_error(panic.as_ref())))
         })
     });
     if let Some(error) = callback_error {
