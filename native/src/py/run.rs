@@ -59,12 +59,16 @@ pub fn detached_with_progress<T: Send>(
     let outcome = py.detach(move || {
         std::thread::scope(|scope| {
             let worker = scope.spawn(move || work(relay_ref));
+            // Reports from parallel workers arrive out of order: the callback sees each
+            // fraction only when it advances.
+            let mut last = f64::NEG_INFINITY;
             loop {
                 match receiver.recv_timeout(POLL) {
                     Ok(fraction) => {
-                        if error_slot.is_some() || relay_ref.stop.load(Ordering::Relaxed) {
+                        if error_slot.is_some() || relay_ref.stop.load(Ordering::Relaxed) || fraction <= last {
                             continue;
                         }
+                        last = fraction;
                         let keep_going = Python::attach(|py| match callback.call1(py, (fraction,)) {
                             Ok(answer) => !matches!(answer.extract::<bool>(py), Ok(false)),
                             Err(error) => {
