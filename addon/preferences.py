@@ -26,9 +26,4 @@ def get(context=None):
     return addon.preferences if addon else None
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_AP_preferences)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_AP_preferences)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_AP_preferences,))

@@ -351,9 +351,11 @@ _CLASSES = (
 )
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(_CLASSES)
+
+
 def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
+    _register_classes()
     bpy.types.Object.shapesmith = bpy.props.PointerProperty(type=SHAPESMITH_PG_object)
     bpy.types.Scene.shapesmith = bpy.props.PointerProperty(type=SHAPESMITH_PG_scene)
 
@@ -361,5 +363,4 @@ def register():
 def unregister():
     del bpy.types.Scene.shapesmith
     del bpy.types.Object.shapesmith
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

@@ -36,9 +36,4 @@ class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_analyze_rig)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_analyze_rig)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_analyze_rig,))

@@ -62,14 +62,9 @@ class SHAPESMITH_OT_render_reference_sheet(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-_CLASSES = (SHAPESMITH_OT_export_shot_list, SHAPESMITH_OT_render_reference_sheet)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_OT_export_shot_list,
+        SHAPESMITH_OT_render_reference_sheet,
+    )
+)

@@ -42,9 +42,4 @@ class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_pack_expressions)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_pack_expressions)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_pack_expressions,))

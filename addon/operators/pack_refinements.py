@@ -64,14 +64,9 @@ class SHAPESMITH_OT_remove_pack_refinement(bpy.types.Operator):
         return {"FINISHED"}
 
 
-_CLASSES = (SHAPESMITH_OT_add_pack_refinement, SHAPESMITH_OT_remove_pack_refinement)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_OT_add_pack_refinement,
+        SHAPESMITH_OT_remove_pack_refinement,
+    )
+)

@@ -48,9 +48,4 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_place_landmarks)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_place_landmarks)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_place_landmarks,))

@@ -70,14 +70,10 @@ class SHAPESMITH_OT_bake_expressions(bpy.types.Operator):
         return {"FINISHED"}
 
 
-_CLASSES = (SHAPESMITH_OT_preview_expression, SHAPESMITH_OT_animate_expressions, SHAPESMITH_OT_bake_expressions)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_OT_preview_expression,
+        SHAPESMITH_OT_animate_expressions,
+        SHAPESMITH_OT_bake_expressions,
+    )
+)

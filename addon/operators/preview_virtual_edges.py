@@ -30,9 +30,4 @@ class SHAPESMITH_OT_preview_virtual_edges(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_preview_virtual_edges)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_preview_virtual_edges)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_preview_virtual_edges,))

@@ -31,9 +31,4 @@ class SHAPESMITH_OT_render_landmarks(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_render_landmarks)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_render_landmarks)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_render_landmarks,))

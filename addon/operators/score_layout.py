@@ -47,9 +47,4 @@ class SHAPESMITH_OT_score_layout(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_OT_score_layout)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_OT_score_layout)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_score_layout,))

@@ -38,14 +38,4 @@ class SHAPESMITH_OT_remove_pair(bpy.types.Operator):
         return {"FINISHED"}
 
 
-_CLASSES = (SHAPESMITH_OT_add_pair, SHAPESMITH_OT_remove_pair)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_add_pair, SHAPESMITH_OT_remove_pair))

@@ -90,14 +90,9 @@ class SHAPESMITH_OT_personalise_shape_keys(TransferOperator, bpy.types.Operator)
         return list(settings.training.all_objects)
 
 
-_CLASSES = (SHAPESMITH_OT_transfer_shape_keys, SHAPESMITH_OT_personalise_shape_keys)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_OT_transfer_shape_keys,
+        SHAPESMITH_OT_personalise_shape_keys,
+    )
+)

@@ -93,14 +93,10 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
         row.operator("shapesmith.render_reference_sheet", icon="RENDER_STILL", text="Reference Sheet")
 
 
-_CLASSES = (SHAPESMITH_UL_expressions, SHAPESMITH_UL_shape_names, SHAPESMITH_PT_pack)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_UL_expressions,
+        SHAPESMITH_UL_shape_names,
+        SHAPESMITH_PT_pack,
+    )
+)

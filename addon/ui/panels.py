@@ -112,14 +112,10 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
                            f"mean {score.mean_error:.2%}, max {score.max_error:.2%}")
 
 
-_CLASSES = (SHAPESMITH_UL_pairs, SHAPESMITH_PT_rig, SHAPESMITH_PT_landmarks)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (
+        SHAPESMITH_UL_pairs,
+        SHAPESMITH_PT_rig,
+        SHAPESMITH_PT_landmarks,
+    )
+)

@@ -61,9 +61,4 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
             col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template, {shape.where}")
 
 
-def register():
-    bpy.utils.register_class(SHAPESMITH_PT_transfer)
-
-
-def unregister():
-    bpy.utils.unregister_class(SHAPESMITH_PT_transfer)
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_PT_transfer,))
