@@ -110,13 +110,13 @@ def warp_benchmark(nat, rig):
     return result
 
 
-def penetration_benchmark(transfer_module, rig, template, targets):
+def penetration_benchmark(transfer_module, landmarks_module, rig, template, targets):
     """Per target: total intersection-curve length with and without virtual edges beside the
     template's, and the shapes that add more intersection to the target's neutral than to
     the template's (with virtual edges, and plain). For each of those, the extra curve inside
     one piece and between pieces, and the piece pairs whose crossing triangle pairs grew most
     beyond the template's (a diagnosis: pairs counted with Blender's BVHTree overlap)."""
-    pieces = PieceCrossings(rig)
+    pieces = PieceCrossings(rig, landmarks_module.mesh_parts(template)["part_of_vertex"])
     template_rest = pieces.count(rig.neutral)
     result = {}
     for target in targets:
@@ -156,22 +156,11 @@ class PieceCrossings:
     piece named by its size and place (the sample head's skin, eyeballs, lashes, teeth and
     tongue are pieces of their own)."""
 
-    def __init__(self, rig):
+    def __init__(self, rig, part_of_vertex):
+        """`part_of_vertex`: a label per vertex, one per loose part (`mesh_parts` of the
+        add-on's landmarks module)."""
         self.triangles = [tuple(map(int, t)) for t in rig.triangles]
-        n = len(rig.neutral)
-        parent = np.arange(n)
-
-        def root(v):
-            while parent[v] != v:
-                parent[v] = parent[parent[v]]
-                v = parent[v]
-            return v
-
-        for a, b, c in self.triangles:
-            for u, v in ((a, b), (b, c)):
-                ru, rv = root(u), root(v)
-                parent[max(ru, rv)] = min(ru, rv)
-        roots, label = np.unique([root(v) for v in range(n)], return_inverse=True)
+        roots, label = np.unique(part_of_vertex, return_inverse=True)
         names = []
         for k in range(len(roots)):
             members = label == k
@@ -336,6 +325,7 @@ def main():
 
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
     transfer_module = import_module(shapesmith.__name__ + ".blender.transfer")
+    landmarks_module = import_module(shapesmith.__name__ + ".blender.landmarks")
     rest_positions = transfer_module.rest_positions
     nat = shapesmith.native.module()
     sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
@@ -347,7 +337,7 @@ def main():
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {
         "warp": warp_benchmark(nat, rig),
-        "penetration": penetration_benchmark(transfer_module, rig, template, targets),
+        "penetration": penetration_benchmark(transfer_module, landmarks_module, rig, template, targets),
         "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
     }
     dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")

@@ -21,6 +21,7 @@ use std::collections::BinaryHeap;
 
 use rayon::prelude::*;
 
+use super::gradients::{length, sub};
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::{connected_components, Adjacency};
 use crate::rig::bbox_diagonal;
@@ -127,7 +128,7 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
 }
 
 fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+    length(sub(*a, *b))
 }
 
 /// The heuristic's weight of the quick search that proves most uncertain pairs close.
