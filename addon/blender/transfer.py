@@ -205,10 +205,6 @@ def transfer_object(
         measure_penetration=True,
         progress=progress,
     )
-    # The template's own neutral intersection, so each shape is judged by what it adds: the
-    # MakeHuman heads' eyes, teeth and lashes already cross the skin at rest.
-    empty = np.zeros((0, len(rig.neutral), 3), dtype=np.float32)
-    report["template_neutral_penetration"] = native.module().measure_penetration(rig.neutral, empty, rig.triangles)["neutral"]
     report["diagonal"] = float(np.linalg.norm(target_neutral.max(0) - target_neutral.min(0)))
     report["seconds"]["read"] = read - started
     return Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))

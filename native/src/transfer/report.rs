@@ -76,6 +76,9 @@ pub struct TransferReport {
     pub penetration: Vec<ShapePenetration>,
     /// The target neutral's own self-intersection, when measured.
     pub neutral_penetration: Option<Penetration>,
+    /// The template neutral's, when measured: each shape is judged by what it adds to its
+    /// neutral (the MakeHuman heads' eyes, teeth and lashes already cross the skin at rest).
+    pub template_neutral_penetration: Option<Penetration>,
     pub seconds: StageSeconds,
     /// J x K weights the personalisation used (refined, or as given); empty without examples.
     pub weights: Vec<Vec<f64>>,
@@ -123,7 +126,7 @@ pub fn transfer_shapes(
         None
     };
 
-    let (penetration, neutral_penetration) = if params.measure_penetration {
+    let (penetration, neutral_penetration, template_neutral_penetration) = if params.measure_penetration {
         let start = Instant::now();
         let on_target = PenetrationBaseline::new(target_neutral, triangles);
         let on_template = PenetrationBaseline::new(source_neutral, triangles);
@@ -153,9 +156,9 @@ pub fn transfer_shapes(
             })
             .collect::<ShapesmithResult<Vec<_>>>()?;
         seconds.penetration = start.elapsed().as_secs_f64();
-        (per_shape, Some(on_target.neutral()))
+        (per_shape, Some(on_target.neutral()), Some(on_template.neutral()))
     } else {
-        (Vec::new(), None)
+        (Vec::new(), None, None)
     };
     let report = TransferReport {
         shapes: names.len() - inert.len(),
@@ -163,6 +166,7 @@ pub fn transfer_shapes(
         virtual_edges: dt.virtual_edges().len(),
         penetration,
         neutral_penetration,
+        template_neutral_penetration,
         seconds,
         weights,
         params: *params,
