@@ -204,6 +204,20 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     edge_weight: bpy.props.FloatProperty(
         name="Weight", description="Weight of each virtual edge against the shape-following energy", default=3.0, min=0.0, soft_max=100.0
     )
+    collisions: bpy.props.BoolProperty(
+        name="Collision Pass",
+        description="After each shape is solved, push back lips, lids and skin that pass through each other or "
+        "through teeth, eyes and lashes, and solve the shape again (shapes that add no intersection are unchanged)",
+        default=True,
+    )
+    collision_margin: bpy.props.FloatProperty(
+        name="Margin",
+        description="Distance the collision pass keeps from the other surface, as a fraction of the local edge length",
+        default=0.25,
+        min=0.0,
+        max=2.0,
+        precision=3,
+    )
     overwrite: bpy.props.BoolProperty(
         name="Overwrite Existing Keys",
         description="Replace the target's shape keys that have a template key's name (otherwise they are skipped)",
@@ -249,6 +263,15 @@ class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
     worse: bpy.props.BoolProperty(
         name="Worse", description="Adds more intersection to the target's neutral than to the template's"
     )
+    added: bpy.props.FloatProperty(
+        name="Added Beyond Template",
+        subtype="DISTANCE",
+        description="Intersection curve the shape adds to the target's neutral beyond what it adds to the template's",
+    )
+    before_length: bpy.props.FloatProperty(
+        name="Curve Length Before the Collision Pass", subtype="DISTANCE"
+    )
+    collision_solves: bpy.props.IntProperty(name="Collision Re-solves")
     where: bpy.props.StringProperty(
         name="Where",
         description="Where most of the extra intersection lies: inside one piece (lips, lids) or between pieces "
@@ -265,6 +288,12 @@ class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
     examples: bpy.props.IntProperty(name="Training Expressions")
     seconds: bpy.props.FloatProperty(name="Seconds")
     neutral_length: bpy.props.FloatProperty(name="Target Neutral Curve Length", subtype="DISTANCE")
+    collisions: bpy.props.BoolProperty(name="Collision Pass")
+    collision_margin: bpy.props.FloatProperty(name="Collision Margin")
+    worse_before_collisions: bpy.props.IntProperty(
+        name="Worse Before the Collision Pass", description="Shapes adding more intersection than on the template before the pass"
+    )
+    collision_resolved: bpy.props.IntProperty(name="Shapes Re-solved by the Collision Pass")
     template_neutral_length: bpy.props.FloatProperty(name="Template Neutral Curve Length", subtype="DISTANCE")
     shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_transfer_shape)
 

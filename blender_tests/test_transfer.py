@@ -123,6 +123,64 @@ def test_the_template_onto_a_copy_of_itself_reproduces_its_keys(sample, virtual_
         assert error < tolerance, f"{name}: {error} >= {tolerance}"
 
 
+# --- the collision pass ------------------------------------------------------------------
+
+
+def transfer_module(shapesmith):
+    import importlib
+
+    return importlib.import_module(shapesmith.__name__ + ".blender.transfer")
+
+
+def test_the_collision_pass_is_on_by_default_and_lists_what_is_still_worse(sample, shapesmith):
+    s = settings()
+    assert s.collisions and s.collision_margin == pytest.approx(0.25)
+    target = bpy.data.objects["Target_OldMan"]
+    assert transfer_onto(target) == {"FINISHED"}
+    result = target.shapesmith.transfer
+    assert result.collisions and result.collision_margin == pytest.approx(0.25)
+    assert result.collision_resolved > 0, "the pass should re-solve some shapes on a MakeHuman identity"
+    # The panel's list: the shapes still adding more intersection than the template's own,
+    # with that amount (beyond a thousandth of the diagonal), and no other shape.
+    tolerance = 1e-3 * diagonal(target)
+    for shape in result.shapes:
+        assert shape.worse == (shape.added > tolerance), (shape.name, shape.added)
+        if shape.collision_solves == 0:
+            assert shape.before_length == shape.length
+    worse_after = sum(shape.worse for shape in result.shapes)
+    assert worse_after < result.worse_before_collisions, (worse_after, result.worse_before_collisions)
+
+
+def test_shapes_the_pass_leaves_alone_are_bit_for_bit_as_without_it(sample, shapesmith):
+    transfer = transfer_module(shapesmith)
+    template, target = bpy.data.objects["Template"], bpy.data.objects["Target_YoungWoman"]
+    off = transfer.transfer_object(template, target, collisions=False)
+    on = transfer.transfer_object(template, target, collisions=True)
+    solves = [row["collisions"]["solves"] for row in on.report["penetration"]]
+    assert "before_collisions_length" not in off.report["penetration"][0]
+    untouched = [k for k, n in enumerate(solves) if n == 0]
+    touched = [k for k, n in enumerate(solves) if n > 0]
+    assert untouched and touched
+    np.testing.assert_array_equal(on.deltas[untouched], off.deltas[untouched])
+    for k in touched:
+        row = on.report["penetration"][k]
+        assert np.abs(on.deltas[k] - off.deltas[k]).max() > 0
+        # the numbers before the pass are those of the transfer without it
+        assert row["before_collisions_length"] == pytest.approx(off.report["penetration"][k]["length"], abs=1e-9)
+
+
+def test_a_bad_collision_margin_is_refused_and_the_target_left_alone(sample, shapesmith):
+    transfer = transfer_module(shapesmith)
+    target = bpy.data.objects["Target_Boy"]
+    before = snapshot(target)
+    for margin in (-0.5, float("nan"), 10.0):
+        with pytest.raises(ValueError, match="margin"):
+            transfer.transfer_object(bpy.data.objects["Template"], target, collision_margin=margin)
+    assert snapshot(target) == before
+    settings().collision_margin = 10.0  # the panel's field clamps to what the core accepts
+    assert settings().collision_margin == pytest.approx(2.0)
+
+
 def test_existing_keys_are_skipped_unless_overwrite(sample):
     target = bpy.data.objects["Target_Boy"]
     target.shape_key_add(name="Basis", from_mix=False)
@@ -398,12 +456,25 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
     assert file_digest(sample_path) == digest
     report = json.loads(out_json.read_text())
     assert [t["target"] for t in report["targets"]] == sorted(TARGETS)
-    assert {"io", "factorisation", "virtual_edges", "solves", "total"} <= set(report["seconds"])
+    assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "template_penetration", "total"} <= set(
+        report["seconds"]
+    )
+    assert report["params"]["transfer"]["collisions"]["margin"] == 0.25
+    template_lengths = None
     for target in report["targets"]:
         assert len(target["shapes"]) == 52 and target["virtual_edges"] > 0
-        assert {"io", "factorisation", "virtual_edges", "solves"} <= set(target["seconds"])
+        assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "penetration"} <= set(target["seconds"])
         row = target["penetrations"][0]
-        assert {"name", "length", "pairs", "template_length", "template_pairs", "plain_length", "plain_pairs"} <= set(row)
+        assert {"name", "length", "pairs", "template_length", "template_pairs"} <= set(row)
+        # the plain comparison is opt-in; the numbers before the collision pass are there
+        assert "plain_length" not in row and target["plain_worse_than_template"] is None
+        assert {"before_collisions_length", "before_collisions_pairs", "collisions"} <= set(row)
+        assert set(target["worse_than_template"]) <= set(target["penetrations"][k]["name"] for k in range(52))
+        assert len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
+        # the template's own numbers are measured once and are the same for every target
+        lengths = [r["template_length"] for r in target["penetrations"]]
+        assert template_lengths is None or lengths == template_lengths
+        template_lengths = lengths
         # The curve is split by place; the MakeHuman heads' eyeballs and lashes are separate
         # pieces crossing the skin at rest.
         for row in target["penetrations"]:
@@ -438,9 +509,29 @@ def test_batch_personalises_with_packed_expressions_from_a_pack_json(sample, tmp
     assert report["seconds"]["personalisation"] > 0 and len(report["shapes"]) == 52
 
 
+def test_batch_collision_flags(sample_path, tmp_path):
+    out = tmp_path / "transfer.json"
+    run_batch(
+        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy", "--no-collisions",
+        "--compare-plain", "--json", str(out), check=True,
+    )
+    report = json.loads(out.read_text())
+    assert report["params"]["transfer"]["collisions"] is None
+    target = report["targets"][0]
+    assert target["worse_before_collisions"] is None and isinstance(target["plain_worse_than_template"], list)
+    assert "before_collisions_length" not in target["penetrations"][0] and "plain_length" in target["penetrations"][0]
+    run_batch(
+        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy",
+        "--collision-margin", "0.5", "--json", str(out), check=True,
+    )
+    report = json.loads(out.read_text())
+    assert report["params"]["transfer"]["collisions"]["margin"] == 0.5
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
+        (("--target", "Target_Boy", "--collision-margin", "-1"), "collision margin must lie in"),
         (("--target", "Target_Nobody"), "no object named 'Target_Nobody'"),
         (("--target", "Template"), "is the template itself"),
         (("--targets", "Nope_*"), "matches no object"),

@@ -253,6 +253,17 @@ def add_transfer_args(parser):
     parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
     parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
     parser.add_argument(
+        "--no-collisions", action="store_true", help="skip the collision pass (lips, lids, skin through teeth and eyes)"
+    )
+    parser.add_argument(
+        "--collision-margin", type=float, default=0.25,
+        help="distance the collision pass keeps from the other surface, fraction of the local edge length (default 0.25)",
+    )
+    parser.add_argument(
+        "--compare-plain", action="store_true",
+        help="also transfer without virtual edges and collision pass and report its penetration (one more solve)",
+    )
+    parser.add_argument(
         "--examples",
         help="training expressions to personalise with, comma separated object names (REF_01-style after the "
         "packed expressions, or after shape keys); with several targets use {target} in the names",
@@ -301,6 +312,9 @@ def run_transfer(args):
     if args.examples and len(targets) > 1 and "{target}" not in args.examples:
         raise BatchError("--examples with several targets must name them per target with {target}")
     opened = time.perf_counter()
+    # The template's own intersection per shape is the same for every target: measured once.
+    template_penetration = transfer.measure_template_penetration(source)
+    measured = time.perf_counter()
     solved = []
     for target in targets:
         examples = [find_object(n.strip().replace("{target}", target.name)) for n in (args.examples or "").split(",") if n.strip()]
@@ -315,7 +329,10 @@ def run_transfer(args):
                 training_objects=examples,
                 pack_report=pack_report,
                 beta_reg=args.beta_reg,
-                compare_plain=not args.no_virtual_edges,
+                compare_plain=args.compare_plain,
+                collisions=not args.no_collisions,
+                collision_margin=args.collision_margin,
+                template_penetration=template_penetration,
             )
         )
     reports = []
@@ -340,8 +357,13 @@ def run_transfer(args):
                 "training": {name: row.tolist() for name, row in result.training.items()},
                 "weights": result.report.get("weights"),
                 "worse_than_template": transfer.worse_than_template(result.report),
+                "worse_before_collisions": (
+                    transfer.worse_than_template(result.report, key="before_collisions_length")
+                    if transfer.collision_traced(result.report)
+                    else None
+                ),
                 "plain_worse_than_template": (
-                    transfer.worse_than_template(result.report, key="plain_length") if not args.no_virtual_edges else None
+                    transfer.worse_than_template(result.report, key="plain_length") if args.compare_plain else None
                 ),
                 "warnings": result.warnings,
                 "seconds": seconds,
@@ -352,6 +374,7 @@ def run_transfer(args):
         save_copy(args.output)
     totals = {key: sum(r["seconds"][key] for r in reports) for key in reports[0]["seconds"]}
     totals["io"] += (opened - started) + (time.perf_counter() - saved)
+    totals["template_penetration"] = measured - opened
     totals["total"] = time.perf_counter() - started
     write_json(
         args.json,

@@ -6,12 +6,18 @@
    (1.0, 1.25, 0.85) and a bend), so the true shapes are W(V0 + D_k). Mean vertex error on each
    shape's active vertices (moving at least 0.3 of its largest displacement), relative to the
    bounding-box diagonal, for: the naive additive copy, plain deformation transfer, with
-   virtual edges, personalised with the J packed expressions as training data, and
-   personalised with J random single shapes (the control; mean over 5 seeds).
-2. Penetration on the MakeHuman identities (Target_*): intersection-curve length per shape
-   with and without virtual edges beside the template's own.
+   virtual edges, with virtual edges and the collision pass, personalised with the J packed
+   expressions as training data, and personalised with J random single shapes (the control;
+   mean over 5 seeds).
+2. Penetration on the MakeHuman identities (Target_*) and on the 25k head: per shape, the
+   intersection curve the result adds to the target's neutral beyond what the template's
+   shape adds to its own, for plain transfer, virtual edges before the collision pass and
+   after it; shapes worse than the template, and the added curve summed. The cheap metric
+   (only triangles with a moving corner re-tested) is checked against a full sweep; the
+   virtual-edge weight is swept with the collision pass on.
 3. Timings on the bundled rig, on a 4x denser subdivision of it (19k vertices) and on a
-   25k-vertex version whose face, where the shapes move, is cut once more.
+   25k-vertex version whose face, where the shapes move, is cut once more: native seconds
+   split into setup, virtual edges, solves, collision pass and the penetration report.
 The packed expressions come from `shapesmith_native.pack_expressions` on the warped target.
 """
 
@@ -78,8 +84,9 @@ def warp_benchmark(nat, rig):
         return mean_active_error(deltas, truth, target_diagonal), report
 
     rows = {"additive copy": mean_active_error(rig.deltas, truth, target_diagonal)}
-    rows["plain transfer"], _ = transfer(virtual_edges=False)
-    rows["virtual edges"], _ = transfer(virtual_edges=True)
+    rows["plain transfer"], _ = transfer(virtual_edges=False, collisions=False)
+    rows["virtual edges"], _ = transfer(virtual_edges=True, collisions=False)
+    rows["virtual edges + collision pass"], _ = transfer(virtual_edges=True, collisions=True)
     index = {name: k for k, name in enumerate(rig.names)}
     expressions, packing_source = packed_expressions(nat, rig, target)
     result = {"diagonal": target_diagonal, "packing": packing_source}
@@ -110,17 +117,37 @@ def warp_benchmark(nat, rig):
     return result
 
 
+def added_summary(transfer_module, report):
+    """Shapes worse than the template and the added curve beyond the template's own summed
+    over the shapes (positive parts only: a shape removing curve does not pay for another),
+    for plain transfer, virtual edges before the collision pass, and the result."""
+    out = {}
+    for label, key in (("plain", "plain_length"), ("before collision pass", "before_collisions_length"), ("result", "length")):
+        if key not in report["penetration"][0]:
+            continue
+        added = [sum(transfer_module.added_beyond_template(report, row, key)) for row in report["penetration"]]
+        out[label] = {
+            "worse": transfer_module.worse_than_template(report, key=key),
+            "added_curve": float(sum(max(a, 0.0) for a in added)),
+        }
+    return out
+
+
 def penetration_benchmark(transfer_module, landmarks_module, rig, template, targets):
     """Per target: total intersection-curve length with and without virtual edges beside the
     template's, and the shapes that add more intersection to the target's neutral than to
-    the template's (with virtual edges, and plain). For each of those, the extra curve inside
-    one piece and between pieces, and the piece pairs whose crossing triangle pairs grew most
-    beyond the template's (a diagnosis: pairs counted with Blender's BVHTree overlap)."""
+    the template's (plain, virtual edges before the collision pass, and after it). For each
+    of those left, the extra curve inside one piece and between pieces, and the piece pairs
+    whose crossing triangle pairs grew most beyond the template's (a diagnosis: pairs counted
+    with Blender's BVHTree overlap)."""
     pieces = PieceCrossings(rig, landmarks_module.mesh_parts(template)["part_of_vertex"])
     template_rest = pieces.count(rig.neutral)
+    template_penetration = transfer_module.measure_template_penetration(template)
     result = {}
     for target in targets:
-        transfer = transfer_module.transfer_object(template, target, compare_plain=True)
+        transfer = transfer_module.transfer_object(
+            template, target, compare_plain=True, template_penetration=template_penetration
+        )
         report = transfer.report
         rows = report["penetration"]
         worse = transfer_module.worse_than_template(report)
@@ -146,9 +173,44 @@ def penetration_benchmark(transfer_module, landmarks_module, rig, template, targ
             "worse_than_template": worse,
             "worse_explained": explained,
             "plain_worse_than_template": transfer_module.worse_than_template(report, key="plain_length"),
+            "summary": added_summary(transfer_module, report),
             "shapes": rows,
         }
     return result
+
+
+def cheap_metric_check(nat, rig, target_neutral, deltas, count=8):
+    """The per-shape metric (unmoved pairs taken from the rest sweep, only triangles with a
+    moving corner re-tested) against a full sweep of the posed mesh, on `count` shapes spread
+    over the rig: the largest differences in length and pair count."""
+    cheap = nat.measure_penetration(target_neutral, deltas, rig.triangles)["shapes"]
+    worst = {"length": 0.0, "pairs": 0, "shapes": 0}
+    zero = np.zeros((1,) + target_neutral.shape, dtype=np.float32)
+    for k in np.linspace(0, len(deltas) - 1, count).astype(int):
+        posed = np.ascontiguousarray(target_neutral + deltas[k])
+        full = nat.measure_penetration(posed, zero, rig.triangles)["neutral"]
+        worst["length"] = max(worst["length"], abs(full["length"] - cheap[k]["length"]))
+        worst["pairs"] = max(worst["pairs"], abs(full["pairs"] - cheap[k]["pairs"]))
+        worst["shapes"] += 1
+    return worst
+
+
+def edge_weight_sweep(transfer_module, template, targets, weights=(0.0, 1.0, 3.0, 10.0)):
+    """Shapes worse than the template and added curve, per virtual-edge weight, with the
+    collision pass on (weight 0: no virtual edges)."""
+    template_penetration = transfer_module.measure_template_penetration(template)
+    out = {}
+    for weight in weights:
+        row = {}
+        for target in targets:
+            report = transfer_module.transfer_object(
+                template, target, virtual_edges=weight > 0, edge_weight=max(weight, 1e-9),
+                template_penetration=template_penetration,
+            ).report
+            summary = added_summary(transfer_module, report)
+            row[target.name] = {label: {"worse": len(v["worse"]), "added_curve": v["added_curve"]} for label, v in summary.items()}
+        out[str(weight)] = row
+    return out
 
 
 class PieceCrossings:
@@ -239,31 +301,47 @@ def most_moving_edges(template, count):
     return np.sort(np.argsort(-motion[ends].min(axis=1), kind="stable")[:count]).tolist()
 
 
-def timing_benchmark(nat, mesh_arrays, template, target, rest_positions, runs=3):
-    """Best-of-`runs` seconds of all shapes with virtual edges (penetration not measured)
-    beside the baseline of the same run, reading the template's keys and the target's
-    positions from Blender; and a personalisation with 8 single-shape training expressions."""
+def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_positions, runs=3):
+    """Best-of-`runs` native seconds of all shapes with virtual edges, with and without the
+    collision pass (penetration not measured), beside the baseline of the same run, reading
+    the template's keys and the target's positions from Blender; the penetration report's
+    seconds (the template's own per-shape numbers measured once beforehand, as batch does, and
+    timed apart); the shapes worse than the template before and after the collision pass;
+    and a personalisation with 8 single-shape training expressions."""
     read = float("inf")
     for _ in range(runs):
         started = time.perf_counter()
         rig = mesh_arrays.read_rig(template)
         neutral = rest_positions(target)
         read = min(read, time.perf_counter() - started)
-    best = None
-    for _ in range(runs):
-        started = time.perf_counter()
-        _, report = nat.transfer_shapes(
-            rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, measure_penetration=False
-        )
-        wall = time.perf_counter() - started
-        if best is None or wall < best["wall"]:
-            best = {"wall": wall, "native": report["seconds"], "virtual_edges": report["virtual_edges"]}
+
+    def best(**options):
+        chosen = None
+        for _ in range(runs):
+            started = time.perf_counter()
+            _, report = nat.transfer_shapes(rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, **options)
+            wall = time.perf_counter() - started
+            if chosen is None or wall < chosen["wall"]:
+                chosen = {"wall": wall, "native": report["seconds"], "virtual_edges": report["virtual_edges"]}
+        return chosen
+
+    started = time.perf_counter()
+    template_penetration = nat.measure_penetration(rig.neutral, rig.deltas, rig.triangles)
+    template_seconds = time.perf_counter() - started
+    without = best(measure_penetration=False, collisions=False)
+    with_pass = best(measure_penetration=False, collisions=True)
+    reported = best(measure_penetration=True, collisions=True, template_penetration=template_penetration)
+    _, report = nat.transfer_shapes(
+        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, compare_plain=True,
+        template_penetration=template_penetration,
+    )
+    report["diagonal"] = float(np.linalg.norm(neutral.max(0) - neutral.min(0)))
     chosen = np.arange(0, len(rig.names), max(1, len(rig.names) // 8))[:8]
     weights = np.zeros((len(chosen), len(rig.names)), dtype=np.float32)
     weights[np.arange(len(chosen)), chosen] = 1.0
     examples = np.stack([neutral + 1.1 * rig.deltas[k] for k in chosen]).astype(np.float32)
     started = time.perf_counter()
-    _, report = nat.transfer_shapes(
+    _, personalised = nat.transfer_shapes(
         rig.neutral, rig.deltas, neutral, rig.triangles, rig.names,
         measure_penetration=False, examples=examples, example_weights=weights.tolist(),
     )
@@ -272,9 +350,22 @@ def timing_benchmark(nat, mesh_arrays, template, target, rest_positions, runs=3)
         "triangles": len(rig.triangles),
         "shapes": len(rig.names),
         "read": read,
-        "transfer": best,
-        "personalise_8_examples": {"wall": time.perf_counter() - started, "native": report["seconds"]},
+        "transfer_without_collision_pass": without,
+        "transfer": with_pass,
+        "with_report": reported,
+        "template_penetration_seconds": template_seconds,
+        "penetration": added_summary(transfer_module, report),
+        "cheap_metric_vs_full_sweep": cheap_metric_check(nat, rig, neutral, np.ascontiguousarray(rig.deltas)),
+        "personalise_8_examples": {"wall": time.perf_counter() - started, "native": personalised["seconds"]},
     }
+
+
+def print_summary(indent, summary):
+    print(
+        indent + "; ".join(
+            f"{label}: {len(v['worse'])} worse than the template, {v['added_curve']:.4f} m added" for label, v in summary.items()
+        )
+    )
 
 
 def print_report(result):
@@ -282,31 +373,41 @@ def print_report(result):
     print(f"\n== Warp ground truth (mean error on active vertices / bbox diagonal; packing: {warp_result['packing']})")
     for name, value in warp_result["mean_active_error"].items():
         print(f"  {name:55s} {value:.2e}")
-    print("\n== Penetration on the identities (intersection-curve length added to each neutral, summed over the shapes)")
+    print(
+        "\n== Penetration on the identities (curve added to each neutral beyond what the template's shape adds to its "
+        "own, positive parts summed over the shapes)"
+    )
     for name, row in result["penetration"].items():
-        k = len(row["shapes"])
-        added = row["length"] - k * row["neutral_length"]
-        plain = row["plain_length"] - k * row["neutral_length"]
-        template = row["template_length"] - k * row["template_neutral_length"]
-        print(
-            f"  {name}: {row['virtual_edges']} virtual edges; added with {added:.4f}, plain {plain:.4f}, template {template:.4f}; "
-            f"shapes adding more than on the template: {len(row['worse_than_template'])} "
-            f"(plain {len(row['plain_worse_than_template'])})"
-        )
+        print(f"  {name}: {row['virtual_edges']} virtual edges")
+        print_summary("    ", row["summary"])
         for shape, extra in row["worse_explained"].items():
             print(
                 f"    {shape:22s} {extra['inside_one_piece']:+.4f} m inside one piece, "
                 f"{extra['between_pieces']:+.4f} m between pieces beyond the template; grew most: "
                 + "; ".join(f"{pair} (+{count})" for pair, count in extra["piece_pairs"])
             )
+    print("\n== Virtual-edge weight with the collision pass (shapes worse than the template after the pass / added m)")
+    for weight, row in result["edge_weight_sweep"].items():
+        print(
+            f"  w_ve {weight:>5s}: "
+            + "; ".join(f"{name} {v['result']['worse']} / {v['result']['added_curve']:.4f}" for name, v in row.items())
+        )
     print("\n== Timings (best of 3, seconds; ratios to reading the rig from Blender, and to the bundled head)")
     bundled = result["timings"]["bundled"]
     for name, row in result["timings"].items():
-        t = row["transfer"]
+        t, plain, reported = row["transfer"], row["transfer_without_collision_pass"], row["with_report"]
         print(
-            f"  {name}: {row['vertices']} vertices, {row['shapes']} shapes: transfer with virtual edges {t['wall']:.3f} s "
-            f"({', '.join(f'{k} {v:.3f}' for k, v in t['native'].items())}); "
-            f"personalise (8 examples) {row['personalise_8_examples']['wall']:.3f} s"
+            f"  {name}: {row['vertices']} vertices, {row['shapes']} shapes: virtual edges + collision pass "
+            f"{t['wall']:.3f} s ({', '.join(f'{k} {v:.3f}' for k, v in t['native'].items() if v)}); "
+            f"without the pass {plain['wall']:.3f} s; with the report {reported['wall']:.3f} s "
+            f"(report {reported['native']['penetration']:.3f}; the template's own numbers, once per template, "
+            f"{row['template_penetration_seconds']:.3f}); personalise (8 examples) {row['personalise_8_examples']['wall']:.3f} s"
+        )
+        print_summary("    ", row["penetration"])
+        check = row["cheap_metric_vs_full_sweep"]
+        print(
+            f"    cheap metric vs full sweep on {check['shapes']} shapes: largest difference {check['length']:.2e} m, "
+            f"{check['pairs']} pairs"
         )
         print(
             f"    reading {row['read']:.3f} s; transfer x{t['wall'] / row['read']:.1f} of reading; "
@@ -338,13 +439,18 @@ def main():
     result = {
         "warp": warp_benchmark(nat, rig),
         "penetration": penetration_benchmark(transfer_module, landmarks_module, rig, template, targets),
-        "timings": {"bundled": timing_benchmark(nat, mesh_arrays, template, targets[0], rest_positions)},
+        "edge_weight_sweep": edge_weight_sweep(transfer_module, template, targets),
+        "timings": {"bundled": timing_benchmark(nat, mesh_arrays, transfer_module, template, targets[0], rest_positions)},
     }
     dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")
-    result["timings"]["4x denser"] = timing_benchmark(nat, mesh_arrays, dense_template, dense_target, rest_positions)
+    result["timings"]["4x denser"] = timing_benchmark(
+        nat, mesh_arrays, transfer_module, dense_template, dense_target, rest_positions
+    )
     face_template = subdivided(template, "TemplateDenseFace", FACE_EDGES)
     face_target = subdivided(targets[0], "TargetDenseFace", FACE_EDGES, template=template)
-    result["timings"]["25k, denser face"] = timing_benchmark(nat, mesh_arrays, face_template, face_target, rest_positions)
+    result["timings"]["25k, denser face"] = timing_benchmark(
+        nat, mesh_arrays, transfer_module, face_template, face_target, rest_positions
+    )
     print_report(result)
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:

@@ -171,12 +171,17 @@ def transfer_object(
     beta_reg=0.1,
     refine_weights=False,
     compare_plain=False,
+    collisions=True,
+    collision_margin=0.25,
+    template_penetration=None,
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
     transfer and returns a `Transfer`. Writes nothing; raises MeshDataError (or the core's
     InvalidInputError) for anything the user has to fix. `progress(fraction)`, when given, is
-    called as the work advances and stops it by returning False (CancelledError)."""
+    called as the work advances and stops it by returning False (CancelledError).
+    `template_penetration` is `measure_template_penetration(source)` when the caller already
+    has it (a batch over many targets measures it once)."""
     started = time.perf_counter()
     rig, target_neutral = _read_pair(source, target)
     examples = example_weights = None
@@ -203,11 +208,21 @@ def transfer_object(
         refine_weights=refine_weights,
         compare_plain=compare_plain,
         measure_penetration=True,
+        collisions=collisions,
+        collision_margin=collision_margin,
+        template_penetration=template_penetration,
         progress=progress,
     )
     report["diagonal"] = float(np.linalg.norm(target_neutral.max(0) - target_neutral.min(0)))
     report["seconds"]["read"] = read - started
     return Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
+
+
+def measure_template_penetration(source):
+    """The template's own intersection curve, at rest and per shape at weight 1: the same for
+    every target, so a batch measures it once and passes it to each `transfer_object`."""
+    rig = read_rig(source)
+    return native.module().measure_penetration(rig.neutral, rig.deltas, rig.triangles)
 
 
 def find_virtual_edges(target, tau_d=0.015, tau_r=4.0):
@@ -260,23 +275,40 @@ def store_transfer(transfer, written, skipped):
     result.seconds = sum(report["seconds"].values())
     result.neutral_length = report["neutral_penetration"]["length"]
     result.template_neutral_length = report["template_neutral_penetration"]["length"]
+    collisions = report["params"]["transfer"]["collisions"]
+    result.collisions = collisions is not None
+    result.collision_margin = collisions["margin"] if collisions else 0.0
+    rows = report["penetration"]
+    traced = collision_traced(report)
+    result.worse_before_collisions = len(worse_than_template(report, key="before_collisions_length")) if traced else 0
+    result.collision_resolved = sum(1 for row in rows if (row.get("collisions") or {}).get("solves", 0) > 0)
     worse = set(worse_than_template(report))
     result.shapes.clear()
-    for row in report["penetration"]:
+    for row in rows:
         item = result.shapes.add()
         item.name = row["name"]
         item.length, item.pairs = row["length"], row["pairs"]
         item.template_length, item.template_pairs = row["template_length"], row["template_pairs"]
         item.worse = row["name"] in worse
+        item.added = sum(added_beyond_template(report, row))
         item.where = where_added(report, row)
+        item.before_length = row.get("before_collisions_length", row["length"])
+        item.collision_solves = (row.get("collisions") or {}).get("solves", 0)
     result.done = True
+
+
+def collision_traced(report):
+    """Whether the report has each shape's numbers before the collision pass (the pass was on
+    and the shapes were transferred, not personalised)."""
+    rows = report["penetration"]
+    return bool(rows) and all("before_collisions_length" in row for row in rows)
 
 
 def added_beyond_template(report, row, key="length"):
     """How much more intersection curve the shape adds to the target's neutral than it adds to
     the template's, split into (inside one piece: lips or lids through each other, between
     pieces: skin through a separate eyeball, lashes or teeth). `key="plain_length"` judges
-    plain transfer."""
+    plain transfer, `key="before_collisions_length"` the result before the collision pass."""
     between_key = key.replace("length", "between_pieces")
     target_rest, template_rest = report["neutral_penetration"], report["template_neutral_penetration"]
     between = (row[between_key] - target_rest["between_pieces"]) - (
@@ -289,7 +321,7 @@ def added_beyond_template(report, row, key="length"):
 def worse_than_template(report, key="length", tolerance=1e-3):
     """Names of shapes that add more intersection curve to the target's neutral than they add
     to the template's (beyond `tolerance` x the bbox diagonal); `key="plain_length"` judges
-    plain transfer."""
+    plain transfer, `key="before_collisions_length"` the result before the collision pass."""
     margin = tolerance * report["diagonal"]
     return [row["name"] for row in report["penetration"] if sum(added_beyond_template(report, row, key)) > margin]
 
@@ -305,13 +337,28 @@ def summary_lines(transfer, written, skipped):
     report = transfer.report
     seconds = report["seconds"]
     worse = worse_than_template(report)
+    collision_line = []
+    if collision_traced(report):
+        resolved = sum(1 for row in report["penetration"] if (row.get("collisions") or {}).get("solves", 0) > 0)
+        collision_line = [
+            f"collision pass: {resolved} shapes re-solved; shapes adding more intersection than on the template "
+            f"{len(worse_than_template(report, key='before_collisions_length'))} before the pass, {len(worse)} after"
+        ]
     lines = [
         f"'{transfer.source.name}' -> '{transfer.target.name}': {len(written)} shape keys written"
         + (f", {len(skipped)} kept ({', '.join(skipped)})" if skipped else ""),
         f"virtual edges: {report['virtual_edges']}"
         + (f"; personalised with {len(transfer.training)} training expressions" if transfer.training else ""),
         "seconds: " + ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
+        *collision_line,
         "shapes adding more intersection than on the template: "
-        + (", ".join(f"{row['name']} ({where_added(report, row)})" for row in report["penetration"] if row["name"] in worse) or "none"),
+        + (
+            ", ".join(
+                f"{row['name']} (+{sum(added_beyond_template(report, row)):.4f}, {where_added(report, row)})"
+                for row in report["penetration"]
+                if row["name"] in worse
+            )
+            or "none"
+        ),
     ]
     return lines + [f"warning: {w}" for w in transfer.warnings]

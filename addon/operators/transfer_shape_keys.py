@@ -39,6 +39,8 @@ class TransferOperator:
                     beta_reg=settings.beta_reg,
                     refine_weights=settings.refine_weights,
                     compare_plain=settings.compare_plain,
+                    collisions=settings.collisions,
+                    collision_margin=settings.collision_margin,
                     progress=progress,
                 )
             written, skipped, warnings = write_transferred_keys(

@@ -30,6 +30,12 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
 
         col = layout.column(align=True)
+        col.prop(settings, "collisions")
+        sub = col.column(align=True)
+        sub.active = settings.collisions
+        sub.prop(settings, "collision_margin")
+
+        col = layout.column(align=True)
         col.prop(settings, "overwrite")
         col.prop(settings, "copy_drivers")
         layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
@@ -51,14 +57,19 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         if result.skipped:
             col.label(text=f"Kept: {result.skipped}")
         col.label(text=f"Virtual edges: {result.virtual_edges}")
+        if result.collisions:
+            col.label(
+                text=f"Collision pass (margin {result.collision_margin:.2f}): {result.collision_resolved} shapes re-solved, "
+                f"{result.worse_before_collisions} worse than the template before it"
+            )
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")
         worse = [s for s in result.shapes if s.worse]
         col.label(text=f"Adding more intersection than on the template: {len(worse)}", icon="ERROR" if worse else "CHECKMARK")
-        for shape in worse[:8]:
-            added = shape.length - result.neutral_length
-            template_added = shape.template_length - result.template_neutral_length
-            col.label(text=f"  {shape.name}: +{added:.4f} vs +{template_added:.4f} on the template, {shape.where}")
+        for shape in sorted(worse, key=lambda s: -s.added)[:12]:
+            col.label(text=f"  {shape.name}: +{shape.added:.4f} beyond the template's own, {shape.where}")
+        if len(worse) > 12:
+            col.label(text=f"  ... and {len(worse) - 12} more (batch --json lists all)")
 
 
 register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_PT_transfer,))

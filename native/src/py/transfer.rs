@@ -9,16 +9,22 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use crate::invalid;
 use crate::transfer::{
-    find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, PersonaliseParams,
-    TrainingExpressions, TransferParams, TransferShapesParams, VirtualEdgeParams,
+    find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, CollisionParams, PersonaliseParams,
+    RigPenetration, TrainingExpressions, TransferParams, TransferShapesParams, VirtualEdgeParams,
 };
 
 /// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
 ///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
 ///                 examples=None, example_weights=None, beta_reg=0.1, refine_weights=False,
 ///                 compare_plain=False, measure_penetration=True, align_rotation=True,
+///                 collisions=True, collision_margin=0.25, template_penetration=None,
 ///                 progress=None)
 ///     -> (deltas float32 (K, N, 3), report dict)
+///
+/// `collisions` runs the collision-aware pass after each shape's solve, keeping
+/// `collision_margin` (a fraction of the local edge length) from the other surface.
+/// `template_penetration` is `measure_penetration(template_neutral, template_deltas,
+/// triangles)` when already measured (a batch over many targets), else it is measured here.
 ///
 /// `progress(fraction)` is called on the calling thread as the shapes are solved; returning
 /// `False` stops the work (`CancelledError`).
@@ -29,7 +35,7 @@ use crate::transfer::{
 #[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
                     tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=0.1,
                     refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true,
-                    progress=None))]
+                    collisions=true, collision_margin=0.25, template_penetration=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn transfer_shapes<'py>(
     py: Python<'py>,
@@ -49,8 +55,20 @@ fn transfer_shapes<'py>(
     compare_plain: bool,
     measure_penetration: bool,
     align_rotation: bool,
+    collisions: bool,
+    collision_margin: f64,
+    template_penetration: Option<Bound<'py, PyAny>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let template_penetration: Option<RigPenetration> = match &template_penetration {
+        Some(given) => {
+            let text: String = py.import("json")?.call_method1("dumps", (given,))?.extract()?;
+            Some(serde_json::from_str(&text).map_err(|e| {
+                py_err(py)(invalid!("template_penetration must be what measure_penetration returns ({e})"))
+            })?)
+        }
+        None => None,
+    };
     let source = arrays::points(&source_neutral, "source_neutral").map_err(py_err(py))?;
     let target = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&source_deltas, source.len()).map_err(py_err(py))?;
@@ -82,6 +100,7 @@ fn transfer_shapes<'py>(
             virtual_edges: virtual_edges.then_some(VirtualEdgeParams { tau_d, tau_r, ..Default::default() }),
             edge_weight,
             align_rotation,
+            collisions: collisions.then_some(CollisionParams { margin: collision_margin, ..Default::default() }),
             ..Default::default()
         },
         personalise: PersonaliseParams { beta_reg, refine_weights, ..Default::default() },
@@ -90,7 +109,7 @@ fn transfer_shapes<'py>(
     };
     let (deltas, report) = detached_with_progress(py, progress.as_ref(), |progress| {
         let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
-        run_transfer(source, delta_rows, target, &tris, &names, training, &params, progress)
+        run_transfer(source, delta_rows, target, &tris, &names, training, template_penetration.as_ref(), &params, progress)
     })?;
     let flat: Vec<f32> = deltas.into_iter().flatten().collect();
     let array = PyArray1::from_vec(py, flat).reshape([names.len(), n, 3])?;
@@ -123,7 +142,7 @@ fn find_virtual_edges<'py>(
 }
 
 /// measure_penetration(neutral, deltas, triangles)
-///     -> {"neutral": {"length", "pairs"}, "shapes": [{"length", "pairs"}, ...]}
+///     -> {"neutral": {"length", "pairs", "between_pieces"}, "shapes": [{...}, ...]}
 #[pyfunction]
 fn measure_penetration<'py>(
     py: Python<'py>,

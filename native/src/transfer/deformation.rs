@@ -6,6 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
+use super::collisions::{CollisionGuard, CollisionOutcome, ShapeSystem};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     TriangleOperator, Vec3, IDENTITY, ZERO,
@@ -13,6 +14,7 @@ use super::gradients::{
 use super::system::NormalMatrix;
 use super::virtual_edges::find_virtual_edges;
 use super::{TransferParams, TransferResult};
+
 use crate::error::ShapesmithResult;
 use crate::geometry::topology::connected_components;
 use crate::invalid;
@@ -22,7 +24,7 @@ use crate::rig::{bbox_diagonal, validate_points, validate_triangles, INERT_FRACT
 /// The target-side setup of a transfer: everything that depends only on the two neutrals.
 pub struct DeformationTransfer {
     pub(super) triangles: Vec<[u32; 3]>,
-    source_neutral: Vec<Vec3>,
+    pub(super) source_neutral: Vec<Vec3>,
     /// `V^{-1}` of each source rest triangle (S&P Eq. 1).
     source_rest_inverse: Vec<Mat3>,
     /// The target neutral rotated into the source's orientation (the working frame).
@@ -37,14 +39,30 @@ pub struct DeformationTransfer {
     rotation: Mat3,
     source_centre: Vec3,
     target_centre: Vec3,
-    piece: Vec<u32>,
+    pub(super) piece: Vec<u32>,
     /// Per piece: target RMS radius / source RMS radius.
     piece_scale: Vec<f64>,
     source_diagonal: f64,
     static_fraction: f64,
-    /// Wall-clock seconds of the setup without the virtual-edge search, and of that search.
+    /// The collision pass's view of the target neutral; `None` when the pass is off.
+    collisions: Option<CollisionGuard>,
+    /// Wall-clock seconds of the setup without the virtual-edge search and the collision
+    /// pass's rest sweep, of that search, and of that sweep.
     pub setup_seconds: f64,
     pub virtual_edge_seconds: f64,
+    pub collision_setup_seconds: f64,
+}
+
+/// One shape solved, with what the collision pass did to it.
+pub(super) struct SolvedShape {
+    /// Working-frame deltas.
+    pub deltas: Vec<Vec3>,
+    /// The deltas before the collision pass, when the pass changed them.
+    pub before_collisions: Option<Vec<Vec3>>,
+    pub collisions: Option<CollisionOutcome>,
+    /// Thread-seconds of the plain solve and of the collision pass.
+    pub solve_seconds: f64,
+    pub collision_seconds: f64,
 }
 
 impl DeformationTransfer {
@@ -115,6 +133,9 @@ impl DeformationTransfer {
             })
             .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
+        let guard_start = Instant::now();
+        let collisions = params.collisions.map(|c| CollisionGuard::new(&target, triangles, c));
+        let collision_setup_seconds = guard_start.elapsed().as_secs_f64();
         Ok(Self {
             triangles: triangles.to_vec(),
             source_diagonal: bbox_diagonal(source_neutral),
@@ -132,8 +153,10 @@ impl DeformationTransfer {
             piece,
             piece_scale,
             static_fraction: params.static_fraction,
-            setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds,
+            collisions,
+            setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds - collision_setup_seconds,
             virtual_edge_seconds,
+            collision_setup_seconds,
         })
     }
 
@@ -156,20 +179,29 @@ impl DeformationTransfer {
             .into_par_iter()
             .map(|k| {
                 let delta = &source_deltas[k * n..(k + 1) * n];
-                let out = if self.is_inert(delta) {
-                    vec![[0.0; 3]; n]
+                let solved = if self.is_inert(delta) {
+                    SolvedShape::inert(n)
                 } else {
-                    self.solve_shape(delta, |t| self.triangle_gradient(t, delta))?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta))?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
-                Ok(self.to_target_frame(&out))
+                Ok(solved)
             })
             .collect::<ShapesmithResult<Vec<_>>>()?;
+        let wall = start.elapsed().as_secs_f64();
+        // Shapes run side by side, so the wall time is split between the plain solves and the
+        // collision pass in proportion to the thread-seconds each took.
+        let solve_time: f64 = shapes.iter().map(|s| s.solve_seconds).sum();
+        let collision_time: f64 = shapes.iter().map(|s| s.collision_seconds).sum();
+        let collision_share = if collision_time > 0.0 { collision_time / (solve_time + collision_time) } else { 0.0 };
         Ok(TransferResult {
-            deltas: shapes.into_iter().flatten().collect(),
+            deltas: shapes.iter().flat_map(|s| self.to_target_frame(&s.deltas)).collect(),
             inert: self.inert_names(source_deltas, names),
-            seconds: start.elapsed().as_secs_f64(),
+            seconds: wall * (1.0 - collision_share),
+            collisions: self.collisions.is_some().then(|| shapes.iter().map(|s| s.collisions.unwrap_or_default()).collect()),
+            before_collisions: shapes.iter().map(|s| s.before_collisions.as_ref().map(|d| self.to_target_frame(d))).collect(),
+            collision_seconds: wall * collision_share + self.collision_setup_seconds,
         })
     }
 
@@ -229,6 +261,12 @@ impl DeformationTransfer {
     /// `gradient` is asked only for triangles with a moving corner: the others touch only
     /// eliminated rows.
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
+        Ok(self.solve_shape_traced(delta, gradient)?.deltas)
+    }
+
+    /// [`Self::solve_shape`], with the deltas before the collision pass and what it did.
+    pub(super) fn solve_shape_traced(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<SolvedShape> {
+        let start = Instant::now();
         let n = self.n_vertices();
         let moving = self.moving_vertices(delta);
         // A piece with moving vertices but no static one floats: pin its first vertex.
@@ -255,11 +293,25 @@ impl DeformationTransfer {
             kept += 1;
         }
         let rhs = self.right_hand_side(delta, &moving, gradient);
-        let mut out = self.matrix.solve_restricted(&position, kept as usize, &rhs)?;
+        let mut factor = self.matrix.factor_restricted(&position, kept as usize)?;
+        let mut out = factor.solve(&rhs);
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
-        Ok(out)
+        let solve_seconds = start.elapsed().as_secs_f64();
+        let Some(guard) = &self.collisions else {
+            return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
+        };
+        let plain = out.clone();
+        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs };
+        let outcome = self.collision_pass(guard, &shape, &mut factor, &mut out)?;
+        Ok(SolvedShape {
+            before_collisions: (outcome.solves > 0).then_some(plain),
+            deltas: out,
+            collisions: Some(outcome),
+            solve_seconds,
+            collision_seconds: start.elapsed().as_secs_f64() - solve_seconds,
+        })
     }
 
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
@@ -306,7 +358,7 @@ impl DeformationTransfer {
 
     /// Translates each pinned piece so that its mean delta is the source piece's mean delta
     /// times the pieces' size ratio.
-    fn place_floating_pieces(&self, delta: &[[f32; 3]], pinned: &[bool], out: &mut [Vec3]) {
+    pub(super) fn place_floating_pieces(&self, delta: &[[f32; 3]], pinned: &[bool], out: &mut [Vec3]) {
         let n_pieces = pinned.len();
         let mut solved = vec![[0.0; 3]; n_pieces];
         let mut source = vec![[0.0; 3]; n_pieces];
@@ -346,12 +398,30 @@ impl DeformationTransfer {
     }
 }
 
+impl SolvedShape {
+    fn inert(n: usize) -> Self {
+        Self { deltas: vec![[0.0; 3]; n], before_collisions: None, collisions: None, solve_seconds: 0.0, collision_seconds: 0.0 }
+    }
+}
+
 fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
     if !(params.edge_weight.is_finite() && params.edge_weight >= 0.0) {
         return Err(invalid!("edge_weight must be a finite number >= 0, got {}", params.edge_weight));
     }
     if !(0.0..1.0).contains(&params.static_fraction) {
         return Err(invalid!("static_fraction must lie in [0, 1), got {}", params.static_fraction));
+    }
+    if let Some(c) = &params.collisions {
+        if !(c.margin.is_finite() && (0.0..=MAX_MARGIN).contains(&c.margin)) {
+            return Err(invalid!("the collision margin must lie in [0, {MAX_MARGIN}] (a fraction of the local edge length), got {}", c.margin));
+        }
+        if !(c.stiffness.is_finite() && c.stiffness > 0.0) || c.max_iterations > 20 {
+            return Err(invalid!(
+                "collision stiffness must be positive and iterations at most 20, got {} and {}",
+                c.stiffness,
+                c.max_iterations
+            ));
+        }
     }
     if let Some(ve) = &params.virtual_edges {
         if !(ve.tau_d.is_finite() && ve.tau_d > 0.0 && ve.tau_r.is_finite() && ve.tau_r > 0.0) {
@@ -384,6 +454,10 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
         })
         .collect()
 }
+
+/// The largest collision margin accepted, in local edge lengths: beyond it the kept distance
+/// would exceed the lips' own thickness on most heads.
+pub const MAX_MARGIN: f64 = 2.0;
 
 fn length32(d: &[f32; 3]) -> f64 {
     super::gradients::length(to_f64(d))

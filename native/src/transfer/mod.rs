@@ -82,6 +82,7 @@
 //!   to the personalised shapes, alternated a fixed number of times.
 
 mod alignment;
+mod collisions;
 mod deformation;
 mod gradients;
 mod penetration;
@@ -90,7 +91,8 @@ mod report;
 mod system;
 mod virtual_edges;
 
-pub use deformation::DeformationTransfer;
+pub use collisions::{CollisionOutcome, CollisionParams};
+pub use deformation::{DeformationTransfer, MAX_MARGIN};
 pub use penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};
 pub use report::{
@@ -111,11 +113,19 @@ pub struct TransferParams {
     pub static_fraction: f64,
     /// Solve in the source's orientation (Kabsch) so that a rotated target gets rotated shapes.
     pub align_rotation: bool,
+    /// The collision-aware pass after each shape's solve; `None` leaves the solve as it is.
+    pub collisions: Option<CollisionParams>,
 }
 
 impl Default for TransferParams {
     fn default() -> Self {
-        Self { virtual_edges: Some(VirtualEdgeParams::default()), edge_weight: 3.0, static_fraction: 1e-4, align_rotation: true }
+        Self {
+            virtual_edges: Some(VirtualEdgeParams::default()),
+            edge_weight: 3.0,
+            static_fraction: 1e-4,
+            align_rotation: true,
+            collisions: Some(CollisionParams::default()),
+        }
     }
 }
 
@@ -126,8 +136,17 @@ pub struct TransferResult {
     pub deltas: Vec<[f32; 3]>,
     /// Shapes that do not move in the source (their deltas are zero).
     pub inert: Vec<String>,
-    /// Wall-clock seconds of the per-shape solves.
+    /// Wall-clock seconds of the per-shape solves (the collision pass's share excluded).
     pub seconds: f64,
+    /// Per shape, what the collision pass did; `None` when the pass is off.
+    pub collisions: Option<Vec<CollisionOutcome>>,
+    /// Per shape, K entries: the deltas (N rows) before the collision pass, for the shapes it
+    /// changed.
+    #[serde(skip)]
+    pub before_collisions: Vec<Option<Vec<[f32; 3]>>>,
+    /// Wall-clock seconds of the collision pass (its share of the shapes' solves, plus the
+    /// sweep of the target neutral).
+    pub collision_seconds: f64,
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ use crate::geometry::bvh::{Aabb, TriangleBvh};
 use crate::geometry::topology::connected_components;
 
 /// Self-intersection of a surface.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Penetration {
     /// Total length of the intersection segments, in the mesh's units.
     pub length: f64,
@@ -90,7 +90,7 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
 /// over `points`. With `moved`, only pairs with at least one moved triangle are tested.
-fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
+pub(super) fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
     let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
@@ -232,6 +232,52 @@ mod tests {
         assert!(full.pairs > 5 && full != baseline.neutral());
         assert_eq!(fast.pairs, full.pairs);
         assert!((fast.length - full.length).abs() < 1e-9);
+    }
+
+    #[test]
+    fn cheap_metric_equals_a_full_sweep_on_random_meshes() {
+        // Random crumpled grids (one connected piece, shared corners) plus a random soup
+        // (pieces of their own); each shape moves a random subset of vertices by a random
+        // amount. Re-testing only triangles with a moved corner must give exactly the full
+        // sweep's pairs, length and split by piece.
+        for seed in 0..12u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed);
+            let w = 9usize;
+            let mut pts: Vec<[f32; 3]> = (0..w * w)
+                .map(|v| {
+                    let (x, y) = ((v % w) as f32 / w as f32, (v / w) as f32 / w as f32);
+                    [x, y, 0.4 * (7.0 * x + rng.random::<f32>()).sin() * (5.0 * y).cos()]
+                })
+                .collect();
+            let mut tris: Vec<[u32; 3]> = Vec::new();
+            for y in 0..w - 1 {
+                for x in 0..w - 1 {
+                    let v = (y * w + x) as u32;
+                    tris.push([v, v + 1, v + w as u32 + 1]);
+                    tris.push([v, v + w as u32 + 1, v + w as u32]);
+                }
+            }
+            for _ in 0..30 {
+                let start = pts.len() as u32;
+                let centre: [f32; 3] = [rng.random(), rng.random(), rng.random::<f32>() - 0.5];
+                for _ in 0..3 {
+                    pts.push([0, 1, 2].map(|a| centre[a] + 0.3 * (rng.random::<f32>() - 0.5)));
+                }
+                tris.push([start, start + 1, start + 2]);
+            }
+            let baseline = PenetrationBaseline::new(&pts, &tris);
+            assert_eq!(baseline.neutral(), measure_penetration(&pts, &tris));
+            let share = rng.random::<f64>();
+            let delta: Vec<[f32; 3]> = (0..pts.len())
+                .map(|_| if rng.random::<f64>() < share { [0, 1, 2].map(|_| 0.2 * (rng.random::<f32>() - 0.5)) } else { [0.0; 3] })
+                .collect();
+            let posed: Vec<[f32; 3]> = pts.iter().zip(&delta).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect();
+            let (full, cheap) = (measure_penetration(&posed, &tris), baseline.shape(&delta));
+            assert!(full.pairs > 0, "seed {seed}: nothing crosses");
+            assert_eq!(cheap.pairs, full.pairs, "seed {seed}");
+            assert!((cheap.length - full.length).abs() < 1e-9, "seed {seed}: {cheap:?} vs {full:?}");
+            assert!((cheap.between_pieces - full.between_pieces).abs() < 1e-9, "seed {seed}");
+        }
     }
 
     #[test]

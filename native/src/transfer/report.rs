@@ -7,7 +7,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::penetration::PenetrationBaseline;
-use super::{DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
+use super::{CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::progress::{NoProgress, Progress, Stage};
@@ -17,8 +17,8 @@ use crate::progress::{NoProgress, Progress, Stage};
 pub struct TransferShapesParams {
     pub transfer: TransferParams,
     pub personalise: PersonaliseParams,
-    /// Also run plain transfer (no virtual edges, no personalisation) and report its
-    /// penetration beside the result's.
+    /// Also run plain transfer (no virtual edges, no collision pass, no personalisation) and
+    /// report its penetration beside the result's.
     pub compare_plain: bool,
     /// Score the penetration of every shape (template, result, plain) and of the neutral.
     pub measure_penetration: bool,
@@ -33,9 +33,9 @@ pub struct TrainingExpressions<'a> {
     pub weights: &'a [f64],
 }
 
-/// One shape's penetration: on the result, on the template, and with plain transfer
-/// (`between_pieces`: the part of the length where two separate pieces cross, see
-/// [`Penetration`]).
+/// One shape's penetration: on the result, on the template, before the collision pass and
+/// with plain transfer (`between_pieces`: the part of the length where two separate pieces
+/// cross, see [`Penetration`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ShapePenetration {
     pub name: String,
@@ -45,6 +45,17 @@ pub struct ShapePenetration {
     pub template_length: f64,
     pub template_pairs: usize,
     pub template_between_pieces: f64,
+    /// The result before the collision pass (equal to the result when the pass left the shape
+    /// alone); `None` when the pass is off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub before_collisions_length: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub before_collisions_pairs: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub before_collisions_between_pieces: Option<f64>,
+    /// What the collision pass did to the shape.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub collisions: Option<CollisionOutcome>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_length: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -61,6 +72,8 @@ pub struct StageSeconds {
     pub factorisation: f64,
     pub virtual_edges: f64,
     pub solves: f64,
+    /// The collision pass: its share of the shapes' solves and the sweep of the target neutral.
+    pub collisions: f64,
     pub personalisation: f64,
     pub penetration: f64,
 }
@@ -87,6 +100,10 @@ pub struct TransferReport {
 
 /// Transfers the template's shapes onto `target_neutral` (personalised when `examples` are
 /// given) and reports timings and penetration. Returns K x N target deltas.
+///
+/// `template_penetration`, when given, is the template's own (from
+/// [`measure_rig_penetration`] on the template: the same for every target, so a batch over
+/// many targets measures it once); otherwise it is measured here.
 #[allow(clippy::too_many_arguments)]
 pub fn transfer_shapes(
     source_neutral: &[[f32; 3]],
@@ -95,31 +112,42 @@ pub fn transfer_shapes(
     triangles: &[[u32; 3]],
     names: &[String],
     examples: Option<TrainingExpressions<'_>>,
+    template_penetration: Option<&RigPenetration>,
     params: &TransferShapesParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<(Vec<[f32; 3]>, TransferReport)> {
+    if let Some(given) = template_penetration {
+        if given.shapes.len() != names.len() {
+            return Err(invalid!(
+                "the template penetration given has {} shapes but the template has {}: measure it on the same template",
+                given.shapes.len(),
+                names.len()
+            ));
+        }
+    }
     // Measuring penetration (three sweeps per shape) takes longer than the solves.
     let solved_at = if params.measure_penetration { 0.3 } else { 1.0 };
     let solving = Stage { whole: progress, start: 0.0, span: solved_at };
     let dt = DeformationTransfer::new(source_neutral, target_neutral, triangles, &params.transfer)?;
     let n = dt.n_vertices();
     let mut seconds = StageSeconds { factorisation: dt.setup_seconds, virtual_edges: dt.virtual_edge_seconds, ..Default::default() };
-    let (deltas, inert, weights) = match examples {
+    let (deltas, inert, weights, collisions, before_collisions) = match examples {
         Some(ex) if !ex.positions.is_empty() => {
             let out = dt.personalise(source_deltas, names, ex.positions, ex.weights, &params.personalise, &solving)?;
             seconds.personalisation = out.seconds;
             let k = names.len();
             let rows = out.weights.chunks(k.max(1)).map(|r| r.to_vec()).collect();
-            (out.deltas, out.inert, rows)
+            (out.deltas, out.inert, rows, None, Vec::new())
         }
         _ => {
             let out = dt.transfer(source_deltas, names, &solving)?;
             seconds.solves = out.seconds;
-            (out.deltas, out.inert, Vec::new())
+            seconds.collisions = out.collision_seconds;
+            (out.deltas, out.inert, Vec::new(), out.collisions, out.before_collisions)
         }
     };
     let plain = if params.compare_plain && params.measure_penetration {
-        let plain_params = TransferParams { virtual_edges: None, ..params.transfer };
+        let plain_params = TransferParams { virtual_edges: None, collisions: None, ..params.transfer };
         let plain_dt = DeformationTransfer::new(source_neutral, target_neutral, triangles, &plain_params)?;
         Some(plain_dt.transfer(source_deltas, names, &NoProgress)?.deltas)
     } else {
@@ -129,14 +157,21 @@ pub fn transfer_shapes(
     let (penetration, neutral_penetration, template_neutral_penetration) = if params.measure_penetration {
         let start = Instant::now();
         let on_target = PenetrationBaseline::new(target_neutral, triangles);
-        let on_template = PenetrationBaseline::new(source_neutral, triangles);
+        let on_template = template_penetration.is_none().then(|| PenetrationBaseline::new(source_neutral, triangles));
         let done = AtomicUsize::new(0);
         let per_shape = (0..names.len())
             .into_par_iter()
             .map(|k| {
                 let rows = k * n..(k + 1) * n;
                 let result = on_target.shape(&deltas[rows.clone()]);
-                let template = on_template.shape(&source_deltas[rows.clone()]);
+                let template = match &on_template {
+                    Some(baseline) => baseline.shape(&source_deltas[rows.clone()]),
+                    None => template_penetration.map(|given| given.shapes[k]).unwrap_or_default(),
+                };
+                let before = collisions.as_ref().map(|_| match before_collisions.get(k) {
+                    Some(Some(d)) => on_target.shape(d),
+                    _ => result,
+                });
                 let plain = plain.as_ref().map(|d| on_target.shape(&d[rows]));
                 let row = ShapePenetration {
                     name: names[k].clone(),
@@ -146,6 +181,10 @@ pub fn transfer_shapes(
                     template_length: template.length,
                     template_pairs: template.pairs,
                     template_between_pieces: template.between_pieces,
+                    before_collisions_length: before.map(|p| p.length),
+                    before_collisions_pairs: before.map(|p| p.pairs),
+                    before_collisions_between_pieces: before.map(|p| p.between_pieces),
+                    collisions: collisions.as_ref().map(|c| c[k]),
                     plain_length: plain.map(|p| p.length),
                     plain_pairs: plain.map(|p| p.pairs),
                     plain_between_pieces: plain.map(|p| p.between_pieces),
@@ -156,7 +195,11 @@ pub fn transfer_shapes(
             })
             .collect::<ShapesmithResult<Vec<_>>>()?;
         seconds.penetration = start.elapsed().as_secs_f64();
-        (per_shape, Some(on_target.neutral()), Some(on_template.neutral()))
+        let template_neutral = match &on_template {
+            Some(baseline) => baseline.neutral(),
+            None => template_penetration.map(|given| given.neutral).unwrap_or_default(),
+        };
+        (per_shape, Some(on_target.neutral()), Some(template_neutral))
     } else {
         (Vec::new(), None, None)
     };
@@ -175,7 +218,7 @@ pub fn transfer_shapes(
 }
 
 /// The self-intersection of a rig's neutral and of each shape at weight 1.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RigPenetration {
     pub neutral: Penetration,
     pub shapes: Vec<Penetration>,

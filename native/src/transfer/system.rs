@@ -10,7 +10,7 @@
 //! (AMD) is computed once on the whole matrix and each submatrix takes its restriction,
 //! which costs a fifth of the solve time less than ordering every shape afresh.
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -131,21 +131,76 @@ impl NormalMatrix {
     /// Solves `A_FF d_F = rhs_F` on the kept vertices for the three coordinates; the other
     /// vertices are Dirichlet at zero. `rhs` is per vertex (all N); the result is per vertex
     /// with zeros at eliminated vertices.
+    #[cfg(test)]
     pub fn solve_restricted(&self, position: &[u32], n_kept: usize, rhs: &[[f64; 3]]) -> ShapesmithResult<Vec<[f64; 3]>> {
-        let mut out = vec![[0.0; 3]; self.n];
-        if n_kept == 0 {
-            return Ok(out);
-        }
+        Ok(self.factor_restricted(position, n_kept)?.solve(rhs))
+    }
+
+    /// Factorises `A_FF`, the principal submatrix on the kept vertices (`position[v] !=
+    /// u32::MAX`, numbered `position[v]`, increasing), in the whole matrix's AMD order
+    /// restricted. The factor is kept so that soft constraints can be added to its diagonal
+    /// and refactorised numerically on the same pattern ([`RestrictedFactor::add_to_diagonal`]).
+    pub fn factor_restricted(&self, position: &[u32], n_kept: usize) -> ShapesmithResult<RestrictedFactor> {
         let (col_ptr, row_idx, values) = self.restricted(position, n_kept);
         let forward: Vec<usize> = self.order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
         let mut inverse = vec![0usize; n_kept];
         for (slot, &p) in forward.iter().enumerate() {
             inverse[p] = slot;
         }
-        let factor = Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))?;
-        let mut b = faer::Mat::<f64>::zeros(n_kept, 3);
-        for v in 0..self.n {
-            let p = position[v];
+        let factor = if n_kept == 0 {
+            None
+        } else {
+            Some(Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))?)
+        };
+        Ok(RestrictedFactor { position: position.to_vec(), n_kept, col_ptr, row_idx, values, factor })
+    }
+}
+
+/// One shape's factorised system `A_FF` on its kept vertices, plus any diagonal additions.
+pub struct RestrictedFactor {
+    position: Vec<u32>,
+    n_kept: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// The restricted matrix as assembled (without diagonal additions).
+    values: Vec<f64>,
+    /// `None` when no vertex is kept.
+    factor: Option<Cholesky>,
+}
+
+impl RestrictedFactor {
+    /// Whether vertex `v` is an unknown of this system (not eliminated).
+    pub fn is_kept(&self, v: usize) -> bool {
+        self.position[v] != u32::MAX
+    }
+
+    /// The diagonal entry `A_vv` of a kept vertex (the first stored row of its lower column).
+    pub fn diagonal(&self, v: usize) -> f64 {
+        let c = self.position[v] as usize;
+        let k = self.col_ptr[c];
+        debug_assert_eq!(self.row_idx[k], c);
+        self.values[k]
+    }
+
+    /// Refactorises `A_FF + diag(extra)` numerically on the symbolic factor already computed
+    /// (the pattern does not change): `extra` holds `(vertex, weight)` of kept vertices and
+    /// replaces any earlier additions.
+    pub fn add_to_diagonal(&mut self, extra: &[(usize, f64)]) -> ShapesmithResult<()> {
+        let Some(factor) = self.factor.as_mut() else { return Ok(()) };
+        let mut values = self.values.clone();
+        for &(v, w) in extra {
+            values[self.col_ptr[self.position[v] as usize]] += w;
+        }
+        factor.refactor(self.n_kept, &self.col_ptr, &self.row_idx, &values)
+    }
+
+    /// `d_F` with `(A_FF + additions) d_F = rhs_F`, per vertex (all N), zeros at eliminated
+    /// vertices.
+    pub fn solve(&self, rhs: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let mut out = vec![[0.0; 3]; self.position.len()];
+        let Some(factor) = &self.factor else { return out };
+        let mut b = faer::Mat::<f64>::zeros(self.n_kept, 3);
+        for (v, &p) in self.position.iter().enumerate() {
             if p != u32::MAX {
                 for a in 0..3 {
                     b[(p as usize, a)] = rhs[v][a];
@@ -153,14 +208,17 @@ impl NormalMatrix {
             }
         }
         factor.solve_in_place(b.as_mut());
-        for v in 0..self.n {
-            let p = position[v];
+        for (v, &p) in self.position.iter().enumerate() {
             if p != u32::MAX {
                 out[v] = [b[(p as usize, 0)], b[(p as usize, 1)], b[(p as usize, 2)]];
             }
         }
-        Ok(out)
+        out
     }
+}
+
+fn solver_error(what: &str, e: &dyn std::fmt::Debug) -> ShapesmithError {
+    ShapesmithError::Solver(format!("the transfer system could not be factorised ({what}: {e:?})"))
 }
 
 /// A sparse LL^T factor in a given elimination order, sequential inside.
@@ -172,21 +230,22 @@ struct Cholesky {
 impl Cholesky {
     fn factor(n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64], order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
         let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
-        let matrix = SparseColMatRef::new(structure, values);
-        let solver_error = |what: &str, e: &dyn std::fmt::Debug| {
-            ShapesmithError::Solver(format!("the transfer system could not be factorised ({what}: {e:?})"))
-        };
         let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Custom(order), Default::default())
             .map_err(|e| solver_error("symbolic", &e))?;
-        let mut factor_values = vec![0.0; symbolic.len_val()];
-        let scratch = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
-        ]);
+        let mut factor = Self { values: vec![0.0; symbolic.len_val()], symbolic };
+        factor.refactor(n, col_ptr, row_idx, values)?;
+        Ok(factor)
+    }
+
+    /// Numeric factorisation of a matrix with the pattern the symbolic factor was made for.
+    fn refactor(&mut self, n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> ShapesmithResult<()> {
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+        let matrix = SparseColMatRef::new(structure, values);
+        let scratch = self.symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
         let mut buffer = MemBuffer::try_new(scratch).map_err(|e| solver_error("memory", &e))?;
-        symbolic
+        self.symbolic
             .factorize_numeric_llt(
-                &mut factor_values,
+                &mut self.values,
                 matrix,
                 Side::Lower,
                 Default::default(),
@@ -195,7 +254,7 @@ impl Cholesky {
                 Default::default(),
             )
             .map_err(|e| solver_error("not positive definite", &e))?;
-        Ok(Self { symbolic, values: factor_values })
+        Ok(())
     }
 
     fn solve_in_place(&self, rhs: MatMut<'_, f64>) {

@@ -99,8 +99,9 @@ fn head_shapes(pts: &[[f32; 3]], pieces: &Pieces) -> (Vec<[f32; 3]>, Vec<String>
     (deltas, names)
 }
 
+/// Plain deformation transfer: no virtual edges, no collision pass.
 fn plain() -> TransferParams {
-    TransferParams { virtual_edges: None, ..Default::default() }
+    TransferParams { virtual_edges: None, collisions: None, ..Default::default() }
 }
 
 fn max_error(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
@@ -284,7 +285,7 @@ fn virtual_edges_keep_thick_lips_from_crossing() {
     let plain_transfer = DeformationTransfer::new(&source, &target, &tris, &plain()).unwrap();
     let crossing = pose(&plain_transfer);
     assert!(crossing.pairs > 0 && crossing.length > 0.0, "plain transfer should cross: {crossing:?}");
-    let params = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), ..Default::default() };
+    let params = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), ..plain() };
     let guarded = DeformationTransfer::new(&source, &target, &tris, &params).unwrap();
     assert!(!guarded.virtual_edges().is_empty());
     assert_eq!(pose(&guarded), Penetration::default());
@@ -411,3 +412,163 @@ fn serial_and_parallel_runs_agree_and_cancelling_stops() {
     assert_eq!(dt.transfer(&deltas, &names, &Stop).unwrap_err(), ShapesmithError::Cancelled);
 }
 
+
+// --- the collision pass -------------------------------------------------------------------
+
+/// `neutral + delta`.
+fn posed(neutral: &[[f32; 3]], delta: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    neutral.iter().zip(delta).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect()
+}
+
+/// Per cross-section and across position of the folded strip (walls excluded), the upper
+/// layer's height above the lower layer's.
+fn lip_gaps(points: &[[f32; 3]]) -> Vec<f32> {
+    let rows = 22; // folded_strip: 11 lower then 11 upper profile points per cross-section
+    (0..points.len() / rows)
+        .flat_map(|i| (1..10).map(move |s| points[i * rows + 21 - s][2] - points[i * rows + s][2]))
+        .collect()
+}
+
+#[test]
+fn collision_pass_uncrosses_thick_lips_that_virtual_edges_alone_leave_crossed() {
+    let (source, tris) = lips(0.1);
+    // The template closes 90% of its 0.1 gap; the target's lips are thicker (gap 0.04).
+    let closing = lip_closing(&source, 0.1, 0.045);
+    let (target, _) = lips(0.04);
+    let names = vec!["mouthClose".to_string()];
+    let edges = Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() });
+    let with = |collisions: Option<CollisionParams>| {
+        let params = TransferParams { virtual_edges: edges, edge_weight: 1.0, collisions, ..Default::default() };
+        let dt = DeformationTransfer::new(&source, &target, &tris, &params).unwrap();
+        assert!(!dt.virtual_edges().is_empty());
+        dt.transfer(&closing, &names, &NoProgress).unwrap()
+    };
+    let springs_only = with(None);
+    let crossed = measure_penetration(&posed(&target, &springs_only.deltas), &tris);
+    assert!(crossed.pairs > 0, "virtual edges alone should still cross here: {crossed:?}");
+    assert!(lip_gaps(&posed(&target, &springs_only.deltas)).iter().any(|&g| g < 0.0));
+
+    let guarded = with(Some(CollisionParams::default()));
+    let result = posed(&target, &guarded.deltas);
+    assert_eq!(measure_penetration(&result, &tris), Penetration::default());
+    let outcome = guarded.collisions.as_ref().unwrap()[0];
+    assert!(outcome.new_pairs > 0 && outcome.remaining_pairs == 0 && outcome.solves >= 1, "{outcome:?}");
+    assert_eq!(guarded.before_collisions[0].as_deref(), Some(&springs_only.deltas[..]));
+    // The layers still meet: nowhere crossed, and where they close most the gap is within
+    // the margin (a quarter of the 0.1 edges, plus the soft constraint's give).
+    let gaps = lip_gaps(&result);
+    let closest = gaps.iter().copied().fold(f32::INFINITY, f32::min);
+    assert!(closest > 0.0 && closest < 0.05, "closest gap {closest}");
+    // The template's lips close to 0.01; the pass keeps them as close as its margin allows.
+    assert!(closest < 0.5 * 0.04, "the lips should still close most of the target's 0.04 gap: {closest}");
+}
+
+/// A flat skin sheet over a box of teeth (a separate piece), the teeth's top at `top`.
+fn skin_over_teeth(top: f32) -> Mesh {
+    let w = 15usize;
+    let mut pts: Vec<[f32; 3]> = Vec::new();
+    for y in 0..w {
+        for x in 0..w {
+            pts.push([x as f32 / (w - 1) as f32, y as f32 / (w - 1) as f32, 0.0]);
+        }
+    }
+    let mut tris: Vec<[u32; 3]> = Vec::new();
+    for y in 0..w - 1 {
+        for x in 0..w - 1 {
+            let v = (y * w + x) as u32;
+            tris.push([v, v + 1, v + w as u32 + 1]);
+            tris.push([v, v + w as u32 + 1, v + w as u32]);
+        }
+    }
+    let start = pts.len() as u32;
+    for c in 0..8u32 {
+        let z = if c >> 2 == 1 { top } else { -0.5 };
+        pts.push([0.3 + 0.4 * (c & 1) as f32, 0.3 + 0.4 * ((c >> 1) & 1) as f32, z]);
+    }
+    for quad in [[0u32, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]] {
+        tris.push([start + quad[0], start + quad[1], start + quad[2]]);
+        tris.push([start + quad[0], start + quad[2], start + quad[3]]);
+    }
+    (pts, tris)
+}
+
+/// Shape 0 presses the middle of the skin down by 0.15 (the teeth stay); shape 1 raises a
+/// bump in a corner, far from the teeth.
+fn press_and_bump(pts: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    let skin = 15 * 15;
+    let mut deltas = vec![[0.0f32; 3]; 2 * pts.len()];
+    for (v, p) in pts.iter().enumerate().take(skin) {
+        let press = (-((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.03).exp();
+        if press > 1e-3 {
+            deltas[v] = [0.0, 0.0, -0.15 * press];
+        }
+        let bump = (-((p[0] - 0.1).powi(2) + (p[1] - 0.1).powi(2)) / 0.005).exp();
+        if bump > 1e-3 {
+            deltas[pts.len() + v] = [0.0, 0.0, 0.05 * bump];
+        }
+    }
+    deltas
+}
+
+#[test]
+fn skin_pressed_onto_static_teeth_stays_outside_and_other_shapes_are_untouched() {
+    // The template's teeth top is at -0.2, below the pressed skin (-0.15); the target's
+    // teeth reach up to -0.08, so the transferred press goes through them.
+    let (source, tris) = skin_over_teeth(-0.2);
+    let (target, _) = skin_over_teeth(-0.08);
+    let deltas = press_and_bump(&source);
+    let names = vec!["mouthPress".to_string(), "cheekBump".to_string()];
+    assert_eq!(measure_penetration(&posed(&source, &deltas[..source.len()]), &tris).pairs, 0);
+    let without = DeformationTransfer::new(&source, &target, &tris, &plain()).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
+    let n = target.len();
+    assert!(measure_penetration(&posed(&target, &without.deltas[..n]), &tris).pairs > 0, "plain transfer should go through");
+
+    let params = TransferParams { collisions: Some(CollisionParams::default()), ..plain() };
+    let with = DeformationTransfer::new(&source, &target, &tris, &params).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
+    let pressed = posed(&target, &with.deltas[..n]);
+    assert_eq!(measure_penetration(&pressed, &tris), Penetration::default());
+    // No skin vertex above the teeth is below their top; the teeth did not move.
+    for p in &pressed[..15 * 15] {
+        if (0.3..=0.7).contains(&p[0]) && (0.3..=0.7).contains(&p[1]) {
+            assert!(p[2] > -0.08, "skin vertex inside the teeth: {p:?}");
+        }
+    }
+    assert!(with.deltas[15 * 15..n].iter().all(|d| *d == [0.0; 3]));
+    // The skin still presses down onto the teeth (within a couple of margins of their top).
+    let lowest = pressed[..15 * 15].iter().map(|p| p[2]).fold(f32::INFINITY, f32::min);
+    assert!(lowest < -0.05, "the press should still reach the teeth: {lowest}");
+    // The bump adds no intersection: bit for bit as without the pass, and reported as such.
+    assert_eq!(with.deltas[n..], without.deltas[n..]);
+    let outcomes = with.collisions.unwrap();
+    assert!(outcomes[0].solves >= 1 && outcomes[0].remaining_pairs == 0);
+    assert_eq!(outcomes[1], CollisionOutcome::default());
+    assert!(with.before_collisions[1].is_none());
+}
+
+#[test]
+fn self_transfer_stays_exact_with_the_pass_even_where_the_template_crosses_itself() {
+    // The template's lips close past each other (0.06 each way across a 0.1 gap): the
+    // artist's own crossing is kept, so the template onto itself is still exact.
+    let (pts, tris) = lips(0.1);
+    let closing = lip_closing(&pts, 0.1, 0.06);
+    assert!(measure_penetration(&posed(&pts, &closing), &tris).pairs > 0);
+    let names = vec!["mouthClose".to_string()];
+    let diagonal = crate::rig::bbox_diagonal(&pts);
+    for edges in [None, Some(VirtualEdgeParams { tau_d: 0.1, ..Default::default() })] {
+        let params = TransferParams { virtual_edges: edges, ..Default::default() };
+        assert!(params.collisions.is_some());
+        let out = DeformationTransfer::new(&pts, &pts, &tris, &params).unwrap().transfer(&closing, &names, &NoProgress).unwrap();
+        assert!(max_error(&out.deltas, &closing) < 1e-5 * diagonal, "{}", max_error(&out.deltas, &closing));
+        assert_eq!(out.collisions.unwrap()[0].solves, 0);
+    }
+}
+
+#[test]
+fn bad_collision_margins_are_refused() {
+    let (pts, tris, _) = head();
+    for margin in [-0.1, f64::NAN, MAX_MARGIN + 0.5] {
+        let params = TransferParams { collisions: Some(CollisionParams { margin, ..Default::default() }), ..plain() };
+        let err = DeformationTransfer::new(&pts, &pts, &tris, &params).unwrap_err().to_string();
+        assert!(err.contains("margin"), "{err}");
+    }
+}

@@ -1,0 +1,378 @@
+//! Collision-aware pass (SPEC section 3, after Ichim et al. 2016's collision handling): after
+//! a shape is solved, the triangle pairs that cross in the result but neither in the target's
+//! neutral nor in the template's own shape are found, the vertices that went through the
+//! other surface are held on the side they were on at rest (plus a margin), and the shape is
+//! solved again on the same factorisation; a few rounds at most.
+//!
+//! **Which pairs.** Pairs of triangles sharing no vertex, at least one with a moving corner
+//! (two unmoved triangles cross exactly as at rest), crossing in the result, not crossing in
+//! the target's neutral, and not crossing in the template's shape (the artist's own contacts,
+//! e.g. lips pressed together in mouthClose, are kept: the criterion is "no more than the
+//! template", and self-transfer stays exact). A static piece is an obstacle where the target
+//! has it, a piece moving as a whole where the solve put it; only vertices the solve is free
+//! to move (moving, in a piece anchored by its static vertices) are constrained.
+//!
+//! **Which vertices.** For a new pair (a, b), each free corner `u` of `a` against `b` (and of
+//! `b` against `a`) is offending when it lies on the other side of `b`'s plane than at rest:
+//! `sign(n_b^0 . (B0_u - p_b^0)) != sign(n_b . (x_u - p_b))`. Triangle pairs cross only along a
+//! curve, so the vertices beyond it (the part of the lip that went through) are reached by a
+//! flood from offending vertices over mesh neighbours, each tested against the triangle near
+//! the last obstacle (its corners' one-rings) that its projection falls in. The flood stops
+//! at vertices still on their rest side.
+//!
+//! **Constraint.** An offending vertex `u` gets a target point: its position pushed along the
+//! obstacle's current unit normal to the rest side plus a margin, `t_u = x_u + (s m_u - h) n`
+//! (`s` the rest side, `h` the signed distance now, `m_u` the margin: `margin` x the mean
+//! length of the edges at `u` on the target neutral); half of that when the obstacle can move
+//! too (its own corners get the other half from the pair seen the other way round). The
+//! energy gains `w_u |d_u - (t_u - B0_u)|^2` with `w_u = stiffness x A_uu`. A point target
+//! with a scalar weight adds the same number to the diagonal of the x, y and z systems, so the
+//! three coordinates stay separable and one factor still serves all three right-hand sides; a
+//! half-space term `w (n . d - c)^2` would couple them (a 3N system, or an iteration). The
+//! point target also holds the vertex's tangential position where the solve put it, which is
+//! what a rigger wants of a lip pushed back out of the other lip.
+//!
+//! **Reuse.** The constraints only add to the diagonal of `A_FF`: the shape's symbolic factor
+//! is kept and only the numeric factorisation is redone on the same pattern (no ordering, no
+//! symbolic analysis). The alternative, Woodbury on the existing factor, needs `A^-1 U`: one
+//! pair of triangular solves per constrained vertex, and a flood constrains tens to hundreds
+//! of vertices (see the module's Deviations for the counts on the bundled heads), which costs
+//! more than one numeric factorisation of the moving sub-mesh.
+//!
+//! Constraints accumulate over the rounds (a vertex flagged again gets its target moved from
+//! where it now is); a shape with no new pair, or whose new pairs have no offending vertex,
+//! is returned untouched, bit for bit.
+
+use std::collections::BTreeMap;
+
+use super::deformation::DeformationTransfer;
+use super::gradients::{add, cross, dot, length, scale, sub, to_f64, Vec3};
+use super::penetration::{crossings, intersection_length};
+use super::system::RestrictedFactor;
+use crate::error::ShapesmithResult;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::topology::Adjacency;
+
+/// Knobs of the collision pass, defaults from SPEC section 3.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CollisionParams {
+    /// Distance kept from the other surface, as a fraction of the mean length of the edges at
+    /// the vertex on the target's neutral (SPEC: 25%).
+    pub margin: f64,
+    /// Re-solves per shape at most.
+    pub max_iterations: usize,
+    /// Weight of a vertex's target point, as a multiple of its diagonal entry in the normal
+    /// matrix (so it means the same on coarse and dense meshes).
+    pub stiffness: f64,
+}
+
+impl Default for CollisionParams {
+    fn default() -> Self {
+        Self { margin: 0.25, max_iterations: 4, stiffness: 100.0 }
+    }
+}
+
+/// What the collision pass did to one shape.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CollisionOutcome {
+    /// Crossing pairs new after the plain solve (not at the target's rest, not in the
+    /// template's shape).
+    pub new_pairs: usize,
+    /// New pairs left after the last re-solve.
+    pub remaining_pairs: usize,
+    /// Vertices held by a target point.
+    pub constrained_vertices: usize,
+    /// Re-solves done.
+    pub solves: usize,
+}
+
+/// What the pass needs of the target neutral, computed once per transfer.
+pub(super) struct CollisionGuard {
+    params: CollisionParams,
+    /// Pairs `(a, b)`, `a < b`, crossing at rest, sorted.
+    rest_pairs: Vec<(u32, u32)>,
+    /// Over the target neutral; refitted to each result.
+    bvh: TriangleBvh,
+    /// Per vertex, the mean length of its edges on the target neutral.
+    edge_length: Vec<f64>,
+    adjacency: Adjacency,
+    /// Triangles around each vertex (compressed rows).
+    ring_offsets: Vec<usize>,
+    ring_triangles: Vec<u32>,
+}
+
+impl CollisionGuard {
+    pub(super) fn new(neutral: &[Vec3], triangles: &[[u32; 3]], params: CollisionParams) -> Self {
+        let n = neutral.len();
+        let bvh = TriangleBvh::build(neutral, triangles);
+        let rest_pairs = crossings(neutral, triangles, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        let adjacency = Adjacency::from_triangles(n, triangles);
+        let edge_length = (0..n)
+            .map(|v| {
+                let ring = adjacency.neighbours(v);
+                let total: f64 = ring.iter().map(|&u| length(sub(neutral[u as usize], neutral[v]))).sum();
+                total / ring.len().max(1) as f64
+            })
+            .collect();
+        let mut ring_offsets = vec![0usize; n + 1];
+        for tri in triangles {
+            for &v in tri {
+                ring_offsets[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            ring_offsets[v + 1] += ring_offsets[v];
+        }
+        let mut fill = ring_offsets.clone();
+        let mut ring_triangles = vec![0u32; ring_offsets[n]];
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                ring_triangles[fill[v as usize]] = t as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Self { params, rest_pairs, bvh, edge_length, adjacency, ring_offsets, ring_triangles }
+    }
+
+    fn triangles_at(&self, v: u32) -> &[u32] {
+        &self.ring_triangles[self.ring_offsets[v as usize]..self.ring_offsets[v as usize + 1]]
+    }
+
+    /// Triangle `t` and the triangles sharing a corner with it.
+    fn around(&self, triangle: &[u32; 3]) -> Vec<u32> {
+        let mut near: Vec<u32> = triangle.iter().flat_map(|&v| self.triangles_at(v).iter().copied()).collect();
+        near.sort_unstable();
+        near.dedup();
+        near
+    }
+}
+
+/// One shape's solve as the pass sees it.
+pub(super) struct ShapeSystem<'a> {
+    /// The source shape's deltas (N rows).
+    pub delta: &'a [[f32; 3]],
+    /// Vertices that move in the shape (free or in a floating piece).
+    pub moving: &'a [bool],
+    /// Per piece: floats (pinned and translated after the solve).
+    pub pinned: &'a [bool],
+    pub rhs: &'a [Vec3],
+}
+
+impl DeformationTransfer {
+    /// Runs the pass on the solved deltas `out` (working frame) of one shape, re-solving with
+    /// `factor` (the shape's factorisation, refactorised in place when constraints are added).
+    pub(super) fn collision_pass(
+        &self,
+        guard: &CollisionGuard,
+        shape: &ShapeSystem<'_>,
+        factor: &mut RestrictedFactor,
+        out: &mut Vec<Vec3>,
+    ) -> ShapesmithResult<CollisionOutcome> {
+        let moved: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
+        let free: Vec<bool> =
+            (0..out.len()).map(|v| factor.is_kept(v) && !shape.pinned[self.piece[v] as usize]).collect();
+        let mut outcome = CollisionOutcome::default();
+        let mut targets: BTreeMap<usize, Vec3> = BTreeMap::new();
+        let mut crossing: Vec<(u32, u32)> = Vec::new();
+        let mut last: Option<Vec<Vec3>> = None;
+        let mut artists_own: BTreeMap<(u32, u32), bool> = BTreeMap::new();
+        for round in 0..=guard.params.max_iterations {
+            let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
+            crossing = match &last {
+                None => self.crossing_pairs(guard, &positions, &moved, None),
+                Some(previous) => {
+                    // After a re-solve, only triangles that moved (more than a millionth of their
+                    // edges) since the last sweep are tested again; the others keep their pairs.
+                    let changed_vertex: Vec<bool> = (0..positions.len())
+                        .map(|v| length(sub(positions[v], previous[v])) > 1e-6 * guard.edge_length[v])
+                        .collect();
+                    let changed: Vec<bool> =
+                        self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
+                    let mut pairs: Vec<(u32, u32)> =
+                        crossing.iter().copied().filter(|&(a, b)| !changed[a as usize] && !changed[b as usize]).collect();
+                    pairs.extend(self.crossing_pairs(guard, &positions, &changed, Some(&moved)));
+                    pairs.sort_unstable();
+                    pairs
+                }
+            };
+            let new_pairs = self.new_crossings(guard, &crossing, shape.delta, &mut artists_own);
+            if round == 0 {
+                outcome.new_pairs = new_pairs.len();
+            }
+            outcome.remaining_pairs = new_pairs.len();
+            if new_pairs.is_empty() || round == guard.params.max_iterations {
+                break;
+            }
+            let pushes = self.offending_vertices(guard, &positions, &new_pairs, &free);
+            if pushes.is_empty() {
+                break;
+            }
+            last = Some(positions);
+            for (u, push) in pushes {
+                targets.insert(u, add(out[u], push));
+            }
+            let weights: Vec<(usize, f64)> =
+                targets.keys().map(|&u| (u, guard.params.stiffness * factor.diagonal(u))).collect();
+            factor.add_to_diagonal(&weights)?;
+            let mut rhs = shape.rhs.to_vec();
+            for (&(u, w), target) in weights.iter().zip(targets.values()) {
+                rhs[u] = add(rhs[u], scale(*target, w));
+            }
+            *out = factor.solve(&rhs);
+            if shape.pinned.iter().any(|&p| p) {
+                self.place_floating_pieces(shape.delta, shape.pinned, out);
+            }
+            outcome.solves += 1;
+        }
+        outcome.constrained_vertices = targets.len();
+        Ok(outcome)
+    }
+
+    /// Pairs crossing at `positions` (working frame) with a triangle in `tested` (and, when
+    /// `moved` is given, the other in it too or anywhere when the other is in `tested`), sorted.
+    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32)> {
+        let bvh = guard.bvh.refitted(positions, &self.triangles);
+        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter().map(|(a, b, _)| (a, b));
+        match moved {
+            // An unmoved triangle against an unmoved one crosses as at rest: not new anyway.
+            Some(moved) => pairs.filter(|&(a, b)| moved[a as usize] || moved[b as usize]).collect(),
+            None => pairs.collect(),
+        }
+    }
+
+    /// The pairs of `crossing` that cross neither at the target's rest nor, near them, in the
+    /// template's shape: a pair is the artist's own when some triangle sharing a corner with
+    /// one of them crosses some triangle sharing a corner with the other in the template (the
+    /// target's contact may sit a triangle away from the template's). Lips the template
+    /// presses into each other stay as the template has them.
+    /// `artists_own` remembers the answer per pair across the rounds of one shape.
+    fn new_crossings(
+        &self,
+        guard: &CollisionGuard,
+        crossing: &[(u32, u32)],
+        delta: &[[f32; 3]],
+        artists_own: &mut BTreeMap<(u32, u32), bool>,
+    ) -> Vec<(u32, u32)> {
+        let template = |t: u32| self.triangles[t as usize].map(|v| add(self.source_neutral[v as usize], to_f64(&delta[v as usize])));
+        let shares_corner = |a: u32, b: u32| self.triangles[a as usize].iter().any(|v| self.triangles[b as usize].contains(v));
+        crossing
+            .iter()
+            .copied()
+            .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
+            .filter(|&(a, b)| {
+                !*artists_own.entry((a, b)).or_insert_with(|| {
+                    let near_b = guard.around(&self.triangles[b as usize]);
+                    guard.around(&self.triangles[a as usize]).into_iter().any(|x| {
+                        near_b.iter().any(|&y| !shares_corner(x, y) && intersection_length(template(x), template(y)).is_some())
+                    })
+                })
+            })
+            .collect()
+    }
+
+    /// The free vertices that went through the other surface of a new pair, with the push
+    /// that puts each back on its rest side plus the margin (the largest when several
+    /// obstacles ask), flooding from the pairs' corners to the vertices beyond the crossing.
+    fn offending_vertices(&self, guard: &CollisionGuard, positions: &[Vec3], pairs: &[(u32, u32)], free: &[bool]) -> BTreeMap<usize, Vec3> {
+        let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
+        let mut queue: Vec<(u32, u32)> = Vec::new();
+        let keep = |u: usize, push: Vec3, obstacle: u32, pushes: &mut BTreeMap<usize, Vec3>, queue: &mut Vec<(u32, u32)>| {
+            match pushes.get_mut(&u) {
+                Some(old) => {
+                    if length(push) > length(*old) {
+                        *old = push;
+                    }
+                }
+                None => {
+                    pushes.insert(u, push);
+                    queue.push((u as u32, obstacle));
+                }
+            }
+        };
+        for &(a, b) in pairs {
+            for (side, obstacle) in [(a, b), (b, a)] {
+                for &u in &self.triangles[side as usize] {
+                    let u = u as usize;
+                    if free[u] {
+                        if let Some(push) = self.push_out(guard, positions, u, obstacle as usize, free) {
+                            keep(u, push, obstacle, &mut pushes, &mut queue);
+                        }
+                    }
+                }
+            }
+        }
+        while let Some((u, obstacle)) = queue.pop() {
+            for &w in guard.adjacency.neighbours(u as usize) {
+                let w = w as usize;
+                if !free[w] || pushes.contains_key(&w) {
+                    continue;
+                }
+                let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
+                if let Some(push) = self.push_out(guard, positions, w, beneath as usize, free) {
+                    keep(w, push, beneath, &mut pushes, &mut queue);
+                }
+            }
+        }
+        pushes
+    }
+
+    /// The push of vertex `u` back across triangle `t`'s plane to the side it was on at rest,
+    /// plus its margin, when it is on the other side now (half of it when `t` can move too).
+    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool]) -> Option<Vec3> {
+        let tri = self.triangles[t];
+        let rest = tri.map(|v| self.target_neutral[v as usize]);
+        let rest_side = dot(cross(sub(rest[1], rest[0]), sub(rest[2], rest[0])), sub(self.target_neutral[u], rest[0]));
+        let now = tri.map(|v| positions[v as usize]);
+        let normal = cross(sub(now[1], now[0]), sub(now[2], now[0]));
+        let norm = length(normal);
+        if rest_side == 0.0 || norm == 0.0 {
+            return None;
+        }
+        let (side, normal) = (rest_side.signum(), scale(normal, 1.0 / norm));
+        let height = dot(normal, sub(positions[u], now[0]));
+        // On its rest side, or so far behind the plane that it is not this triangle it went
+        // through (a fold of the plane's far extension).
+        if side * height >= 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
+            return None;
+        }
+        let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
+        Some(scale(normal, (side * guard.params.margin * guard.edge_length[u] - height) * share))
+    }
+
+    /// Among `near` and the triangles around its corners (not touching `w`), the one whose
+    /// plane `w` projects into (barycentric coordinates above -0.25), nearest to its plane.
+    fn obstacle_below(&self, guard: &CollisionGuard, positions: &[Vec3], w: usize, near: u32) -> Option<u32> {
+        let mut best: Option<(f64, u32)> = None;
+        for &corner in &self.triangles[near as usize] {
+            for &t in guard.triangles_at(corner) {
+                let tri = self.triangles[t as usize];
+                if tri.contains(&(w as u32)) {
+                    continue;
+                }
+                let p = tri.map(|v| positions[v as usize]);
+                let Some((inside, height)) = projection(p, positions[w]) else { continue };
+                if inside >= -0.25 && best.is_none_or(|(h, _)| height.abs() < h) {
+                    best = Some((height.abs(), t));
+                }
+            }
+        }
+        best.map(|(_, t)| t)
+    }
+}
+
+/// How deep behind an obstacle's plane (in the vertex's edge lengths) a vertex still counts as
+/// having gone through it.
+const MAX_DEPTH: f64 = 4.0;
+
+/// The smallest barycentric coordinate of `q`'s projection onto triangle `p`'s plane, and
+/// `q`'s signed distance to that plane; `None` for a degenerate triangle.
+fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
+    let normal = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    let area2 = dot(normal, normal);
+    if area2 == 0.0 {
+        return None;
+    }
+    let coordinate = |i: usize| dot(cross(sub(p[(i + 2) % 3], p[(i + 1) % 3]), sub(q, p[(i + 1) % 3])), normal) / area2;
+    let smallest = coordinate(0).min(coordinate(1)).min(coordinate(2));
+    Some((smallest, dot(normal, sub(q, p[0])) / area2.sqrt()))
+}
