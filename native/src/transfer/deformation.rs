@@ -182,7 +182,7 @@ impl DeformationTransfer {
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
                 } else {
-                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta))?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), true)?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -260,12 +260,20 @@ impl DeformationTransfer {
     /// shape `delta` fixed at zero and floating pieces placed by their carried-over motion.
     /// `gradient` is asked only for triangles with a moving corner: the others touch only
     /// eliminated rows.
+    /// Personalisation calls this without the collision pass: its shapes follow the training
+    /// expressions, which are the character's truth (a scan's pressed lips stay pressed).
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_traced(delta, gradient)?.deltas)
+        Ok(self.solve_shape_traced(delta, gradient, false)?.deltas)
     }
 
-    /// [`Self::solve_shape`], with the deltas before the collision pass and what it did.
-    pub(super) fn solve_shape_traced(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<SolvedShape> {
+    /// [`Self::solve_shape`], followed by the collision pass when `collisions` and the pass is
+    /// configured, with the deltas before the pass and what it did.
+    pub(super) fn solve_shape_traced(
+        &self,
+        delta: &[[f32; 3]],
+        gradient: impl Fn(usize) -> Mat3,
+        collisions: bool,
+    ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();
         let moving = self.moving_vertices(delta);
@@ -299,7 +307,7 @@ impl DeformationTransfer {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
         let solve_seconds = start.elapsed().as_secs_f64();
-        let Some(guard) = &self.collisions else {
+        let Some(guard) = self.collisions.as_ref().filter(|_| collisions) else {
             return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
         };
         let plain = out.clone();
