@@ -392,16 +392,17 @@ pub fn extend_layout(input: &DesignInput, settings: &DesignSettings) -> DesignOu
         noise_variance,
     };
     let horizon = settings.landmarks.unwrap_or(0).max(settings.curve_to);
-    let target = settings.target_error.map(|t| t * input.diagonal);
+    // Compared as reported (fractions of the diagonal), so that a target read off the curve
+    // stops exactly at its point.
+    let target = settings.target_error;
     let steps = greedy(&problem, &initial, &allowed, |u| near(&input.pool[u]), settings.criterion, |added, predicted| {
-        input.cover.len() + added < horizon || target.is_some_and(|t| predicted > t)
+        input.cover.len() + added < horizon || target.is_some_and(|t| predicted / input.diagonal > t)
     });
 
     let mut added = Vec::new();
     let mut stop = DesignStop::PoolExhausted;
     let mut total = input.cover.len();
-    let mut reached = target.is_some_and(|t| cover_error * input.diagonal <= t);
-    if reached {
+    if target.is_some_and(|t| cover_error <= t) {
         stop = DesignStop::Target;
     } else if settings.landmarks.is_some_and(|m| total >= m) {
         stop = DesignStop::Count;
@@ -418,8 +419,7 @@ pub fn extend_layout(input: &DesignInput, settings: &DesignSettings) -> DesignOu
             continue;
         }
         added.push(vertices);
-        reached = target.is_some_and(|t| step.predicted <= t);
-        if reached {
+        if target.is_some_and(|t| step.predicted / input.diagonal <= t) {
             stop = DesignStop::Target;
         } else if settings.landmarks.is_some_and(|m| total >= m) {
             stop = DesignStop::Count;
