@@ -159,8 +159,8 @@ def conventional_layout(obj, parts):
     return indices, groups
 
 
-def place(landmarks, obj, epsilon, **params):
-    document = landmarks.place_landmarks(obj, epsilon=epsilon, **params)
+def place(module, obj, epsilon, **params):
+    document = module.place_landmarks(obj, epsilon=epsilon, **params)
     return {
         "epsilon": epsilon,
         "landmarks": len(document["landmarks"]),
