@@ -132,11 +132,11 @@ def transfer_module(shapesmith):
     return importlib.import_module(shapesmith.__name__ + ".blender.transfer")
 
 
-def test_the_collision_pass_is_on_by_default_and_lists_what_is_still_worse(sample, shapesmith):
+def test_the_collision_pass_when_ticked_lists_what_is_still_worse(sample, shapesmith):
     s = settings()
-    assert s.collisions and s.collision_margin == pytest.approx(0.25)
+    assert not s.collisions and s.collision_margin == pytest.approx(0.25)
     target = bpy.data.objects["Target_OldMan"]
-    assert transfer_onto(target) == {"FINISHED"}
+    assert transfer_onto(target, collisions=True) == {"FINISHED"}
     result = target.shapesmith.transfer
     assert result.collisions and result.collision_margin == pytest.approx(0.25)
     assert result.collision_resolved > 0, "the pass should re-solve some shapes on a MakeHuman identity"
@@ -175,7 +175,7 @@ def test_a_bad_collision_margin_is_refused_and_the_target_left_alone(sample, sha
     before = snapshot(target)
     for margin in (-0.5, float("nan"), 10.0):
         with pytest.raises(ValueError, match="margin"):
-            transfer.transfer_object(bpy.data.objects["Template"], target, collision_margin=margin)
+            transfer.transfer_object(bpy.data.objects["Template"], target, collisions=True, collision_margin=margin)
     assert snapshot(target) == before
     settings().collision_margin = 10.0  # the panel's field clamps to what the core accepts
     assert settings().collision_margin == pytest.approx(2.0)
@@ -459,18 +459,17 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
     assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "template_penetration", "total"} <= set(
         report["seconds"]
     )
-    assert report["params"]["transfer"]["collisions"]["margin"] == 0.25
+    assert report["params"]["transfer"]["collisions"] is None  # the pass is opt-in
     template_lengths = None
     for target in report["targets"]:
         assert len(target["shapes"]) == 52 and target["virtual_edges"] > 0
         assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "penetration"} <= set(target["seconds"])
         row = target["penetrations"][0]
         assert {"name", "length", "pairs", "template_length", "template_pairs"} <= set(row)
-        # the plain comparison is opt-in; the numbers before the collision pass are there
+        # the plain comparison and the collision pass are opt-in
         assert "plain_length" not in row and target["plain_worse_than_template"] is None
-        assert {"before_collisions_length", "before_collisions_pairs", "collisions"} <= set(row)
+        assert "before_collisions_length" not in row and target["worse_before_collisions"] is None
         assert set(target["worse_than_template"]) <= set(target["penetrations"][k]["name"] for k in range(52))
-        assert len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
         # the template's own numbers are measured once and are the same for every target
         lengths = [r["template_length"] for r in target["penetrations"]]
         assert template_lengths is None or lengths == template_lengths
@@ -521,17 +520,21 @@ def test_batch_collision_flags(sample_path, tmp_path):
     assert target["worse_before_collisions"] is None and isinstance(target["plain_worse_than_template"], list)
     assert "before_collisions_length" not in target["penetrations"][0] and "plain_length" in target["penetrations"][0]
     run_batch(
-        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy",
+        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy", "--collisions",
         "--collision-margin", "0.5", "--json", str(out), check=True,
     )
     report = json.loads(out.read_text())
     assert report["params"]["transfer"]["collisions"]["margin"] == 0.5
+    target = report["targets"][0]
+    row = target["penetrations"][0]
+    assert {"before_collisions_length", "before_collisions_pairs", "collisions"} <= set(row)
+    assert len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
 
 
 @pytest.mark.parametrize(
     "args, message",
     [
-        (("--target", "Target_Boy", "--collision-margin", "-1"), "collision margin must lie in"),
+        (("--target", "Target_Boy", "--collisions", "--collision-margin", "-1"), "collision margin must lie in"),
         (("--target", "Target_Nobody"), "no object named 'Target_Nobody'"),
         (("--target", "Template"), "is the template itself"),
         (("--targets", "Nope_*"), "matches no object"),

@@ -271,7 +271,8 @@ def add_transfer_args(parser):
     parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
     parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
     parser.add_argument(
-        "--no-collisions", action="store_true", help="skip the collision pass (lips, lids, skin through teeth and eyes)"
+        "--collisions", action=argparse.BooleanOptionalAction, default=False,
+        help="run the collision pass (lips, lids, skin through teeth and eyes; off by default, see docs/transfer.md)",
     )
     parser.add_argument(
         "--collision-margin", type=float, default=0.25,
@@ -348,7 +349,7 @@ def run_transfer(args):
                 pack_report=pack_report,
                 beta_reg=args.beta_reg,
                 compare_plain=args.compare_plain,
-                collisions=not args.no_collisions,
+                collisions=args.collisions,
                 collision_margin=args.collision_margin,
                 template_penetration=template_penetration,
             )

@@ -171,7 +171,7 @@ def transfer_object(
     beta_reg=0.1,
     refine_weights=False,
     compare_plain=False,
-    collisions=True,
+    collisions=False,
     collision_margin=0.25,
     template_penetration=None,
     progress=None,

@@ -555,8 +555,7 @@ fn self_transfer_stays_exact_with_the_pass_even_where_the_template_crosses_itsel
     let names = vec!["mouthClose".to_string()];
     let diagonal = crate::rig::bbox_diagonal(&pts);
     for edges in [None, Some(VirtualEdgeParams { tau_d: 0.1, ..Default::default() })] {
-        let params = TransferParams { virtual_edges: edges, ..Default::default() };
-        assert!(params.collisions.is_some());
+        let params = TransferParams { virtual_edges: edges, collisions: Some(CollisionParams::default()), ..Default::default() };
         let out = DeformationTransfer::new(&pts, &pts, &tris, &params).unwrap().transfer(&closing, &names, &NoProgress).unwrap();
         assert!(max_error(&out.deltas, &closing) < 1e-5 * diagonal, "{}", max_error(&out.deltas, &closing));
         assert_eq!(out.collisions.unwrap()[0].solves, 0);
