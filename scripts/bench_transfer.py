@@ -146,7 +146,7 @@ def penetration_benchmark(transfer_module, landmarks_module, rig, template, targ
     result = {}
     for target in targets:
         transfer = transfer_module.transfer_object(
-            template, target, compare_plain=True, template_penetration=template_penetration
+            template, target, compare_plain=True, collisions=True, template_penetration=template_penetration
         )
         report = transfer.report
         rows = report["penetration"]
@@ -204,7 +204,7 @@ def edge_weight_sweep(transfer_module, template, targets, weights=(0.0, 1.0, 3.0
         row = {}
         for target in targets:
             report = transfer_module.transfer_object(
-                template, target, virtual_edges=weight > 0, edge_weight=max(weight, 1e-9),
+                template, target, virtual_edges=weight > 0, edge_weight=max(weight, 1e-9), collisions=True,
                 template_penetration=template_penetration,
             ).report
             summary = added_summary(transfer_module, report)
@@ -332,7 +332,7 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
     with_pass = best(measure_penetration=False, collisions=True)
     reported = best(measure_penetration=True, collisions=True, template_penetration=template_penetration)
     _, report = nat.transfer_shapes(
-        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, compare_plain=True,
+        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, compare_plain=True, collisions=True,
         template_penetration=template_penetration,
     )
     report["diagonal"] = float(np.linalg.norm(neutral.max(0) - neutral.min(0)))

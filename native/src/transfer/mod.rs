@@ -96,8 +96,11 @@
 //!   the template from 11 / 19 / 28 (virtual edges alone; plain 19 / 30 / 28) to
 //!   7 / 12 / 16, but it is slow (1.0 s for the 52 shapes of the 4.9k bundled head against
 //!   0.08 s without it: the artist's-own check tests about 170 triangle pairs per crossing
-//!   pair) and it raises the warp ground-truth error from 2.67e-3 to 3.26e-3 (the 5% bound
-//!   of issue 9 is not met). Both are open.
+//!   pair; 10.3 s on the 25k head), it raises the warp ground-truth error from 2.67e-3 to
+//!   3.26e-3 (the 5% bound of issue 9 is not met), and on the 19k and 25k subdivisions of
+//!   Target_Boy it makes things worse (13 -> 20 and 19 shapes, added curve 0.27 -> 2.43 m and
+//!   0.31 -> 2.83 m: pushed lip rows fold into their unconstrained neighbours). Hence
+//!   [`TransferParams::collisions`] defaults to `None` (off) everywhere until that is fixed.
 //! - **Personalisation** follows EBFR in the gradient domain: per triangle, the K target
 //!   gradients minimise `sum_j |sum_k alpha_jk M_k - A_j|^2 + beta sum_k w_k |M_k - S_k|^2`
 //!   with EBFR's adaptive weight `w_k = ((1 + |S_k|) / (kappa + |S_k|))^theta`, normalised
