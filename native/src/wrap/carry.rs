@@ -1,17 +1,19 @@
 //! Shapes of the wrapped template carried onto the character's own vertices: each character
 //! triangle samples the deformation gradient of the wrapped template's triangle under its
-//! centroid (closest point), and one Poisson solve on the character's mesh integrates them
-//! (deformation transfer, Sumner & Popovic 2004, across topologies through a surface
-//! binding). SPEC section 5, "Carry to the character".
+//! centroid (closest point among the triangles facing the same way), and one screened
+//! Poisson solve on the character's mesh integrates them (deformation transfer, Sumner &
+//! Popovic 2004, across topologies through a surface binding). SPEC section 5, "Carry to the
+//! character".
 //!
 //! Per shape `k`, over the character's deltas `d` (gradient form, Botsch et al. 2006):
 //! $$ \min_d \sum_t a_t \Big\| \sum_{i \in t} d_i \nabla\phi_i^\top - H_{k,s(t)} \Big\|_F^2,
 //!    \qquad H_{k,s} = \tilde V_{k,s} V_s^{-1} - I $$
 //! `s(t)` the template triangle bound to character triangle `t`, `V` the edge frames (S&P
-//! Eq. (3)). Normal equations `L d = b`, `L_ij = sum_t a_t grad phi_i . grad phi_j` (the
-//! cotangent Laplacian of the character, assembled and ordered once),
-//! `b_j = sum_t a_t H_t grad phi_j`. Character vertices whose binding lies on static template
-//! vertices are Dirichlet at zero.
+//! Eq. (3)), plus the screening `sum_v m_v / l^2 |d_v - c_v|^2` towards the barycentric copy
+//! `c` (see [`CarryParams::anchor_length`]). Normal equations `(L + M / l^2) d = b + M c / l^2`,
+//! `L_ij = sum_t a_t grad phi_i . grad phi_j` (the cotangent Laplacian of the character,
+//! assembled and ordered once), `M` the lumped mass, `b_j = sum_t a_t H_t grad phi_j`.
+//! Character vertices whose binding lies on static template vertices are Dirichlet at zero.
 
 use std::time::Instant;
 
