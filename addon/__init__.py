@@ -19,6 +19,7 @@ _MODULE_NAMES = (
     "operators.score_layout",
     "operators.export_landmarks",
     "operators.render_landmarks",
+    "operators.render_landmark_curve",
     "operators.preview_virtual_edges",
     "operators.transfer_shape_keys",
     "operators.wrap_pairs",
