@@ -267,3 +267,46 @@ def test_batch_bad_pairs_exit_2_with_one_line(sample_path, tmp_path, pairs, mess
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], proc.stderr
     assert file_digest(sample_path) == digest and not (tmp_path / "o.blend").exists()
+
+
+def test_point_pairs_are_added_from_a_selected_vertex_and_the_snapped_cursor(sample, shapesmith):
+    template, obj = bpy.data.objects["Template"], bpy.data.objects["Character_YoungWoman"]
+    bpy.context.scene.shapesmith.transfer.source = template
+    for mesh_object, chosen in ((template, 10), (obj, None)):
+        selection = np.zeros(len(mesh_object.data.vertices), dtype=bool)
+        if chosen is not None:
+            selection[chosen] = True
+        mesh_object.data.vertices.foreach_set("select", selection)
+    # The cursor a little off the character's vertex 5 (world space): snapped back onto its surface.
+    vertex = obj.matrix_world @ obj.data.vertices[5].co
+    bpy.context.scene.cursor.location = vertex + (vertex - obj.matrix_world.translation).normalized() * 0.002
+    make_active(obj)
+    count = len(obj.shapesmith_wrap.pairs)
+    assert bpy.ops.shapesmith.add_point_pair(name="nose tip") == {"FINISHED"}
+    pair = obj.shapesmith_wrap.pairs[-1]
+    assert len(obj.shapesmith_wrap.pairs) == count + 1 and pair.name == "nose tip"
+    assert pair.template_vertex == 10 and pair.character_vertex == -1
+    assert np.allclose(pair.template_co, template.data.vertices[10].co, atol=1e-6)
+    # On the surface, near the vertex the cursor was put by (character units: centimetres).
+    assert np.linalg.norm(np.array(pair.character_co) - np.array(obj.data.vertices[5].co)) < 0.5
+    assert bpy.ops.shapesmith.add_point_pair() == {"FINISHED"}
+    assert bpy.ops.shapesmith.remove_point_pair() == {"FINISHED"}
+    assert len(obj.shapesmith_wrap.pairs) == count + 1
+    assert bpy.ops.shapesmith.clear_point_pairs() == {"FINISHED"}
+    assert len(obj.shapesmith_wrap.pairs) == 0
+
+
+def test_point_pairs_load_from_json_and_a_bad_file_changes_nothing(sample, shapesmith, tmp_path):
+    obj = bpy.data.objects["Character_YoungWoman"]
+    bpy.context.scene.shapesmith.transfer.source = bpy.data.objects["Template"]
+    make_active(obj)
+    good, bad = tmp_path / "good.json", tmp_path / "bad.json"
+    good.write_text(json.dumps([[0, 0], [1, 1], [2, [1.0, 2.0, 3.0]], [3, 3]]))
+    bad.write_text(json.dumps([[0, 0], [1, 10**9]]))
+    assert bpy.ops.shapesmith.load_point_pairs(filepath=str(good)) == {"FINISHED"}
+    pairs = obj.shapesmith_wrap.pairs
+    assert [(p.template_vertex, p.character_vertex) for p in pairs] == [(0, 0), (1, 1), (2, -1), (3, 3)]
+    assert tuple(pairs[2].character_co) == (1.0, 2.0, 3.0)
+    with pytest.raises(RuntimeError, match="out of range"):
+        bpy.ops.shapesmith.load_point_pairs(filepath=str(bad))
+    assert len(obj.shapesmith_wrap.pairs) == 4
