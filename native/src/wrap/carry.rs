@@ -13,7 +13,8 @@
 //! `c` (see [`CarryParams::anchor_length`]). Normal equations `(L + M / l^2) d = b + M c / l^2`,
 //! `L_ij = sum_t a_t grad phi_i . grad phi_j` (the cotangent Laplacian of the character,
 //! assembled and ordered once), `M` the lumped mass, `b_j = sum_t a_t H_t grad phi_j`.
-//! Character vertices whose binding lies on static template vertices are Dirichlet at zero.
+//! One factorisation serves all shapes; character vertices whose binding lies on static
+//! template vertices are then set to zero (see the module's Deviations).
 
 use std::time::Instant;
 
@@ -153,6 +154,8 @@ pub fn carry_shapes(
     entries.extend(anchor.iter().enumerate().map(|(v, &w)| (v, v, w)));
     let laplacian = SymmetricMatrix::from_triplets(nc, entries);
     let order = laplacian.fill_reducing_order()?;
+    // Screened, the matrix is definite as it is: one factorisation serves every shape.
+    let whole = if screening > 0.0 { Some(laplacian.factor(&order)?) } else { None };
     let rest_inverse: Vec<Option<Mat3>> = template_triangles.iter().map(|t| inverse(&edge_frame(t.map(|v| template[v as usize])))).collect();
     let (piece, n_pieces) = connected_components(nc, character_triangles);
     let diagonal = crate::rig::bbox_diagonal(character).max(f64::MIN_POSITIVE);
@@ -174,6 +177,7 @@ pub fn carry_shapes(
                 &triangle_binding,
                 &laplacian,
                 &order,
+                whole.as_ref(),
                 &anchor,
                 (&piece, n_pieces),
                 params.static_fraction,
@@ -223,6 +227,7 @@ impl Shape<'_> {
         triangle_binding: &[u32],
         laplacian: &SymmetricMatrix,
         order: &[usize],
+        whole: Option<&crate::sparse::Cholesky>,
         anchor: &[f64],
         (piece, n_pieces): (&[u32], usize),
         static_fraction: f64,
@@ -261,7 +266,7 @@ impl Shape<'_> {
         let mut position = vec![u32::MAX; nc];
         let mut kept = 0usize;
         for v in 0..nc {
-            if !static_vertex[v] {
+            if whole.is_some() || !static_vertex[v] {
                 position[v] = kept as u32;
                 kept += 1;
             }
@@ -288,9 +293,12 @@ impl Shape<'_> {
                     rhs[p as usize] = add(rhs[p as usize], copied[v].map(|x| x * anchor[v]));
                 }
             }
-            let solved = laplacian.factor_restricted(&position, kept, order)?.solve_points(&rhs);
+            let solved = match whole {
+                Some(factor) => factor.solve_points(&rhs),
+                None => laplacian.factor_restricted(&position, kept, order)?.solve_points(&rhs),
+            };
             for v in 0..nc {
-                if position[v] != u32::MAX {
+                if position[v] != u32::MAX && !static_vertex[v] {
                     deltas[v] = solved[position[v] as usize];
                 }
             }

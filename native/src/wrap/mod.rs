@@ -44,18 +44,19 @@
 //! - **The carry is screened towards the barycentric copy.** Pure gradient integration
 //!   (SPEC) carries every error of a sampled gradient to everything between it and the static
 //!   region: on a decimated MakeHuman identity it gave 4.8e-3 of the diagonal against the
-//!   same-topology transfer, worse than the nearest-vertex copy (2.3e-3). With the screening
+//!   same-topology transfer, worse than the nearest-vertex copy (2.2e-3). With the screening
 //!   `m_v / l^2 |d_v - c_v|^2` (`l` = 2 template edges: the copy sets the shape above that
 //!   scale, the gradients below it, so no template edge shows as a crease) and bindings
 //!   restricted to triangles whose normals agree (an upper lip never samples the lower lip it
-//!   touches), 2.0e-3, below the nearest-vertex (2.2e-3) and barycentric (2.4e-3) copies
+//!   touches), 1.7e-3, below the nearest-vertex (2.2e-3) and barycentric (2.4e-3) copies
 //!   (`blender_tests/test_wrap.py`). `anchor_length = 0` is the pure Poisson solve.
-//! - **The carry factorises per shape on its moving vertices.** SPEC asks for one
-//!   factorisation for all shapes with the character static where the template is static;
-//!   "static" differs per shape, so, as in `transfer` (its Deviations), the Laplacian is
-//!   assembled and ordered (AMD) once and each shape factorises the principal submatrix on
-//!   its own moving vertices: static vertices are exact zeros, and most face units move a
-//!   small part of the head.
+//! - **Static vertices are zeroed after the solve.** Screened, the system is definite on its
+//!   own, so it is factorised once for all shapes (SPEC) and every shape is one
+//!   back-substitution; the character's vertices bound to static template vertices are then
+//!   set to exactly zero. Their solved values are already near zero (the copy there is zero
+//!   and the screening damps the moving region's influence within a few template edges).
+//!   With `anchor_length = 0` each shape instead factorises the principal submatrix on its
+//!   moving vertices (Dirichlet elimination, as in `transfer`).
 
 mod align;
 mod carry;
