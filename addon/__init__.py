@@ -8,6 +8,7 @@ import importlib
 _MODULE_NAMES = (
     "preferences",
     "properties",
+    "wrap_properties",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
     "operators.pack_expressions",
@@ -21,9 +22,13 @@ _MODULE_NAMES = (
     "operators.render_landmark_curve",
     "operators.preview_virtual_edges",
     "operators.transfer_shape_keys",
+    "operators.wrap_pairs",
+    "operators.wrap_template",
+    "operators.transfer_onto_character",
     "ui.panels",
     "ui.pack_panel",
     "ui.transfer_panel",
+    "ui.wrap_panel",
 )
 
 _modules = []

@@ -48,9 +48,11 @@ def shapesmith():
 
 @pytest.fixture(scope="session")
 def sample_path():
-    """sample.blend for this Blender version, built by `batch.py sample` when missing."""
+    """sample.blend for this Blender version and this scripts/makehuman.py (its digest is in
+    the name, so a changed sample never reuses an older cached file), built by
+    `batch.py sample` when missing."""
     version = "%d.%d" % bpy.app.version[:2]
-    path = os.path.join(CACHE, f"sample-{version}.blend")
+    path = os.path.join(CACHE, f"sample-{version}-{sample_version()}.blend")
     if not os.path.isfile(path):
         run_batch("sample", "--output", path, check=True)
     return path
@@ -61,6 +63,13 @@ def sample(sample_path, shapesmith):
     """A fresh copy of the sample file opened in this Blender; returns its path."""
     bpy.ops.wm.open_mainfile(filepath=sample_path)
     return sample_path
+
+
+def sample_version():
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import makehuman
+
+    return makehuman.sample_version()
 
 
 def make_active(obj):

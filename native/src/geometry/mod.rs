@@ -1,6 +1,8 @@
-//! Geometry shared by the three tools.
+//! Geometry shared by the tools.
 
 pub mod bvh;
+pub mod closest_point;
+pub mod mat3;
 pub mod mirror;
 pub mod neighbours;
 pub mod topology;

@@ -8,6 +8,7 @@ mod landmarks;
 mod packing;
 mod run;
 mod transfer;
+mod wrap;
 
 use pyo3::prelude::*;
 
@@ -19,5 +20,6 @@ fn shapesmith_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     packing::register(m)?;
     landmarks::register(m)?;
     transfer::register(m)?;
+    wrap::register(m)?;
     Ok(())
 }

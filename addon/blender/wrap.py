@@ -1,0 +1,269 @@
+"""Wrap as plain functions: the operators and `scripts/batch.py wrap` both call them.
+
+The chain: point pairs -> `native.wrap_template` (similarity, then non-rigid fit) -> a
+wrapped template object (template topology, the character's shape) -> the same-topology
+transfer onto it (`transfer.transfer_object`) -> `native.carry_shapes` onto the character's
+own vertices -> `shape_keys.write_transferred_keys` (nothing is written before everything
+has succeeded)."""
+
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import native
+from .mesh_arrays import MeshDataError, check_mesh, read_triangles
+from .transfer import Transfer, face_corners, rest_positions, transfer_object
+
+# A custom property holding point pairs in the JSON form of `batch.py wrap --pairs`.
+PAIRS_PROPERTY = "shapesmith_wrap_pairs"
+# The distance (relative to the character's bbox diagonal) drawn fully red on the wrapped template.
+HEAT_RANGE = 0.01
+
+
+@dataclass
+class Wrapped:
+    """A solved wrap: the wrapped template's positions (template topology, character space)
+    and the native fit report."""
+
+    template: object
+    character: object
+    positions: np.ndarray
+    report: dict
+    seconds: dict = field(default_factory=dict)
+
+
+def read_surface(obj, what):
+    """(rest positions (N, 3), triangles (T, 3)) of a mesh, or MeshDataError naming `what`."""
+    if obj is None:
+        raise MeshDataError(f"no {what} chosen")
+    check_mesh(obj, need_shape_keys=False)
+    return rest_positions(obj), read_triangles(obj)
+
+
+def _as_points(obj, positions, values, what, index):
+    """A pair entry as a local point: a vertex index in range, or three finite numbers."""
+    if isinstance(values, bool):
+        raise MeshDataError(f"pair {index + 1}: the {what} entry must be a vertex index or [x, y, z], got {values!r}")
+    if isinstance(values, int):
+        if not 0 <= values < len(positions):
+            raise MeshDataError(
+                f"pair {index + 1}: vertex {values} is out of range for '{obj.name}' ({len(positions)} vertices)"
+            )
+        return positions[values]
+    try:
+        point = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        point = None
+    if point is None or point.shape != (3,):
+        raise MeshDataError(f"pair {index + 1}: the {what} entry must be a vertex index or [x, y, z], got {values!r}")
+    if not np.all(np.isfinite(point)):
+        raise MeshDataError(f"pair {index + 1}: the {what} point {values!r} is not finite")
+    return point
+
+
+def pairs_from_list(entries, template, character):
+    """Point pairs (template (P, 3), character (P, 3), float32 local points) from
+    `[[template_vertex, character_vertex], ...]` or `[[[x, y, z], [x, y, z]], ...]`."""
+    if not isinstance(entries, list) or any(not isinstance(e, (list, tuple)) or len(e) != 2 for e in entries):
+        raise MeshDataError("point pairs must be a list of [template, character] entries (vertex indices or [x, y, z])")
+    template_positions, character_positions = rest_positions(template), rest_positions(character)
+    template_points = [_as_points(template, template_positions, e[0], "template", i) for i, e in enumerate(entries)]
+    character_points = [_as_points(character, character_positions, e[1], "character", i) for i, e in enumerate(entries)]
+    shape = (len(entries), 3)
+    return (
+        np.ascontiguousarray(np.reshape(template_points, shape), dtype=np.float32),
+        np.ascontiguousarray(np.reshape(character_points, shape), dtype=np.float32),
+    )
+
+
+def pairs_from_json(path, template, character):
+    try:
+        with open(path) as f:
+            entries = json.load(f)
+    except OSError as error:
+        raise MeshDataError(f"cannot read the point pairs file {path}: {error.strerror}")
+    except json.JSONDecodeError as error:
+        raise MeshDataError(f"the point pairs file {path} is not JSON: {error}")
+    return pairs_from_list(entries, template, character)
+
+
+def stored_pairs(character, template):
+    """The pairs stored on the character (`shapesmith_wrap.pairs`) as two (P, 3) arrays.
+    Pairs given as the custom property `shapesmith_wrap_pairs` (the `--pairs` JSON form, as
+    scripts write them) are imported into the list first when the list is empty."""
+    pairs = character.shapesmith_wrap.pairs
+    if not len(pairs) and PAIRS_PROPERTY in character.keys():
+        try:
+            entries = json.loads(character[PAIRS_PROPERTY])
+        except (TypeError, json.JSONDecodeError) as error:
+            raise MeshDataError(f"the custom property '{PAIRS_PROPERTY}' of '{character.name}' is not JSON: {error}")
+        store_pairs(character, entries, template)
+    template_points = np.array([p.template_co for p in pairs], dtype=np.float32).reshape(-1, 3)
+    character_points = np.array([p.character_co for p in pairs], dtype=np.float32).reshape(-1, 3)
+    return template_points, character_points
+
+
+def store_pairs(character, entries, template, names=None):
+    """Replaces the character's stored pairs with `entries` (the JSON forms); vertex entries
+    keep their index."""
+    template_points, character_points = pairs_from_list(entries, template, character)
+    pairs = character.shapesmith_wrap.pairs
+    pairs.clear()
+    for i, (entry, p, q) in enumerate(zip(entries, template_points, character_points)):
+        pair = pairs.add()
+        pair.name = names[i] if names else f"Pair {i + 1}"
+        pair.template_vertex = entry[0] if isinstance(entry[0], int) else -1
+        pair.character_vertex = entry[1] if isinstance(entry[1], int) else -1
+        pair.template_co, pair.character_co = p.tolist(), q.tolist()
+    character.shapesmith_wrap.active_pair = max(len(pairs) - 1, 0)
+
+
+def wrap_object(template, character, template_points, character_points, *, align_only=False, progress=None):
+    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing."""
+    started = time.perf_counter()
+    if character is None or template is None:
+        raise MeshDataError("pick a template and make the character the active mesh")
+    if character == template or character.data == template.data:
+        raise MeshDataError(f"the character '{character.name}' is the template itself: pick another mesh")
+    template_neutral, template_triangles = read_surface(template, "template")
+    character_neutral, character_triangles = read_surface(character, "character")
+    read = time.perf_counter()
+    positions, report = native.module().wrap_template(
+        template_neutral,
+        template_triangles,
+        character_neutral,
+        character_triangles,
+        np.ascontiguousarray(template_points, dtype=np.float32).reshape(-1, 3),
+        np.ascontiguousarray(character_points, dtype=np.float32).reshape(-1, 3),
+        align_only=align_only,
+        progress=progress,
+    )
+    seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
+    return Wrapped(template, character, positions, report, seconds)
+
+
+def wrapped_name(template, character):
+    return f"{character.name}_Wrapped_{template.name}"
+
+
+def show_wrapped(wrapped):
+    """The wrapped template as an object `<character>_Wrapped_<template>` (template faces, no
+    shape keys) placed over the character, with its distance to the character as the colour
+    attribute `wrap_distance` (blue on the surface, red at 1% of the diagonal or more) and
+    the raw distance / diagonal as the float attribute `wrap_distance_value`. An earlier one is
+    replaced."""
+    import bpy
+
+    template, character = wrapped.template, wrapped.character
+    name = wrapped_name(template, character)
+    # A new mesh with the template's faces (same corners, so the transfer sees the same
+    # topology), not a copy: a copied mesh would drag along a shape-key block without owner.
+    sizes, corners = face_corners(template)
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(wrapped.positions.tolist(), [], [corners[a:a + n].tolist() for a, n in zip(starts, sizes)])
+    obj = bpy.data.objects.get(name)
+    if obj is None:
+        obj = bpy.data.objects.new(name, mesh)
+        collection = character.users_collection[0] if character.users_collection else bpy.context.scene.collection
+        collection.objects.link(obj)
+    else:
+        old = obj.data
+        obj.data = mesh
+        if old.users == 0:
+            bpy.data.meshes.remove(old)
+    character_neutral, character_triangles = read_surface(character, "character")
+    _, _, distance = native.module().bind_to_surface(
+        np.ascontiguousarray(wrapped.positions, dtype=np.float32), character_neutral, character_triangles
+    )
+    relative = distance / max(wrapped.report["diagonal"], 1e-30)
+    for attribute in ("wrap_distance", "wrap_distance_value"):
+        if attribute in mesh.attributes:
+            mesh.attributes.remove(mesh.attributes[attribute])
+    values = mesh.attributes.new("wrap_distance_value", "FLOAT", "POINT")
+    values.data.foreach_set("value", relative.astype(np.float32))
+    colours = mesh.color_attributes.new("wrap_distance", "FLOAT_COLOR", "POINT")
+    colours.data.foreach_set("color", heat_colours(relative / HEAT_RANGE).ravel())
+    mesh.color_attributes.active_color = colours
+    mesh.update()
+    obj.matrix_world = character.matrix_world.copy()
+    obj.show_in_front = False
+    character.shapesmith_wrap.wrapped = obj
+    return obj
+
+
+def heat_colours(t):
+    """RGBA (N, 4) float32 from blue (0) through green and yellow to red (>= 1)."""
+    t = np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)
+    stops = np.array([[0.05, 0.15, 0.9], [0.1, 0.8, 0.3], [0.95, 0.85, 0.1], [0.9, 0.1, 0.05]])
+    position = t * (len(stops) - 1)
+    lower = np.minimum(position.astype(int), len(stops) - 2)
+    fraction = (position - lower)[:, None]
+    rgb = stops[lower] * (1 - fraction) + stops[lower + 1] * fraction
+    return np.concatenate([rgb, np.ones((len(t), 1))], axis=1).astype(np.float32)
+
+
+def store_wrap(wrapped, stage):
+    """Keeps the fit's summary on the character (the panel shows it)."""
+    result = wrapped.character.shapesmith_wrap
+    report = wrapped.report
+    result.done = True
+    result.stage = stage
+    result.template = wrapped.template.name
+    result.alignment = report["alignment"]
+    result.mean_distance = report["mean_distance"]
+    result.max_distance = report["max_distance"]
+    result.max_pair_residual = max(report["pair_residuals"], default=0.0)
+    result.seconds = sum(wrapped.seconds.values())
+
+
+def carry_onto_character(template, character, wrapped_object, *, transfer_options=None, seconds=None, progress=None):
+    """Transfers the template's keys onto the wrapped template object (same topology, with
+    the transfer's virtual edges and options), then carries them onto the character's own
+    vertices. Returns a `transfer.Transfer` whose target is the character, ready for
+    `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
+    started = time.perf_counter()
+    onto_wrapped = transfer_object(template, wrapped_object, progress=progress, **(transfer_options or {}))
+    transferred = time.perf_counter()
+    character_neutral, character_triangles = read_surface(character, "character")
+    deltas, carry_report = native.module().carry_shapes(
+        np.ascontiguousarray(rest_positions(wrapped_object)),
+        read_triangles(wrapped_object),
+        np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
+        character_neutral,
+        character_triangles,
+        progress=progress,
+    )
+    report = dict(onto_wrapped.report)
+    report["carry"] = carry_report
+    report["diagonal"] = float(np.linalg.norm(character_neutral.max(0) - character_neutral.min(0)))
+    stage_seconds = dict(seconds or {})
+    stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
+    stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
+    stage_seconds["carry"] = time.perf_counter() - transferred
+    report["stage_seconds"] = stage_seconds
+    return Transfer(template, character, onto_wrapped.names, character_neutral, deltas, report, {}, list(onto_wrapped.warnings))
+
+
+def remove_object(obj):
+    import bpy
+
+    mesh = obj.data
+    bpy.data.objects.remove(obj)
+    if mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
+
+
+def summary_lines(wrapped):
+    report = wrapped.report
+    lines = [
+        f"'{wrapped.template.name}' wrapped onto '{wrapped.character.name}' ({report['alignment']}, {report['pairs']} pairs): "
+        f"mean distance {100 * report['mean_distance']:.3f}% of the diagonal, max {100 * report['max_distance']:.2f}%",
+    ]
+    similarity = report["similarity"]
+    lines.append(f"similarity: scale {similarity['scale']:.4g}, translation {[round(x, 4) for x in similarity['translation']]}")
+    if report["pair_residuals"]:
+        lines.append(f"pair residuals: max {100 * max(report['pair_residuals']):.3f}% of the diagonal")
+    return lines + [f"warning: {w}" for w in report["warnings"]]

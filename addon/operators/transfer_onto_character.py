@@ -1,0 +1,71 @@
+"""Transfer onto Character: the template's keys transferred onto the wrapped template (same
+topology, with the Transfer panel's options) and carried onto the character's own vertices,
+solved in full before anything is written."""
+
+import bpy
+
+from ..blender.shape_keys import write_transferred_keys
+from ..blender.wrap import carry_onto_character
+from .base import expected_errors, poll_mesh, progress_cursor
+
+
+class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
+    bl_idname = "shapesmith.transfer_onto_character"
+    bl_label = "Transfer onto Character"
+    bl_description = (
+        "Transfer the template's shape keys onto the wrapped template, then carry them onto the active "
+        "character's own vertices (any topology)"
+    )
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not poll_mesh(cls, context):
+            return False
+        settings = context.active_object.shapesmith_wrap
+        template = context.scene.shapesmith.transfer.source
+        if template is None:
+            cls.poll_message_set("Pick the template in the Transfer panel")
+            return False
+        if settings.stage != "WRAP" or settings.wrapped is None or settings.template != template.name:
+            cls.poll_message_set("Wrap the template onto this character first")
+            return False
+        return True
+
+    def execute(self, context):
+        character = context.active_object
+        settings = context.scene.shapesmith.transfer
+        template = settings.source
+        wrapped_object = character.shapesmith_wrap.wrapped
+        try:
+            with progress_cursor(context) as progress:
+                result = carry_onto_character(
+                    template,
+                    character,
+                    wrapped_object,
+                    transfer_options={
+                        "virtual_edges": settings.virtual_edges,
+                        "tau_d": settings.tau_d,
+                        "tau_r": settings.tau_r,
+                        "edge_weight": settings.edge_weight,
+                    },
+                    progress=progress,
+                )
+            written, skipped, warnings = write_transferred_keys(result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers)
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        character.shapesmith_wrap.written = len(written)
+        for warning in result.warnings + warnings:
+            self.report({"WARNING"}, warning)
+        seconds = result.report["stage_seconds"]
+        self.report(
+            {"INFO"},
+            f"{len(written)} shape keys written onto '{character.name}'"
+            + (f", {len(skipped)} existing kept" if skipped else "")
+            + f" (transfer {seconds['transfer']:.2f} s, carry {seconds['carry']:.2f} s)",
+        )
+        return {"FINISHED"}
+
+
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_transfer_onto_character,))

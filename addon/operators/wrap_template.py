@@ -1,0 +1,69 @@
+"""Align and Wrap: the template fitted onto the active character, shown as an object
+`<character>_Wrapped_<template>` coloured by its distance to the character, so the fit can be
+inspected before any key is written."""
+
+import bpy
+
+from ..blender.wrap import show_wrapped, stored_pairs, store_wrap, wrap_object
+from .base import expected_errors, poll_mesh, progress_cursor
+
+
+class WrapOperator:
+    bl_options = {"REGISTER", "UNDO"}
+    align_only = False
+
+    @classmethod
+    def poll(cls, context):
+        if not poll_mesh(cls, context):
+            return False
+        template = context.scene.shapesmith.transfer.source
+        if template is None or template == context.active_object:
+            cls.poll_message_set("Pick the template in the Transfer panel and make the character active")
+            return False
+        return True
+
+    def execute(self, context):
+        character = context.active_object
+        template = context.scene.shapesmith.transfer.source
+        try:
+            template_points, character_points = stored_pairs(character, template)
+            with progress_cursor(context) as progress:
+                wrapped = wrap_object(
+                    template, character, template_points, character_points, align_only=self.align_only, progress=progress
+                )
+            show_wrapped(wrapped)
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        store_wrap(wrapped, "ALIGN" if self.align_only else "WRAP")
+        for warning in wrapped.report["warnings"]:
+            self.report({"WARNING"}, warning)
+        report = wrapped.report
+        self.report(
+            {"INFO"},
+            f"{'aligned' if self.align_only else 'wrapped'} '{template.name}' onto '{character.name}': mean distance "
+            f"{100 * report['mean_distance']:.3f}% of the diagonal, max {100 * report['max_distance']:.2f}%",
+        )
+        return {"FINISHED"}
+
+
+class SHAPESMITH_OT_align_template(WrapOperator, bpy.types.Operator):
+    bl_idname = "shapesmith.align_template"
+    bl_label = "Align"
+    bl_description = (
+        "Move, turn and scale the template onto the active character from the point pairs (no pairs: "
+        "a guess from the principal axes), shown as a wrapped-template object"
+    )
+    align_only = True
+
+
+class SHAPESMITH_OT_wrap_template(WrapOperator, bpy.types.Operator):
+    bl_idname = "shapesmith.wrap_template"
+    bl_label = "Wrap"
+    bl_description = (
+        "Align, then fit the template's surface onto the active character (non-rigid ICP guided by the "
+        "point pairs); the wrapped template is coloured by its distance to the character"
+    )
+
+
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_OT_align_template, SHAPESMITH_OT_wrap_template))

@@ -1,0 +1,60 @@
+"""The Wrap sub-panel of Transfer: point pairs between the template and the active
+character, Align and Wrap (the wrapped template shown as an object coloured by its distance
+to the character), then Transfer onto Character."""
+
+import bpy
+
+from .panels import ShapesmithPanel
+
+
+class SHAPESMITH_UL_point_pairs(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        row = layout.row(align=True)
+        row.prop(item, "name", text="", emboss=False)
+        describe = lambda vertex: f"v{vertex}" if vertex >= 0 else "surface"  # noqa: E731
+        row.label(text=f"{describe(item.template_vertex)} -> {describe(item.character_vertex)}")
+
+
+class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
+    bl_label = "Wrap (any topology)"
+    bl_parent_id = "SHAPESMITH_PT_transfer"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        template = context.scene.shapesmith.transfer.source
+        obj = context.active_object
+        if obj is None or obj.type != "MESH":
+            layout.label(text="Make the character (a mesh) active", icon="INFO")
+            return
+        layout.label(text=f"Template: {template.name if template else 'none (pick it above)'}", icon="MESH_DATA")
+        layout.label(text=f"Character: {obj.name}", icon="USER")
+        settings = obj.shapesmith_wrap
+        layout.label(text=f"Point pairs: {len(settings.pairs)} (at least 4; none = rough guess)")
+        row = layout.row()
+        row.template_list("SHAPESMITH_UL_point_pairs", "", settings, "pairs", settings, "active_pair", rows=4)
+        col = row.column(align=True)
+        col.operator("shapesmith.add_point_pair", icon="ADD", text="")
+        col.operator("shapesmith.remove_point_pair", icon="REMOVE", text="")
+        col.operator("shapesmith.clear_point_pairs", icon="X", text="")
+        col.operator("shapesmith.load_point_pairs", icon="FILEBROWSER", text="")
+        if 0 <= settings.active_pair < len(settings.pairs):
+            pair = settings.pairs[settings.active_pair]
+            box = layout.box().column(align=True)
+            box.prop(pair, "template_co")
+            box.prop(pair, "character_co")
+        row = layout.row(align=True)
+        row.operator("shapesmith.align_template", icon="ORIENTATION_GLOBAL")
+        row.operator("shapesmith.wrap_template", icon="MOD_SHRINKWRAP")
+        layout.operator("shapesmith.transfer_onto_character", icon="SHAPEKEY_DATA")
+        if settings.done:
+            box = layout.box().column(align=True)
+            box.label(text=f"{settings.stage.title()} of '{settings.template}' ({settings.alignment})")
+            box.label(text=f"Mean distance: {100 * settings.mean_distance:.3f}% of the diagonal")
+            box.label(text=f"Max distance: {100 * settings.max_distance:.2f}%")
+            box.label(text=f"Largest pair residual: {100 * settings.max_pair_residual:.3f}%")
+            if settings.written:
+                box.label(text=f"Shape keys written: {settings.written}", icon="CHECKMARK")
+
+
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_UL_point_pairs, SHAPESMITH_PT_wrap))

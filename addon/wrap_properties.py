@@ -1,0 +1,45 @@
+"""Wrap data stored on the character object (`Object.shapesmith_wrap`): its point pairs with
+the template, and the last fit's summary. Kept apart from `properties.py` so the Wrap tool
+registers and evolves on its own."""
+
+import bpy
+
+
+class SHAPESMITH_PG_point_pair(bpy.types.PropertyGroup):
+    """One pair: a point on the template and the same feature on the character, each in its
+    object's local space (the vertex index too when the point is a vertex, else -1)."""
+
+    # `name` (built in) labels the pair: "nose tip", "mouth corner L".
+    template_vertex: bpy.props.IntProperty(name="Template Vertex", default=-1, min=-1)
+    character_vertex: bpy.props.IntProperty(name="Character Vertex", default=-1, min=-1)
+    template_co: bpy.props.FloatVectorProperty(name="On Template", size=3, subtype="XYZ")
+    character_co: bpy.props.FloatVectorProperty(name="On Character", size=3, subtype="XYZ")
+
+
+class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
+    pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_point_pair)
+    active_pair: bpy.props.IntProperty(name="Active Pair", default=0)
+    # The last Align or Wrap on this character.
+    done: bpy.props.BoolProperty(default=False)
+    stage: bpy.props.StringProperty(description="ALIGN or WRAP")
+    template: bpy.props.StringProperty(description="The template that was wrapped")
+    alignment: bpy.props.StringProperty(description="pairs or principal axes")
+    mean_distance: bpy.props.FloatProperty(description="Mean distance to the character / bbox diagonal")
+    max_distance: bpy.props.FloatProperty(description="Largest distance to the character / bbox diagonal")
+    max_pair_residual: bpy.props.FloatProperty(description="Largest pair residual / bbox diagonal")
+    wrapped: bpy.props.PointerProperty(type=bpy.types.Object, description="The wrapped template object")
+    written: bpy.props.IntProperty(description="Shape keys written by the last Transfer onto Character")
+    seconds: bpy.props.FloatProperty()
+
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory((SHAPESMITH_PG_point_pair, SHAPESMITH_PG_wrap))
+
+
+def register():
+    _register_classes()
+    bpy.types.Object.shapesmith_wrap = bpy.props.PointerProperty(type=SHAPESMITH_PG_wrap)
+
+
+def unregister():
+    del bpy.types.Object.shapesmith_wrap
+    _unregister_classes()

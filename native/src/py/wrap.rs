@@ -1,0 +1,148 @@
+//! Bindings of [`crate::wrap`]: `wrap_template`, `carry_shapes`, `bind_to_surface`.
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::prelude::*;
+
+use super::arrays;
+use super::errors::py_err;
+use super::run::{detached, detached_with_progress};
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::mat3::to_f64;
+use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, CarryParams, FitParams, PointPairs, WrapParams};
+
+/// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
+///               template_points, character_points, *, align_only=False, stiffness=None,
+///               iterations=3, landmark_weight=100.0, max_angle=60.0, max_distance=0.1,
+///               progress=None)
+///     -> (wrapped float32 (Nt, 3) in the character's space, report dict)
+///
+/// `template_points`, `character_points`: float32 (P, 3) point pairs in each mesh's own
+/// space (P = 0 for an alignment from the principal axes).
+#[pyfunction]
+#[pyo3(signature = (template_neutral, template_triangles, character_neutral, character_triangles, template_points,
+                    character_points, *, align_only=false, stiffness=None, iterations=3, landmark_weight=100.0,
+                    max_angle=60.0, max_distance=0.1, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn wrap_template<'py>(
+    py: Python<'py>,
+    template_neutral: PyReadonlyArray2<'py, f32>,
+    template_triangles: PyReadonlyArray2<'py, i32>,
+    character_neutral: PyReadonlyArray2<'py, f32>,
+    character_triangles: PyReadonlyArray2<'py, i32>,
+    template_points: PyReadonlyArray2<'py, f32>,
+    character_points: PyReadonlyArray2<'py, f32>,
+    align_only: bool,
+    stiffness: Option<Vec<f64>>,
+    iterations: usize,
+    landmark_weight: f64,
+    max_angle: f64,
+    max_distance: f64,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let template = arrays::points(&template_neutral, "template_neutral").map_err(py_err(py))?;
+    let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
+    let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
+    let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let pairs = PointPairs {
+        template: arrays::points(&template_points, "template_points").map_err(py_err(py))?,
+        character: arrays::points(&character_points, "character_points").map_err(py_err(py))?,
+    };
+    let defaults = FitParams::default();
+    let fit = FitParams {
+        stiffness: stiffness.unwrap_or(defaults.stiffness),
+        iterations,
+        landmark_weight,
+        max_angle_degrees: max_angle,
+        max_distance,
+        ..defaults
+    };
+    if fit.stiffness.is_empty() || fit.stiffness.iter().any(|&a| !(a > 0.0 && a.is_finite())) || iterations == 0 {
+        return Err(py_err(py)(crate::invalid!("stiffness must be a non-empty list of positive numbers and iterations at least 1")));
+    }
+    let params = WrapParams { fit, align_only };
+    let wrap = detached_with_progress(py, progress.as_ref(), |progress| {
+        run_wrap(template, &template_tris, character, &character_tris, pairs, &params, progress)
+    })?;
+    let n = wrap.wrapped.len();
+    let flat: Vec<f32> = wrap.wrapped.into_iter().flatten().collect();
+    let array = PyArray1::from_vec(py, flat).reshape([n, 3])?;
+    Ok((array.into_any(), arrays::to_python(py, &wrap.report)?))
+}
+
+/// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
+///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
+///              progress=None)
+///     -> (deltas float32 (K, Nc, 3), report dict)
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
+                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, progress=None))]
+fn carry_shapes<'py>(
+    py: Python<'py>,
+    wrapped_neutral: PyReadonlyArray2<'py, f32>,
+    template_triangles: PyReadonlyArray2<'py, i32>,
+    template_deltas: PyReadonlyArray3<'py, f32>,
+    character_neutral: PyReadonlyArray2<'py, f32>,
+    character_triangles: PyReadonlyArray2<'py, i32>,
+    static_fraction: f64,
+    anchor_length: f64,
+    max_angle: f64,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let wrapped = arrays::points(&wrapped_neutral, "wrapped_neutral").map_err(py_err(py))?;
+    let (deltas, k) = arrays::deltas(&template_deltas, wrapped.len()).map_err(py_err(py))?;
+    let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
+    let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
+    let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let params = CarryParams { static_fraction, anchor_length, max_angle_degrees: max_angle };
+    let result = detached_with_progress(py, progress.as_ref(), |progress| {
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, &params, progress)
+    })?;
+    let nc = character.len();
+    let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();
+    let array = PyArray1::from_vec(py, flat).reshape([k, nc, 3])?;
+    Ok((array.into_any(), arrays::to_python(py, &result)?))
+}
+
+/// bind_to_surface(points, surface_neutral, surface_triangles)
+///     -> (triangle int32 (N,), barycentric float32 (N, 3), distance float32 (N,))
+///
+/// Each point's closest point on the surface: for comparisons (barycentric and nearest-vertex
+/// copies) and pictures.
+#[pyfunction]
+fn bind_to_surface<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f32>,
+    surface_neutral: PyReadonlyArray2<'py, f32>,
+    surface_triangles: PyReadonlyArray2<'py, i32>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let query = arrays::points(&points, "points").map_err(py_err(py))?;
+    let surface = arrays::points(&surface_neutral, "surface_neutral").map_err(py_err(py))?;
+    let tris = arrays::triangles(&surface_triangles).map_err(py_err(py))?;
+    let hits = detached(py, || {
+        crate::rig::validate_points(query, "points")?;
+        crate::rig::validate_points(surface, "surface_neutral")?;
+        crate::rig::validate_triangle_indices(surface.len(), &tris)?;
+        if tris.is_empty() {
+            return Err(crate::invalid!("the surface has no faces"));
+        }
+        let surface: Vec<[f64; 3]> = surface.iter().map(to_f64).collect();
+        let query: Vec<[f64; 3]> = query.iter().map(to_f64).collect();
+        Ok(bind(&query, &TriangleBvh::build(&surface, &tris)))
+    })?;
+    let n = hits.len();
+    let triangle: Vec<i32> = hits.iter().map(|h| h.triangle as i32).collect();
+    let barycentric: Vec<f32> = hits.iter().flat_map(|h| h.barycentric.map(|x| x as f32)).collect();
+    let distance: Vec<f32> = hits.iter().map(|h| h.distance_squared.sqrt() as f32).collect();
+    Ok((
+        PyArray1::from_vec(py, triangle).into_any(),
+        PyArray1::from_vec(py, barycentric).reshape([n, 3])?.into_any(),
+        PyArray1::from_vec(py, distance).into_any(),
+    ))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(wrap_template, m)?)?;
+    m.add_function(wrap_pyfunction!(carry_shapes, m)?)?;
+    m.add_function(wrap_pyfunction!(bind_to_surface, m)?)
+}

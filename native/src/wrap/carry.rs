@@ -1,0 +1,320 @@
+//! Shapes of the wrapped template carried onto the character's own vertices: each character
+//! triangle samples the deformation gradient of the wrapped template's triangle under its
+//! centroid (closest point among the triangles facing the same way), and one screened
+//! Poisson solve on the character's mesh integrates them (deformation transfer, Sumner &
+//! Popovic 2004, across topologies through a surface binding). SPEC section 5, "Carry to the
+//! character".
+//!
+//! Per shape `k`, over the character's deltas `d` (gradient form, Botsch et al. 2006):
+//! $$ \min_d \sum_t a_t \Big\| \sum_{i \in t} d_i \nabla\phi_i^\top - H_{k,s(t)} \Big\|_F^2,
+//!    \qquad H_{k,s} = \tilde V_{k,s} V_s^{-1} - I $$
+//! `s(t)` the template triangle bound to character triangle `t`, `V` the edge frames (S&P
+//! Eq. (3)), plus the screening `sum_v m_v / l^2 |d_v - c_v|^2` towards the barycentric copy
+//! `c` (see [`CarryParams::anchor_length`]). Normal equations `(L + M / l^2) d = b + M c / l^2`,
+//! `L_ij = sum_t a_t grad phi_i . grad phi_j` (the cotangent Laplacian of the character,
+//! assembled and ordered once), `M` the lumped mass, `b_j = sum_t a_t H_t grad phi_j`.
+//! One factorisation serves all shapes; character vertices whose binding lies on static
+//! template vertices are then set to zero (see the module's Deviations).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::error::ShapesmithResult;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::closest_point::SurfacePoint;
+use crate::geometry::mat3::{add, edge_frame, inverse, length, mat_mul, mat_vec, to_f64, HatGradients, Mat3, Vec3, IDENTITY};
+use crate::geometry::topology::connected_components;
+use crate::progress::Progress;
+use crate::sparse::SymmetricMatrix;
+
+/// Knobs of [`carry_shapes`].
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CarryParams {
+    /// A template vertex moving less than this fraction of a shape's largest displacement is
+    /// static (SPEC section 3's rule, so the carry is static where the transfer was).
+    pub static_fraction: f64,
+    /// `l`, in mean template edge lengths: the screening term `sum_v m_v / l^2 |d_v - b_v|^2`
+    /// holds the carried deltas to the barycentric copy `b` at scales above `l`, the gradients
+    /// shape them below it (0: pure Poisson, the gradients alone).
+    pub anchor_length: f64,
+    /// A binding (a character vertex or triangle to a template triangle) must have normals
+    /// within this angle, so that an upper lip never binds to the lower lip it touches.
+    pub max_angle_degrees: f64,
+}
+
+impl Default for CarryParams {
+    fn default() -> Self {
+        Self { static_fraction: 1e-4, anchor_length: 2.0, max_angle_degrees: 60.0 }
+    }
+}
+
+/// Carried shapes.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CarryResult {
+    /// K x Nc character deltas, shape-major.
+    #[serde(skip)]
+    pub deltas: Vec<[f32; 3]>,
+    /// Seconds binding and assembling (once) and solving (all shapes).
+    pub setup_seconds: f64,
+    pub solve_seconds: f64,
+    /// Largest distance from a character vertex to the wrapped template, relative to the
+    /// character's bbox diagonal: large values mean parts of the character the template does
+    /// not cover (they get the nearest template motion).
+    pub max_binding_distance: f64,
+}
+
+/// Each point's closest point on a surface (rayon across points).
+pub fn bind(points: &[Vec3], surface: &TriangleBvh) -> Vec<SurfacePoint> {
+    points
+        .par_iter()
+        .map(|p| surface.closest_point(p, f64::INFINITY).expect("the surface has triangles (validated by the caller)"))
+        .collect()
+}
+
+/// Each point's closest point among the surface triangles whose unit normal is within the
+/// angle of the point's normal (`cos_max_angle`); the plain closest point when none is.
+fn bind_facing(points: &[Vec3], normals: &[Vec3], surface: &TriangleBvh, surface_normals: &[Vec3], cos_max_angle: f64) -> Vec<SurfacePoint> {
+    points
+        .par_iter()
+        .zip(normals)
+        .map(|(p, n)| {
+            surface
+                .closest_point_where(p, f64::INFINITY, |t| crate::geometry::mat3::dot(*n, surface_normals[t as usize]) >= cos_max_angle)
+                .or_else(|| surface.closest_point(p, f64::INFINITY))
+                .expect("the surface has triangles (validated by the caller)")
+        })
+        .collect()
+}
+
+fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| points[v as usize]);
+            let n = crate::geometry::mat3::cross(crate::geometry::mat3::sub(b, a), crate::geometry::mat3::sub(c, a));
+            let len = length(n);
+            if len > 0.0 { n.map(|x| x / len) } else { n }
+        })
+        .collect()
+}
+
+/// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
+/// (`wrapped`, `template_triangles`) onto the character. Inputs are validated by the caller
+/// (`wrap::carry`).
+pub fn carry_shapes(
+    wrapped: &[[f32; 3]],
+    template_triangles: &[[u32; 3]],
+    template_deltas: &[[f32; 3]],
+    character: &[[f32; 3]],
+    character_triangles: &[[u32; 3]],
+    params: &CarryParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<CarryResult> {
+    let started = Instant::now();
+    let nt = wrapped.len();
+    let nc = character.len();
+    let n_shapes = if nt == 0 { 0 } else { template_deltas.len() / nt };
+    let template: Vec<Vec3> = wrapped.iter().map(to_f64).collect();
+    let points: Vec<Vec3> = character.iter().map(to_f64).collect();
+    let surface = TriangleBvh::build(&template, template_triangles);
+    let template_normals = triangle_normals(&template, template_triangles);
+    let cos_max_angle = params.max_angle_degrees.to_radians().cos();
+    let vertex_normals = crate::geometry::mat3::vertex_normals(&points, character_triangles);
+    let vertex_binding = bind_facing(&points, &vertex_normals, &surface, &template_normals, cos_max_angle);
+    let centroids: Vec<Vec3> =
+        character_triangles.iter().map(|t| t.iter().fold([0.0; 3], |acc, &v| add(acc, points[v as usize].map(|x| x / 3.0)))).collect();
+    let character_normals = triangle_normals(&points, character_triangles);
+    let triangle_binding: Vec<u32> =
+        bind_facing(&centroids, &character_normals, &surface, &template_normals, cos_max_angle).iter().map(|hit| hit.triangle).collect();
+    let operators: Vec<Option<HatGradients>> = character_triangles.iter().map(|t| HatGradients::new(t.map(|v| points[v as usize]))).collect();
+    let mut entries = Vec::with_capacity(6 * character_triangles.len() + nc);
+    for (t, op) in character_triangles.iter().zip(&operators) {
+        let Some(op) = op else { continue };
+        for a in 0..3 {
+            for b in 0..=a {
+                entries.push((t[a] as usize, t[b] as usize, op.area * crate::geometry::mat3::dot(op.gradients[a], op.gradients[b])));
+            }
+        }
+    }
+    // Screening `m_v / l^2` on the diagonal (lumped mass m_v: a third of the incident area).
+    let edge_length = {
+        let edges = crate::geometry::topology::unique_edges(template_triangles);
+        edges.iter().map(|&(a, b)| length(crate::geometry::mat3::sub(template[a as usize], template[b as usize]))).sum::<f64>()
+            / edges.len().max(1) as f64
+    };
+    let screening = if params.anchor_length > 0.0 { 1.0 / (params.anchor_length * edge_length).powi(2) } else { 0.0 };
+    let mut mass = vec![0.0; nc];
+    for (t, op) in character_triangles.iter().zip(&operators) {
+        if let Some(op) = op {
+            t.iter().for_each(|&v| mass[v as usize] += op.area / 3.0);
+        }
+    }
+    let anchor: Vec<f64> = mass.iter().map(|m| m * screening).collect();
+    entries.extend(anchor.iter().enumerate().map(|(v, &w)| (v, v, w)));
+    let laplacian = SymmetricMatrix::from_triplets(nc, entries);
+    let order = laplacian.fill_reducing_order()?;
+    // Screened, the matrix is definite as it is: one factorisation serves every shape.
+    let whole = if screening > 0.0 { Some(laplacian.factor(&order)?) } else { None };
+    let rest_inverse: Vec<Option<Mat3>> = template_triangles.iter().map(|t| inverse(&edge_frame(t.map(|v| template[v as usize])))).collect();
+    let (piece, n_pieces) = connected_components(nc, character_triangles);
+    let diagonal = crate::rig::bbox_diagonal(character).max(f64::MIN_POSITIVE);
+    let max_binding_distance = vertex_binding.iter().map(|hit| hit.distance_squared.sqrt()).fold(0.0, f64::max) / diagonal;
+    let setup_seconds = started.elapsed().as_secs_f64();
+
+    let solving = Instant::now();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let shapes: Vec<Vec<[f32; 3]>> = (0..n_shapes)
+        .into_par_iter()
+        .map(|k| {
+            let deltas = &template_deltas[k * nt..(k + 1) * nt];
+            let shape = Shape { deltas, template: &template, template_triangles, rest_inverse: &rest_inverse };
+            let result = shape.carry(
+                &points,
+                character_triangles,
+                &operators,
+                &vertex_binding,
+                &triangle_binding,
+                &laplacian,
+                &order,
+                whole.as_ref(),
+                &anchor,
+                (&piece, n_pieces),
+                params.static_fraction,
+            )?;
+            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress.checkpoint(finished as f64 / n_shapes.max(1) as f64)?;
+            Ok(result)
+        })
+        .collect::<ShapesmithResult<_>>()?;
+    Ok(CarryResult {
+        deltas: shapes.into_iter().flatten().collect(),
+        setup_seconds,
+        solve_seconds: solving.elapsed().as_secs_f64(),
+        max_binding_distance,
+    })
+}
+
+/// One template shape on the wrapped template.
+struct Shape<'a> {
+    deltas: &'a [[f32; 3]],
+    template: &'a [Vec3],
+    template_triangles: &'a [[u32; 3]],
+    rest_inverse: &'a [Option<Mat3>],
+}
+
+impl Shape<'_> {
+    /// The delta gradient `H = V~ V^-1 - I` of template triangle `s` (zero when its corners
+    /// are all static or it is degenerate).
+    fn delta_gradient(&self, s: usize, is_static: &[bool]) -> Mat3 {
+        let tri = self.template_triangles[s];
+        let Some(rest_inverse) = self.rest_inverse[s] else { return [[0.0; 3]; 3] };
+        if tri.iter().all(|&v| is_static[v as usize]) {
+            return [[0.0; 3]; 3];
+        }
+        let deformed = tri.map(|v| add(self.template[v as usize], to_f64(&self.deltas[v as usize])));
+        let gradient = mat_mul(&edge_frame(deformed), &rest_inverse);
+        std::array::from_fn(|r| std::array::from_fn(|c| gradient[r][c] - IDENTITY[r][c]))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn carry(
+        &self,
+        points: &[Vec3],
+        triangles: &[[u32; 3]],
+        operators: &[Option<HatGradients>],
+        vertex_binding: &[SurfacePoint],
+        triangle_binding: &[u32],
+        laplacian: &SymmetricMatrix,
+        order: &[usize],
+        whole: Option<&crate::sparse::Cholesky>,
+        anchor: &[f64],
+        (piece, n_pieces): (&[u32], usize),
+        static_fraction: f64,
+    ) -> ShapesmithResult<Vec<[f32; 3]>> {
+        let nc = points.len();
+        let largest = self.deltas.iter().map(|d| length(to_f64(d))).fold(0.0, f64::max);
+        if largest == 0.0 {
+            return Ok(vec![[0.0; 3]; nc]);
+        }
+        let is_static: Vec<bool> = self.deltas.iter().map(|d| length(to_f64(d)) < static_fraction * largest).collect();
+        // The barycentric copy: which character vertices are static, and where a piece that
+        // moves as a whole goes.
+        let mut static_vertex = vec![false; nc];
+        let mut copied = vec![[0.0; 3]; nc];
+        for (v, hit) in vertex_binding.iter().enumerate() {
+            let tri = self.template_triangles[hit.triangle as usize];
+            static_vertex[v] = (0..3).all(|i| hit.barycentric[i] <= 1e-9 || is_static[tri[i] as usize]);
+            copied[v] = (0..3).fold([0.0; 3], |acc, i| add(acc, to_f64(&self.deltas[tri[i] as usize]).map(|x| x * hit.barycentric[i])));
+        }
+        // A piece with no static vertex is fixed by its first vertex, then shifted so that its
+        // mean delta is the copy's mean (the gradient energy is blind to a piece's translation).
+        let mut pinned = vec![None; n_pieces];
+        let mut has_static = vec![false; n_pieces];
+        for v in 0..nc {
+            has_static[piece[v] as usize] |= static_vertex[v];
+        }
+        // With screening the system is definite on every piece: nothing to pin.
+        let screened = anchor.iter().any(|&w| w > 0.0);
+        for v in 0..nc {
+            let p = piece[v] as usize;
+            if !screened && !has_static[p] && pinned[p].is_none() {
+                pinned[p] = Some(v);
+                static_vertex[v] = true;
+            }
+        }
+        let mut position = vec![u32::MAX; nc];
+        let mut kept = 0usize;
+        for v in 0..nc {
+            if whole.is_some() || !static_vertex[v] {
+                position[v] = kept as u32;
+                kept += 1;
+            }
+        }
+        let mut deltas = vec![[0.0; 3]; nc];
+        if kept > 0 {
+            let mut rhs = vec![[0.0; 3]; kept];
+            for ((t, op), &s) in triangles.iter().zip(operators).zip(triangle_binding) {
+                let Some(op) = op else { continue };
+                let h = self.delta_gradient(s as usize, &is_static);
+                if h == [[0.0; 3]; 3] {
+                    continue;
+                }
+                for (corner, &v) in t.iter().enumerate() {
+                    let p = position[v as usize];
+                    if p != u32::MAX {
+                        rhs[p as usize] = add(rhs[p as usize], mat_vec(&h, op.gradients[corner]).map(|x| x * op.area));
+                    }
+                }
+            }
+            for v in 0..nc {
+                let p = position[v];
+                if p != u32::MAX {
+                    rhs[p as usize] = add(rhs[p as usize], copied[v].map(|x| x * anchor[v]));
+                }
+            }
+            let solved = match whole {
+                Some(factor) => factor.solve_points(&rhs),
+                None => laplacian.factor_restricted(&position, kept, order)?.solve_points(&rhs),
+            };
+            for v in 0..nc {
+                if position[v] != u32::MAX && !static_vertex[v] {
+                    deltas[v] = solved[position[v] as usize];
+                }
+            }
+        }
+        for (p, pin) in pinned.iter().enumerate() {
+            if pin.is_none() {
+                continue;
+            }
+            let members: Vec<usize> = (0..nc).filter(|&v| piece[v] as usize == p).collect();
+            let count = members.len() as f64;
+            let mean = |field: &[Vec3]| members.iter().fold([0.0; 3], |acc, &v| add(acc, field[v].map(|x| x / count)));
+            let shift = crate::geometry::mat3::sub(mean(&copied), mean(&deltas));
+            for &v in &members {
+                deltas[v] = add(deltas[v], shift);
+            }
+        }
+        Ok(deltas.iter().map(|d| d.map(|x| x as f32)).collect())
+    }
+}

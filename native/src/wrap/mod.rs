@@ -1,0 +1,384 @@
+//! Wrap: the template fitted onto a character of any topology, and the template's shapes
+//! carried onto the character's own vertices. SPEC section 5 (beyond the papers; the first
+//! step of paper 000's pipeline, its figure 1).
+//!
+//! [`wrap_template`] aligns the template to the character with a similarity from point pairs
+//! (Umeyama 1991; principal axes without pairs), then fits the template's skin onto the
+//! character's surface by optimal-step non-rigid ICP (Amberg, Romdhani & Vetter 2007) and
+//! carries the template's other pieces (eyes, teeth, lashes) along with the skin around them.
+//! The add-on then transfers the template's shapes onto the wrapped template (same topology,
+//! [`crate::transfer`], called from Python: tools are siblings), and [`carry_shapes`] carries
+//! them onto the character's vertices through the deformation gradients.
+//!
+//! | paper symbol | identifier |
+//! |---|---|
+//! | `p_i`, `q_i` (point pairs on template and character) | [`PointPairs`] |
+//! | `s`, `R`, `t` (Umeyama's similarity) | [`Similarity`] |
+//! | `alpha` (stiffness), its schedule | [`FitParams::stiffness`] |
+//! | `beta` (landmark weight, decays with `alpha`: `beta = landmark_weight * alpha`, 100 by default: 1 left the pairs 0.9% of the diagonal apart on a decimated identity, 100 leaves 0.04%) | [`FitParams::landmark_weight`] |
+//! | `w_i` (0 for rejected closest points) | `nricp::closest_points` |
+//! | `u_i` (closest character point) | `SurfacePoint::point` |
+//! | `H_{k,s}` (template delta gradient sampled on a character triangle) | `carry::Shape::delta_gradient` |
+//!
+//! # Deviations
+//! - **Displacements, not per-vertex affine maps.** Amberg et al. solve for a 3x4 affine map
+//!   per vertex (4N x 4N system, stiffness `|(M (x) G) X|^2`). Here the unknowns are the
+//!   skin's displacements (N x N, three right-hand sides) with the membrane stiffness
+//!   `alpha sum_(i,j) |d_i - d_j|^2`: the limit of Amberg's energy with the linear parts held
+//!   at the identity (Allen, Curless & Popovic 2003's smoothness term on translations only).
+//!   The system is 16 times smaller with the same sparsity, so each stiffness step factorises
+//!   in a fraction of the time; the price is that local rotations cost stiffness, which the
+//!   similarity alignment before the fit and the stiffness schedule absorb for faces (the
+//!   template and character differ by identity, not by pose).
+//! - **One factorisation per stiffness step, weights frozen within the step.** Amberg et al.
+//!   recompute the weights `w_i` with every closest-point iteration, which changes the
+//!   matrix. Here `w_i` is decided at the start of each step; a vertex whose closest point is
+//!   rejected later in the same step is held where it is (its target is its current
+//!   position) rather than released, so the factor stays valid.
+//! - **Pieces follow the skin.** Every template piece other than the skin (the largest
+//!   connected component) moves by the similarity (Umeyama) that best maps the skin vertices
+//!   around it from their aligned to their fitted positions. Fitting a piece to the
+//!   character's piece of the same kind is not done.
+//! - **Only the character's largest piece is fitted to.** The character's eyes, teeth or
+//!   lashes, if any, would otherwise catch the template's eyelids and lips.
+//! - **The carry is screened towards the barycentric copy.** Pure gradient integration
+//!   (SPEC) carries every error of a sampled gradient to everything between it and the static
+//!   region: on a decimated MakeHuman identity it gave 4.8e-3 of the diagonal against the
+//!   same-topology transfer, worse than the nearest-vertex copy (2.2e-3). With the screening
+//!   `m_v / l^2 |d_v - c_v|^2` (`l` = 2 template edges: the copy sets the shape above that
+//!   scale, the gradients below it, so no template edge shows as a crease) and bindings
+//!   restricted to triangles whose normals agree (an upper lip never samples the lower lip it
+//!   touches), 1.7e-3, below the nearest-vertex (2.2e-3) and barycentric (2.4e-3) copies
+//!   (`blender_tests/test_wrap.py`). `anchor_length = 0` is the pure Poisson solve.
+//! - **Static vertices are zeroed after the solve.** Screened, the system is definite on its
+//!   own, so it is factorised once for all shapes (SPEC) and every shape is one
+//!   back-substitution; the character's vertices bound to static template vertices are then
+//!   set to exactly zero. Their solved values are already near zero (the copy there is zero
+//!   and the screening damps the moving region's influence within a few template edges).
+//!   With `anchor_length = 0` each shape instead factorises the principal submatrix on its
+//!   moving vertices (Dirichlet elimination, as in `transfer`).
+
+mod align;
+mod carry;
+mod nricp;
+#[cfg(test)]
+pub(crate) mod tests;
+
+use std::time::Instant;
+
+pub use align::{similarity_from_pairs, similarity_from_principal_axes, Similarity, MIN_PAIRS};
+pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult};
+pub use nricp::FitStats;
+
+use crate::error::ShapesmithResult;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::mat3::{add, length, sub, to_f64, Vec3};
+use crate::geometry::topology::connected_components;
+use crate::invalid;
+use crate::progress::{Progress, Stage};
+use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
+use nricp::{fit_skin, Landmark, TargetSurface};
+
+/// Knobs of the non-rigid fit.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FitParams {
+    /// `alpha` per step, decreasing (Amberg et al. step from stiff to loose).
+    pub stiffness: Vec<f64>,
+    /// Closest-point iterations per step at most (fewer once nothing moves).
+    pub iterations: usize,
+    /// `beta / alpha`: the landmark term's weight decays with the stiffness.
+    pub landmark_weight: f64,
+    /// Closest points whose surface normal differs from the template's by more are rejected.
+    pub max_angle_degrees: f64,
+    /// Closest points farther than this fraction of the character's bbox diagonal are rejected.
+    pub max_distance: f64,
+    /// A closest-point iteration that moves no vertex by more than this fraction of the
+    /// diagonal ends its step.
+    pub tolerance: f64,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        Self {
+            stiffness: vec![100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.5],
+            iterations: 3,
+            landmark_weight: 100.0,
+            max_angle_degrees: 60.0,
+            max_distance: 0.1,
+            tolerance: 1e-4,
+        }
+    }
+}
+
+/// Knobs of [`wrap_template`].
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct WrapParams {
+    pub fit: FitParams,
+    /// Stop after the similarity (the Align button): the template moved rigidly and scaled.
+    pub align_only: bool,
+}
+
+/// Point pairs, each a point on the template and one on the character, in each mesh's own
+/// space (the add-on turns vertex indices into points).
+#[derive(Clone, Copy, Debug)]
+pub struct PointPairs<'a> {
+    pub template: &'a [[f32; 3]],
+    pub character: &'a [[f32; 3]],
+}
+
+/// How well the wrapped template fits, distances relative to the character's bbox diagonal.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct WrapReport {
+    /// "pairs" or "principal axes" (no pairs: a guess, check it).
+    pub alignment: String,
+    pub similarity: Similarity,
+    pub pairs: usize,
+    /// Pairs whose template point lies on the skin, used as landmarks by the fit.
+    pub landmarks: usize,
+    /// Mean and largest distance from the wrapped skin's vertices to the character's surface.
+    pub mean_distance: f64,
+    pub max_distance: f64,
+    /// Per pair, the distance between the two points after the similarity alone and after
+    /// the fit.
+    pub aligned_pair_residuals: Vec<f64>,
+    pub pair_residuals: Vec<f64>,
+    pub fit: FitStats,
+    /// Character bbox diagonal (character units).
+    pub diagonal: f64,
+    pub template_vertices: usize,
+    pub skin_vertices: usize,
+    pub character_vertices: usize,
+    pub align_seconds: f64,
+    pub fit_seconds: f64,
+    pub warnings: Vec<String>,
+}
+
+/// The wrapped template: template topology, in the character's space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Wrap {
+    pub wrapped: Vec<[f32; 3]>,
+    pub report: WrapReport,
+}
+
+/// Aligns and fits the template (`template`, `template_triangles`) onto the character.
+/// Errors name what to fix: too few or degenerate pairs, a pair point off its mesh (placed on
+/// the wrong object), a mesh without faces, non-finite coordinates.
+pub fn wrap_template(
+    template: &[[f32; 3]],
+    template_triangles: &[[u32; 3]],
+    character: &[[f32; 3]],
+    character_triangles: &[[u32; 3]],
+    pairs: PointPairs,
+    params: &WrapParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<Wrap> {
+    let started = Instant::now();
+    validate_mesh(template, template_triangles, "template")?;
+    validate_mesh(character, character_triangles, "character")?;
+    validate_points(pairs.template, "template pair points")?;
+    validate_points(pairs.character, "character pair points")?;
+    if pairs.template.len() != pairs.character.len() {
+        return Err(invalid!("{} template pair points but {} character pair points", pairs.template.len(), pairs.character.len()));
+    }
+    if !pairs.template.is_empty() && pairs.template.len() < MIN_PAIRS {
+        return Err(invalid!(
+            "{} point pair(s) given; the alignment needs at least {MIN_PAIRS} (e.g. both eye corners, the nose tip and the chin), or none for a rough guess from the principal axes",
+            pairs.template.len()
+        ));
+    }
+    let template_points: Vec<Vec3> = template.iter().map(to_f64).collect();
+    let character_points: Vec<Vec3> = character.iter().map(to_f64).collect();
+    let diagonal = bbox_diagonal(character);
+    let template_diagonal = bbox_diagonal(template);
+    let mut warnings = Vec::new();
+
+    // The skins: each mesh's largest piece.
+    let template_skin = largest_piece(template.len(), template_triangles);
+    let character_skin = largest_piece(character.len(), character_triangles);
+    let skin_triangles: Vec<[u32; 3]> = pieces_triangles(template_triangles, &template_skin);
+    let character_skin_triangles: Vec<[u32; 3]> = pieces_triangles(character_triangles, &character_skin);
+    let surface = TargetSurface::new(&character_points, &character_skin_triangles);
+
+    // Pair points on their meshes: a point far off its mesh was placed on another object.
+    let template_bvh = TriangleBvh::build(&template_points, template_triangles);
+    let character_bvh = TriangleBvh::build(&character_points, character_triangles);
+    let mut on_template = Vec::with_capacity(pairs.template.len());
+    for (i, (p, q)) in pairs.template.iter().zip(pairs.character).enumerate() {
+        let hit = template_bvh.closest_point(&to_f64(p), f64::INFINITY).ok_or_else(|| invalid!("the template has no triangles"))?;
+        let off_character = character_bvh.closest_point(&to_f64(q), f64::INFINITY).map_or(f64::INFINITY, |h| h.distance_squared.sqrt());
+        for (what, distance, scale) in [("template", hit.distance_squared.sqrt(), template_diagonal), ("character", off_character, diagonal)] {
+            if distance > 0.02 * scale {
+                return Err(invalid!(
+                    "pair {} : its {what} point lies {:.3}% of the {what}'s size away from the {what}'s surface: was it placed on another object?",
+                    i + 1,
+                    100.0 * distance / scale
+                ));
+            }
+        }
+        on_template.push(hit);
+    }
+
+    // Similarity.
+    let pair_template: Vec<Vec3> = on_template.iter().map(|hit| hit.point).collect();
+    let pair_character: Vec<Vec3> = pairs.character.iter().map(to_f64).collect();
+    let (similarity, alignment) = if pairs.template.is_empty() {
+        warnings.push(
+            "no point pairs: the alignment is a guess from the bounding boxes and principal axes; check it, or add pairs".into(),
+        );
+        let skin_points: Vec<Vec3> = template_skin.iter().map(|&v| template_points[v as usize]).collect();
+        let character_skin_points: Vec<Vec3> = character_skin.iter().map(|&v| character_points[v as usize]).collect();
+        (similarity_from_principal_axes(&skin_points, &character_skin_points, &surface.bvh, 2000)?, "principal axes")
+    } else {
+        (similarity_from_pairs(&pair_template, &pair_character)?, "pairs")
+    };
+    let aligned: Vec<Vec3> = template_points.iter().map(|p| similarity.apply(*p)).collect();
+    let residual = |positions: &[Vec3]| -> Vec<f64> {
+        on_template
+            .iter()
+            .zip(&pair_character)
+            .map(|(hit, q)| {
+                let t = template_triangles[hit.triangle as usize];
+                let p = (0..3).fold([0.0; 3], |acc, k| add(acc, positions[t[k] as usize].map(|x| x * hit.barycentric[k])));
+                length(sub(p, *q)) / diagonal
+            })
+            .collect()
+    };
+    let aligned_pair_residuals = residual(&aligned);
+    let align_seconds = started.elapsed().as_secs_f64();
+    progress.checkpoint(0.05)?;
+
+    // Fit.
+    let fitting = Instant::now();
+    let mut is_skin = vec![false; template.len()];
+    template_skin.iter().for_each(|&v| is_skin[v as usize] = true);
+    let landmarks: Vec<Landmark> = on_template
+        .iter()
+        .zip(&pair_character)
+        .filter_map(|(hit, q)| {
+            let corners = template_triangles[hit.triangle as usize];
+            corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: hit.barycentric, target: *q })
+        })
+        .collect();
+    let (fitted, fit) = if params.align_only {
+        (aligned.clone(), FitStats::default())
+    } else {
+        let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
+        let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &surface, &params.fit, diagonal, &stage)?;
+        carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
+        (fitted, stats)
+    };
+    let distances: Vec<f64> = template_skin
+        .iter()
+        .map(|&v| surface.bvh.closest_point(&fitted[v as usize], f64::INFINITY).map_or(0.0, |h| h.distance_squared.sqrt()) / diagonal)
+        .collect();
+    let report = WrapReport {
+        alignment: alignment.into(),
+        similarity,
+        pairs: pairs.template.len(),
+        landmarks: landmarks.len(),
+        mean_distance: distances.iter().sum::<f64>() / distances.len().max(1) as f64,
+        max_distance: distances.iter().copied().fold(0.0, f64::max),
+        aligned_pair_residuals,
+        pair_residuals: residual(&fitted),
+        fit,
+        diagonal,
+        template_vertices: template.len(),
+        skin_vertices: template_skin.len(),
+        character_vertices: character.len(),
+        align_seconds,
+        fit_seconds: fitting.elapsed().as_secs_f64(),
+        warnings,
+    };
+    progress.checkpoint(1.0)?;
+    Ok(Wrap { wrapped: fitted.iter().map(|p| p.map(|x| x as f32)).collect(), report })
+}
+
+/// Carries the template's shapes (K x Nt deltas of the wrapped template, shape-major) onto
+/// the character's vertices (K x Nc); see the `carry` module.
+pub fn carry_shapes(
+    wrapped: &[[f32; 3]],
+    template_triangles: &[[u32; 3]],
+    template_deltas: &[[f32; 3]],
+    character: &[[f32; 3]],
+    character_triangles: &[[u32; 3]],
+    params: &CarryParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<CarryResult> {
+    validate_mesh(wrapped, template_triangles, "wrapped template")?;
+    validate_mesh(character, character_triangles, "character")?;
+    if template_deltas.len() % wrapped.len() != 0 {
+        return Err(invalid!("template deltas: {} rows is not a multiple of the {} template vertices", template_deltas.len(), wrapped.len()));
+    }
+    validate_points(template_deltas, "template deltas")?;
+    if !(params.static_fraction >= 0.0 && params.static_fraction < 1.0) {
+        return Err(invalid!("static_fraction must be in [0, 1), got {}", params.static_fraction));
+    }
+    if !(params.anchor_length >= 0.0 && params.anchor_length.is_finite() && params.max_angle_degrees > 0.0) {
+        return Err(invalid!("anchor_length must be at least 0 and max_angle positive"));
+    }
+    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, params, progress)
+}
+
+fn validate_mesh(points: &[[f32; 3]], triangles: &[[u32; 3]], what: &str) -> ShapesmithResult<()> {
+    if points.is_empty() || triangles.is_empty() {
+        return Err(invalid!("the {what} has no faces"));
+    }
+    validate_points(points, what)?;
+    validate_triangle_indices(points.len(), triangles)?;
+    if bbox_diagonal(points) <= 0.0 {
+        return Err(invalid!("the {what} has all its vertices at one point"));
+    }
+    Ok(())
+}
+
+/// The vertices (sorted) of the piece with the most vertices.
+fn largest_piece(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let (label, count) = connected_components(n, triangles);
+    let mut sizes = vec![0usize; count];
+    label.iter().for_each(|&l| sizes[l as usize] += 1);
+    let biggest = (0..count).max_by_key(|&l| sizes[l]).unwrap_or(0) as u32;
+    (0..n as u32).filter(|&v| label[v as usize] == biggest).collect()
+}
+
+fn pieces_triangles(triangles: &[[u32; 3]], vertices: &[u32]) -> Vec<[u32; 3]> {
+    let mut keep = vec![false; vertices.last().map_or(0, |&v| v as usize + 1)];
+    vertices.iter().for_each(|&v| keep[v as usize] = true);
+    triangles.iter().filter(|t| keep.get(t[0] as usize).copied().unwrap_or(false)).copied().collect()
+}
+
+/// Moves every non-skin piece by the similarity that maps the skin vertices around it (within
+/// twice its radius of its centre, widened until there are enough) from aligned to fitted.
+fn carry_pieces(aligned: &[Vec3], fitted: &mut [Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> ShapesmithResult<()> {
+    let (label, count) = connected_components(aligned.len(), triangles);
+    let skin: Vec<u32> = (0..aligned.len() as u32).filter(|&v| is_skin[v as usize]).collect();
+    let skin_points: Vec<[f32; 3]> = skin.iter().map(|&v| aligned[v as usize].map(|x| x as f32)).collect();
+    let tree = crate::geometry::neighbours::PointTree::new(&skin_points);
+    let mut members = vec![Vec::new(); count];
+    for v in 0..aligned.len() {
+        if !is_skin[v] {
+            members[label[v] as usize].push(v);
+        }
+    }
+    for piece in members.into_iter().filter(|m| !m.is_empty()) {
+        let centre = piece.iter().fold([0.0; 3], |acc, &v| add(acc, aligned[v].map(|x| x / piece.len() as f64)));
+        let radius = piece.iter().map(|&v| length(sub(aligned[v], centre))).fold(0.0, f64::max);
+        let mut reach = 2.0 * radius.max(1e-9);
+        let mut around = tree.within(centre, reach);
+        while around.len() < 12 && around.len() < skin.len() {
+            reach *= 2.0;
+            around = tree.within(centre, reach);
+        }
+        let from: Vec<Vec3> = around.iter().map(|&(i, _)| aligned[skin[i] as usize]).collect();
+        let to: Vec<Vec3> = around.iter().map(|&(i, _)| fitted[skin[i] as usize]).collect();
+        let motion = similarity_from_pairs(&from, &to).or_else(|_| {
+            // Skin around the piece on one line: translate by its mean motion.
+            let n = from.len().max(1) as f64;
+            let shift = from.iter().zip(&to).fold([0.0; 3], |acc, (a, b)| add(acc, sub(*b, *a).map(|x| x / n)));
+            Ok::<_, crate::error::ShapesmithError>(Similarity { translation: shift, ..Similarity::IDENTITY })
+        })?;
+        for &v in &piece {
+            fitted[v] = motion.apply(aligned[v]);
+        }
+    }
+    Ok(())
+}

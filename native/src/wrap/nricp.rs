@@ -1,0 +1,210 @@
+//! Optimal-step non-rigid ICP (Amberg, Romdhani & Vetter 2007), in the displacement form
+//! described in the module's Deviations: for each stiffness `alpha` of a decreasing schedule,
+//! closest points on the character are found, the normal system is factorised once, and a
+//! few closest-point iterations back-substitute into that factor.
+//!
+//! Energy of one step, over the skin's displacements `d = x - x_rest` (Eq. (12) of Amberg et
+//! al. with the linear parts of their per-vertex affine maps held at the identity):
+//! $$ E(d) = \sum_i w_i |x^{rest}_i + d_i - u_i|^2 + \alpha \sum_{(i,j)} |d_i - d_j|^2
+//!         + \beta \sum_l |B_l (x^{rest} + d) - q_l|^2 $$
+//! `u_i` the closest character point, `w_i` 1 or 0 (rejected), `B_l` the barycentric row of
+//! landmark `l` on the template, `q_l` its character point.
+
+use rayon::prelude::*;
+
+use crate::error::ShapesmithResult;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::closest_point::SurfacePoint;
+use crate::geometry::mat3::{add, dot, length, sub, vertex_normals, Vec3};
+use crate::geometry::topology::unique_edges;
+use crate::progress::Progress;
+use crate::sparse::SymmetricMatrix;
+
+use super::FitParams;
+
+/// A template point tied to a character point: barycentric on a template skin triangle.
+#[derive(Clone, Copy, Debug)]
+pub struct Landmark {
+    pub corners: [u32; 3],
+    pub barycentric: Vec3,
+    pub target: Vec3,
+}
+
+/// The character's surface as the fit sees it: the triangles it may snap to, their unit
+/// normals, and which edges and vertices lie on its boundary.
+pub struct TargetSurface<'a> {
+    pub bvh: TriangleBvh,
+    pub triangles: &'a [[u32; 3]],
+    pub normals: Vec<Vec3>,
+    boundary_edges: std::collections::HashSet<(u32, u32)>,
+    boundary_vertices: Vec<bool>,
+}
+
+impl<'a> TargetSurface<'a> {
+    pub fn new(points: &[Vec3], triangles: &'a [[u32; 3]]) -> Self {
+        let normals = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| points[v as usize]);
+                let n = crate::geometry::mat3::cross(sub(b, a), sub(c, a));
+                let len = length(n);
+                if len > 0.0 { n.map(|x| x / len) } else { n }
+            })
+            .collect();
+        let mut count = std::collections::HashMap::<(u32, u32), u32>::new();
+        for t in triangles {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                *count.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        let boundary_edges: std::collections::HashSet<(u32, u32)> = count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect();
+        let mut boundary_vertices = vec![false; points.len()];
+        for &(a, b) in &boundary_edges {
+            boundary_vertices[a as usize] = true;
+            boundary_vertices[b as usize] = true;
+        }
+        Self { bvh: TriangleBvh::build(points, triangles), triangles, normals, boundary_edges, boundary_vertices }
+    }
+
+    /// Whether a closest point lies on the surface's boundary (an edge of one triangle, or a
+    /// corner on such an edge): there the closest point is where the template runs past the
+    /// character's open edge, not a true correspondence.
+    pub fn on_boundary(&self, hit: &SurfacePoint) -> bool {
+        let t = self.triangles[hit.triangle as usize];
+        let zeros: Vec<usize> = (0..3).filter(|&i| hit.barycentric[i] == 0.0).collect();
+        match zeros.len() {
+            0 => false,
+            1 => {
+                let (a, b) = (t[(zeros[0] + 1) % 3], t[(zeros[0] + 2) % 3]);
+                self.boundary_edges.contains(&(a.min(b), a.max(b)))
+            }
+            _ => (0..3).any(|i| hit.barycentric[i] != 0.0 && self.boundary_vertices[t[i] as usize]),
+        }
+    }
+}
+
+/// What the fit reached.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FitStats {
+    /// Stiffness steps run and closest-point iterations in all.
+    pub steps: usize,
+    pub iterations: usize,
+    /// Skin vertices with an accepted closest point at the last step, as a fraction.
+    pub matched_fraction: f64,
+}
+
+/// Fits the skin vertices `skin` (sorted) of the template at `rest` (already aligned) onto
+/// `surface`; returns every vertex's fitted position (non-skin vertices as at rest).
+/// `skin_triangles` are the template triangles among skin vertices.
+pub fn fit_skin(
+    rest: &[Vec3],
+    skin: &[u32],
+    skin_triangles: &[[u32; 3]],
+    landmarks: &[Landmark],
+    surface: &TargetSurface,
+    params: &FitParams,
+    diagonal: f64,
+    progress: &dyn Progress,
+) -> ShapesmithResult<(Vec<Vec3>, FitStats)> {
+    let n = skin.len();
+    let mut local = vec![u32::MAX; rest.len()];
+    for (i, &v) in skin.iter().enumerate() {
+        local[v as usize] = i as u32;
+    }
+    let edges: Vec<(usize, usize)> = unique_edges(skin_triangles).into_iter().map(|(a, b)| (local[a as usize] as usize, local[b as usize] as usize)).collect();
+    let max_distance = params.max_distance * diagonal;
+    let cos_max_angle = params.max_angle_degrees.to_radians().cos();
+    let mut positions: Vec<Vec3> = rest.to_vec();
+    let mut stats = FitStats::default();
+    // A tiny pull towards the rest shape keeps the system definite when every vertex of the
+    // skin is rejected; it is far below every other weight.
+    let ridge = 1e-8;
+    // `W + alpha K + beta B^T B`; its pattern is the same at every step, so it is ordered once.
+    let assemble = |weights: &[f64], alpha: f64, beta: f64| {
+        let mut entries = Vec::with_capacity(n + 3 * edges.len() + 6 * landmarks.len());
+        entries.extend((0..n).map(|i| (i, i, weights[i] + ridge)));
+        for &(a, b) in &edges {
+            entries.extend([(a, a, alpha), (b, b, alpha), (a, b, -alpha)]);
+        }
+        for l in landmarks {
+            for r in 0..3 {
+                for c in 0..=r {
+                    let (vr, vc) = (local[l.corners[r] as usize] as usize, local[l.corners[c] as usize] as usize);
+                    entries.push((vr, vc, beta * l.barycentric[r] * l.barycentric[c]));
+                }
+            }
+        }
+        SymmetricMatrix::from_triplets(n, entries)
+    };
+    let order = assemble(&vec![1.0; n], 1.0, 1.0).fill_reducing_order()?;
+    let steps = params.stiffness.len();
+    for (step, &alpha) in params.stiffness.iter().enumerate() {
+        progress.checkpoint(step as f64 / steps as f64)?;
+        let beta = params.landmark_weight * alpha;
+        let matches = closest_points(&positions, skin, skin_triangles, surface, max_distance, cos_max_angle);
+        let weights: Vec<f64> = matches.iter().map(|m| if m.is_some() { 1.0 } else { 0.0 }).collect();
+        let matrix = assemble(&weights, alpha, beta);
+        let factor = matrix.factor(&order)?;
+        let mut matches = matches;
+        for _ in 0..params.iterations {
+            stats.iterations += 1;
+            // Right-hand side: data targets (a vertex accepted at the step's start but not now
+            // is held where it is), landmark targets.
+            let mut rhs: Vec<Vec3> = (0..n)
+                .map(|i| {
+                    let v = skin[i] as usize;
+                    if weights[i] == 0.0 {
+                        return [0.0; 3];
+                    }
+                    let target = matches[i].map_or(positions[v], |hit| hit.point);
+                    sub(target, rest[v])
+                })
+                .collect();
+            for l in landmarks {
+                let current: Vec3 = (0..3).fold([0.0; 3], |acc, k| add(acc, rest[l.corners[k] as usize].map(|x| x * l.barycentric[k])));
+                let residual = sub(l.target, current);
+                for k in 0..3 {
+                    let i = local[l.corners[k] as usize] as usize;
+                    rhs[i] = add(rhs[i], residual.map(|x| x * beta * l.barycentric[k]));
+                }
+            }
+            let displacement = factor.solve_points(&rhs);
+            let mut largest_move: f64 = 0.0;
+            for (i, d) in displacement.iter().enumerate() {
+                let v = skin[i] as usize;
+                let moved = add(rest[v], *d);
+                largest_move = largest_move.max(length(sub(moved, positions[v])));
+                positions[v] = moved;
+            }
+            if largest_move < params.tolerance * diagonal {
+                break;
+            }
+            matches = closest_points(&positions, skin, skin_triangles, surface, max_distance, cos_max_angle);
+        }
+        stats.steps = step + 1;
+    }
+    let last = closest_points(&positions, skin, skin_triangles, surface, max_distance, cos_max_angle);
+    stats.matched_fraction = last.iter().filter(|m| m.is_some()).count() as f64 / n.max(1) as f64;
+    Ok((positions, stats))
+}
+
+/// Each skin vertex's accepted closest point on the character: within `max_distance`, the
+/// surface normal within the angle of the template's vertex normal, not on the boundary.
+fn closest_points(
+    positions: &[Vec3],
+    skin: &[u32],
+    skin_triangles: &[[u32; 3]],
+    surface: &TargetSurface,
+    max_distance: f64,
+    cos_max_angle: f64,
+) -> Vec<Option<SurfacePoint>> {
+    let normals = vertex_normals(positions, skin_triangles);
+    skin.par_iter()
+        .map(|&v| {
+            let v = v as usize;
+            let hit = surface.bvh.closest_point(&positions[v], max_distance)?;
+            let compatible = dot(normals[v], surface.normals[hit.triangle as usize]) >= cos_max_angle;
+            (compatible && !surface.on_boundary(&hit)).then_some(hit)
+        })
+        .collect()
+}

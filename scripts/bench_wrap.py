@@ -1,0 +1,196 @@
+"""Wrap benchmark (SPEC section 5), run with the bpy Python:
+
+    python scripts/bench_wrap.py [-- --json OUT.json]
+
+Characters of other topology with a known answer: the identity head Target_OldMan subdivided
+and collapse-decimated to about 10k and 25k vertices, in centimetres with Y up, paired with
+the template at 10 vertices known by construction. For each: seconds per stage of the whole
+chain (io, align, wrap, transfer onto the wrapped template, carry onto the character), the
+fit (mean and max distance to the character, / bbox diagonal), and the error of the keys
+against the same-topology transfer onto the undecimated head sampled at the character's
+vertices (mean over shapes of the mean error on vertices moving more than 1e-3 of the
+diagonal, / diagonal), beside the nearest-vertex and plain barycentric copies of the
+wrapped template's keys measured in the same run; and the keys' roughness (mean norm of the
+uniform Laplacian of the deltas on moving vertices, / diagonal).
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import bpy
+import bmesh  # noqa: I001  (bmesh loads only after bpy)
+import numpy as np
+
+SCRIPTS = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, SCRIPTS)
+import batch  # noqa: E402
+import makehuman  # noqa: E402
+
+IDENTITY = "Target_OldMan"
+SIZES = {"10k": 10_000, "25k": 25_000}
+SCALE, SHIFT = 100.0, np.array([5.0, 160.0, -3.0])  # centimetres, Y up, moved
+
+
+def to_character(points):
+    return makehuman.character_frame(points, SCALE) + SHIFT
+
+
+def positions(obj):
+    co = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3).astype(np.float64)
+
+
+def build_character(identity, name, vertices):
+    """The identity subdivided (bmesh, one cut per edge, grid fill) until it has more than
+    `vertices`, then collapse-decimated to about that many, moved into the character frame."""
+    mesh = bmesh.new()
+    mesh.from_mesh(identity.data)
+    while len(mesh.verts) < vertices:
+        bmesh.ops.subdivide_edges(mesh, edges=mesh.edges[:], cuts=1, use_grid_fill=True)
+    data = bpy.data.meshes.new(name)
+    mesh.to_mesh(data)
+    mesh.free()
+    obj = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.modifiers.new("Decimate", "DECIMATE").ratio = vertices / len(data.vertices)
+    decimated = bpy.data.meshes.new_from_object(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    obj.modifiers.clear()
+    obj.data = decimated
+    decimated.vertices.foreach_set("co", to_character(positions(obj)).astype(np.float32).ravel())
+    decimated.update()
+    return obj
+
+
+def moving_error(estimate, reference, diagonal):
+    errors = []
+    for est, ref in zip(estimate, reference):
+        moving = np.linalg.norm(ref, axis=1) > 1e-3 * diagonal
+        if moving.any():
+            errors.append(np.linalg.norm(est[moving] - ref[moving], axis=1).mean() / diagonal)
+    return float(np.mean(errors))
+
+
+def roughness(deltas, edges, reference, diagonal):
+    """Mean norm of the uniform Laplacian of the deltas on moving vertices, / diagonal."""
+    n = deltas.shape[1]
+    degree = np.bincount(edges.ravel(), minlength=n).astype(np.float64)
+    values = []
+    for est, ref in zip(deltas, reference):
+        summed = np.zeros((n, 3))
+        np.add.at(summed, edges[:, 0], est[edges[:, 1]])
+        np.add.at(summed, edges[:, 1], est[edges[:, 0]])
+        laplacian = summed / np.maximum(degree, 1)[:, None] - est
+        moving = np.linalg.norm(ref, axis=1) > 1e-3 * diagonal
+        if moving.any():
+            values.append(np.linalg.norm(laplacian[moving], axis=1).mean() / diagonal)
+    return float(np.mean(values))
+
+
+def barycentric_sample(nat, points, surface, triangles, deltas):
+    triangle, barycentric, _ = nat.bind_to_surface(points.astype(np.float32), surface.astype(np.float32), triangles)
+    return np.einsum("vc,kvcx->kvx", barycentric, deltas[:, triangles[triangle]])
+
+
+def nearest_vertex(surface, deltas, points):
+    from mathutils.kdtree import KDTree
+
+    tree = KDTree(len(surface))
+    for i, p in enumerate(surface):
+        tree.insert(p, i)
+    tree.balance()
+    return deltas[:, [tree.find(p)[1] for p in points]]
+
+
+def run_size(shapesmith, label, vertices, truth):
+    from importlib import import_module
+
+    wrap = import_module(shapesmith.__name__ + ".blender.wrap")
+    mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
+    transfer = import_module(shapesmith.__name__ + ".blender.transfer")
+    nat = shapesmith.native.module()
+    template, identity = bpy.data.objects["Template"], bpy.data.objects[IDENTITY]
+    character = build_character(identity, f"Character_{label}", vertices)
+    skin = makehuman.largest_piece(len(template.data.vertices), [tuple(p.vertices) for p in template.data.polygons])
+    pair_vertices = makehuman.pair_vertices(positions(template), skin)
+    entries = [[int(v), [float(x) for x in q]] for v, q in zip(pair_vertices, to_character(positions(identity)[pair_vertices]))]
+    started = time.perf_counter()
+    template_points, character_points = wrap.pairs_from_list(entries, template, character)
+    wrapped = wrap.wrap_object(template, character, template_points, character_points)
+    wrapped_object = wrap.show_wrapped(wrapped)
+    shown = time.perf_counter()
+    result = wrap.carry_onto_character(template, character, wrapped_object, seconds=wrapped.seconds)
+    total = time.perf_counter() - started
+    seconds = dict(result.report["stage_seconds"])
+    seconds["picture"] = shown - started - sum(wrapped.seconds.values())
+    seconds["total"] = total
+    diagonal = wrapped.report["diagonal"]
+    # The same-topology result sampled at the character's vertices (back in the identity's frame).
+    points = positions(character)
+    identity_frame = (points - SHIFT) / SCALE
+    identity_frame = np.stack([identity_frame[:, 0], -identity_frame[:, 2], identity_frame[:, 1]], axis=1)
+    identity_triangles = mesh_arrays.read_triangles(identity)
+    reference = barycentric_sample(nat, identity_frame, positions(identity), identity_triangles, truth)
+    reference = np.stack([makehuman.character_frame(r, SCALE) for r in reference])
+    wrapped_positions = positions(wrapped_object)
+    wrapped_deltas = transfer.transfer_object(template, wrapped_object).deltas.astype(np.float64)
+    copies = {
+        "carry": result.deltas.astype(np.float64),
+        "nearest vertex": nearest_vertex(wrapped_positions, wrapped_deltas, points),
+        "barycentric": barycentric_sample(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), wrapped_deltas),
+    }
+    edges = np.array([tuple(e.vertices) for e in character.data.edges])
+    row = {
+        "vertices": len(points),
+        "template_vertices": len(wrapped_positions),
+        "seconds": seconds,
+        "fit": {k: wrapped.report[k] for k in ("mean_distance", "max_distance", "pair_residuals", "fit")},
+        "error": {name: moving_error(d, reference, diagonal) for name, d in copies.items()},
+        "roughness": {name: roughness(d, edges, reference, diagonal) for name, d in copies.items()},
+    }
+    row["roughness"]["same-topology (sampled)"] = roughness(reference, edges, reference, diagonal)
+    wrap.remove_object(wrapped_object)
+    return row
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="bench_wrap.py --")
+    cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
+    parser.add_argument("--json", default=os.path.join(cache, "bench", "bench_wrap.json"))
+    args = parser.parse_args(argv)
+    shapesmith = batch.load_shapesmith()
+    from importlib import import_module
+
+    transfer = import_module(shapesmith.__name__ + ".blender.transfer")
+    sample = os.path.join(cache, f"sample-%d.%d-{makehuman.sample_version()}.blend" % bpy.app.version[:2])
+    if not os.path.isfile(sample):
+        batch.run_sample(argparse.Namespace(output=sample))
+    bpy.ops.wm.open_mainfile(filepath=sample)
+    truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY]).deltas.astype(np.float64)
+    result = {label: run_size(shapesmith, label, vertices, truth) for label, vertices in SIZES.items()}
+    print("\n== Wrap + transfer + carry onto a character of other topology (seconds, one run, 2 cores)")
+    for label, row in result.items():
+        s = row["seconds"]
+        print(
+            f"  {label}: {row['vertices']} character vertices ({row['template_vertices']} template): "
+            + ", ".join(f"{k} {v:.3f}" for k, v in s.items())
+        )
+        fit = row["fit"]
+        print(
+            f"    fit: mean {100 * fit['mean_distance']:.3f}% / max {100 * fit['max_distance']:.2f}% of the diagonal; "
+            f"largest pair residual {100 * max(fit['pair_residuals']):.3f}%"
+        )
+        print("    error vs same-topology transfer: " + ", ".join(f"{k} {v:.2e}" for k, v in row["error"].items()))
+        print("    roughness (Laplacian of deltas): " + ", ".join(f"{k} {v:.2e}" for k, v in row["roughness"].items()))
+    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+    with open(args.json, "w") as f:
+        json.dump(result, f, indent=2)
+    print(f"\nwrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()
