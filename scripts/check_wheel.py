@@ -28,6 +28,8 @@ import zipfile
 
 MODULE = "shapesmith_native"
 INIT = "PyInit_" + MODULE
+# maturin puts the extension module inside a package of the same name, beside its __init__.py.
+PACKAGE = MODULE + "/"
 
 # DLLs that ship with every Windows 10/11 (Blender 4.2's minimum is Windows 8.1), which the Rust
 # standard library and the MinGW C runtime import. The api-ms-win-* names are API sets.
@@ -99,8 +101,8 @@ def read_pe(data):
 
 def check_windows(wheel, names, fail):
     pyd = [n for n in names if n.endswith(".pyd")]
-    if pyd != [f"{MODULE}.pyd"]:
-        fail(f"expected one {MODULE}.pyd (abi3 name), found {pyd}")
+    if pyd != [f"{PACKAGE}{MODULE}.pyd"]:
+        fail(f"expected one {PACKAGE}{MODULE}.pyd (abi3 name), found {pyd}")
         return
     machine, is_dll, plus, imports, exports = read_pe(wheel.read(pyd[0]))
     if machine != 0x8664 or not plus:
@@ -109,15 +111,17 @@ def check_windows(wheel, names, fail):
         fail(f"{pyd[0]} is not a DLL")
     if INIT not in exports:
         fail(f"{pyd[0]} does not export {INIT} (exports {exports[:5]})")
-    carried = {n.rsplit("/", 1)[-1].lower() for n in names if n.lower().endswith(".dll") and "/" not in n}
+    beside = {n[len(PACKAGE):]: n for n in names if n.startswith(PACKAGE) and n.lower().endswith(".dll")}
+    carried = {name.lower() for name in beside}
     allowed = WINDOWS_SYSTEM_DLLS | {"python3.dll"} | (MINGW_RUNTIME_DLLS & carried)
     needed = {name.lower() for name in imports}
     if "python3.dll" not in needed:
         fail(f"{pyd[0]} does not import python3.dll (abi3), imports {sorted(needed)}")
     if needed - allowed:
         fail(f"{pyd[0]} needs {sorted(needed - allowed)}, which Windows does not have and the wheel does not carry")
-    for dll in sorted(MINGW_RUNTIME_DLLS & carried):
-        _, _, _, dll_imports, _ = read_pe(wheel.read(dll))
+    for name, path in sorted(beside.items()):
+        _, _, _, dll_imports, _ = read_pe(wheel.read(path))
+        dll = name
         extra = {n.lower() for n in dll_imports} - allowed
         if extra:
             fail(f"{dll} needs {sorted(extra)}")
@@ -195,8 +199,8 @@ def read_macho(data):
 
 def check_macos(wheel, names, platform, fail):
     sos = [n for n in names if n.endswith(".so") or n.endswith(".dylib")]
-    if sos != [f"{MODULE}.abi3.so"]:
-        fail(f"expected one {MODULE}.abi3.so, found {sos}")
+    if sos != [f"{PACKAGE}{MODULE}.abi3.so"]:
+        fail(f"expected one {PACKAGE}{MODULE}.abi3.so, found {sos}")
         return
     cputype, filetype, dylibs, minos, exports = read_macho(wheel.read(sos[0]))
     if cputype != CPU[platform]:
@@ -219,8 +223,8 @@ def check_macos(wheel, names, platform, fail):
 
 def check_linux(wheel, names, fail):
     sos = [n for n in names if n.endswith(".so")]
-    if sos != [f"{MODULE}.abi3.so"]:
-        fail(f"expected one {MODULE}.abi3.so, found {sos}")
+    if sos != [f"{PACKAGE}{MODULE}.abi3.so"]:
+        fail(f"expected one {PACKAGE}{MODULE}.abi3.so, found {sos}")
         return
     data = wheel.read(sos[0])
     if data[:4] != b"\x7fELF" or data[4] != 2 or struct.unpack_from("<H", data, 18)[0] != 62:
