@@ -2,6 +2,7 @@
 
     python scripts/check_wheel.py BLENDER_EXT_PY PLATFORM WHEEL
     python scripts/check_wheel.py --windows-runtime FILE.exe   (scripts/test-windows)
+    python scripts/check_wheel.py --imports-from DLL FILE      (names FILE imports from DLL)
 
 PLATFORM is Blender's name (windows-x64, macos-arm64, macos-x64, linux-x64). The wheel must be
 abi3 for Python 3.11+, its platform tag must map to PLATFORM under Blender's own rule
@@ -50,7 +51,7 @@ def fail_list():
 # ---------------------------------------------------------------- PE (Windows)
 
 def read_pe(data):
-    """(machine, is_dll, is_pe32_plus, imported DLL names, exported names) of a PE image."""
+    """(machine, is_dll, is_pe32_plus, {imported DLL: names}, exported names) of a PE image."""
     if data[:2] != b"MZ":
         raise ValueError("not a PE image (no MZ header)")
     pe = struct.unpack_from("<I", data, 0x3C)[0]
@@ -79,7 +80,7 @@ def read_pe(data):
         start = offset(rva)
         return data[start:data.index(b"\0", start)].decode("ascii")
 
-    imports = []
+    imports = {}  # DLL name -> names of the functions and data imported from it
     rva, size = directory[1] if len(directory) > 1 else (0, 0)
     if rva:
         at = offset(rva)
@@ -87,7 +88,12 @@ def read_pe(data):
             lookup, _, _, name, thunk = struct.unpack_from("<IIIII", data, at)
             if not (lookup or name or thunk):
                 break
-            imports.append(cstring(name))
+            functions = imports.setdefault(cstring(name), [])
+            entry = offset(lookup or thunk)
+            while (value := struct.unpack_from("<Q" if plus else "<I", data, entry)[0]) != 0:
+                if not value >> (63 if plus else 31):  # not imported by ordinal
+                    functions.append(cstring((value & 0x7FFFFFFF) + 2))  # skip the 2-byte hint
+                entry += 8 if plus else 4
             at += 20
     exports = []
     rva, size = directory[0] if directory else (0, 0)
@@ -292,6 +298,11 @@ def check_windows_runtime(path):
 
 
 def main(argv):
+    if len(argv) == 3 and argv[0] == "--imports-from":
+        with open(argv[2], "rb") as binary:
+            imports = read_pe(binary.read())[3]
+        print("\n".join(next((v for k, v in imports.items() if k.lower() == argv[1].lower()), [])))
+        return 0
     if len(argv) == 2 and argv[0] == "--windows-runtime":
         failures, summary = check_windows_runtime(argv[1])
         argv = ["windows-x64", argv[1]]
