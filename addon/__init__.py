@@ -18,6 +18,7 @@ _MODULE_NAMES = (
     "operators.score_layout",
     "operators.export_landmarks",
     "operators.render_landmarks",
+    "operators.render_landmark_curve",
     "operators.preview_virtual_edges",
     "operators.transfer_shape_keys",
     "ui.panels",

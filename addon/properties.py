@@ -43,6 +43,10 @@ class SHAPESMITH_PG_landmark_layout(bpy.types.PropertyGroup):
     mean_error: bpy.props.FloatProperty(name="Mean Error", description="Mean reconstruction error / bbox diagonal")
     max_error: bpy.props.FloatProperty(name="Max Error", description="Largest reconstruction error / bbox diagonal")
     mesh_note: bpy.props.StringProperty(description="Loose parts and holes of the mesh, and how they were used")
+    predicted_error: bpy.props.FloatProperty(
+        name="Predicted Error", description="Predicted RMS reconstruction error / bbox diagonal (the design model)")
+    added: bpy.props.IntProperty(name="Added", description="Landmarks added after the cover for reconstruction")
+    design_stop: bpy.props.StringProperty(description="Why the added landmarks stopped (count, target, pool_exhausted)")
     document: bpy.props.StringProperty(description="The full layout report as JSON (what Export writes)")
 
 
@@ -54,6 +58,8 @@ class SHAPESMITH_PG_layout_score(bpy.types.PropertyGroup):
     landmarks: bpy.props.IntProperty(name="Landmarks")
     mean_error: bpy.props.FloatProperty(name="Mean Error", description="Mean reconstruction error / bbox diagonal")
     max_error: bpy.props.FloatProperty(name="Max Error", description="Largest reconstruction error / bbox diagonal")
+    predicted_error: bpy.props.FloatProperty(
+        name="Predicted Error", description="Predicted RMS reconstruction error / bbox diagonal (the design model)")
 
 
 # --- Pack Expressions: settings, refinements and the last result (read by Transfer) ---
@@ -313,6 +319,25 @@ class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
         default="HEMISPHERE",
     )
     camera_collection: bpy.props.PointerProperty(type=bpy.types.Collection, name="Cameras")
+    # No hard limits on the two targets: a typed-in bad value is refused with a clear message
+    # and the previous layout kept, rather than silently clamped.
+    design: bpy.props.EnumProperty(
+        name="Add for Reconstruction",
+        description="After the cover, add the landmarks that most lower the predicted reconstruction error under "
+        "tracker noise (the cover still gives every shape its own landmark)",
+        items=(
+            ("NONE", "Cover Only", "The cover (and its multi-cover rounds) alone"),
+            ("COUNT", "Up to Count", "Add landmarks until the layout has this many"),
+            ("TARGET", "Up to Error", "Add landmarks until the predicted error is this low"),
+        ),
+        default="NONE",
+    )
+    landmarks: bpy.props.IntProperty(
+        name="Landmarks", description="Landmarks in all, cover included (mirror pairs count two)",
+        default=34, soft_min=1, soft_max=200)
+    target_error: bpy.props.FloatProperty(
+        name="Target Error", description="Predicted RMS reconstruction error to reach, as a fraction of the bbox diagonal",
+        default=0.001, soft_min=1e-5, soft_max=0.01, precision=5, step=0.01)
     score_group: bpy.props.StringProperty(name="Vertex Group", description="A vertex group whose vertices you track")
 
 

@@ -301,6 +301,120 @@ def test_scoring_a_missing_or_empty_group_is_refused(sample):
     assert not template.shapesmith.landmark_score.done
 
 
+def test_a_conditioned_layout_keeps_the_cover_and_adds_up_to_the_count(sample):
+    template = make_active(bpy.data.objects["Template"])
+    cover = place(design="NONE", max_per_shape=1)
+    assert cover["design_stop"] is None and cover["curve"] == [] and cover["predicted_error"] > 0
+    m = len(cover["landmarks"]) + 10
+    document = place(design="COUNT", landmarks=m, max_per_shape=1)
+    assert document["design_stop"] == "count" and m - 1 <= len(document["landmarks"]) <= m
+    by_vertex = {lm["vertex"]: lm for lm in document["landmarks"]}
+    for landmark in cover["landmarks"]:
+        # Every covered shape keeps its landmark.
+        assert by_vertex[landmark["vertex"]] == dict(landmark, added=None)
+    added = [lm for lm in document["landmarks"] if lm["added"] is not None]
+    assert len(added) == len(document["landmarks"]) - len(cover["landmarks"]) == template.shapesmith.landmarks.added
+    # Measured and predicted error both fall with the added landmarks.
+    assert document["predicted_error"] < cover["predicted_error"]
+    assert document["reconstruction"]["mean"] < cover["reconstruction"]["mean"]
+    curve = document["curve"]
+    assert curve[0]["landmarks"] == len(cover["landmarks"]) and curve[0]["predicted_error"] == pytest.approx(cover["predicted_error"])
+    assert all(b["predicted_error"] <= a["predicted_error"] for a, b in zip(curve, curve[1:]))
+    assert curve[-1]["landmarks"] >= 68
+    assert template.shapesmith.landmarks.predicted_error == pytest.approx(document["predicted_error"], rel=1e-5)
+    assert len(layout_empties(template)) == len(document["landmarks"])
+
+
+def test_a_symmetric_conditioned_layout_is_its_own_mirror_image(sample):
+    template = make_active(bpy.data.objects["Template"])
+    document = place(design="COUNT", landmarks=30, max_per_shape=1, symmetric=True)
+    neutral, _ = rig_arrays(template)
+    chosen = neutral[[lm["vertex"] for lm in document["landmarks"]]]
+    mirrored = chosen * np.array([-1.0, 1.0, 1.0])
+    gaps = np.linalg.norm(mirrored[:, None, :] - chosen[None, :, :], axis=2).min(axis=1)
+    assert gaps.max() < 1e-4, gaps.max()
+    assert any(lm["added"] for lm in document["landmarks"])
+
+
+def test_a_target_error_stops_where_the_curve_reaches_it(sample):
+    make_active(bpy.data.objects["Template"])
+    probe = place(design="COUNT", landmarks=40, max_per_shape=1)
+    # Between the sixth and seventh points (the setting is a 32-bit float).
+    target = 0.5 * (probe["curve"][5]["predicted_error"] + probe["curve"][6]["predicted_error"])
+    document = place(design="TARGET", target_error=target, max_per_shape=1)
+    assert document["design_stop"] == "target" and document["predicted_error"] <= target
+    assert len(document["landmarks"]) == probe["curve"][6]["landmarks"]
+
+
+def test_the_score_compares_with_a_tracked_group_and_the_panel_draws(sample):
+    template = make_active(bpy.data.objects["Template"])
+    tracked = template.vertex_groups.new(name="Tracked")
+    tracked.add(list(range(0, len(template.data.vertices), 70)), 1.0, "REPLACE")
+    settings = bpy.context.scene.shapesmith.landmarks
+    settings.score_group = "Tracked"
+    assert bpy.ops.shapesmith.score_layout() == {"FINISHED"}
+    score = template.shapesmith.landmark_score
+    document = place(design="COUNT", landmarks=30, max_per_shape=1)
+    comparison = document["comparison"]
+    assert comparison["group"] == "Tracked" and comparison["mean"] == pytest.approx(score.mean_error, rel=1e-5)
+    assert comparison["predicted"] == pytest.approx(score.predicted_error, rel=1e-5)
+    # The panel's draw reads the stored result (no error on a headless UI layout stand-in).
+    lines = []
+
+    class Recorder:
+        def __getattr__(self, name):
+            return lambda *args, **kwargs: (lines.append(kwargs.get("text", "")), self)[1]
+
+    panel = bpy.types.SHAPESMITH_PT_landmarks
+    panel.draw(type("P", (), {"layout": Recorder()})(), bpy.context)
+    assert any("vs 'Tracked'" in line for line in lines), lines
+    assert any("chosen" in line for line in lines), lines
+
+
+def test_the_curve_picture_is_saved_without_changing_the_file(sample, tmp_path):
+    make_active(bpy.data.objects["Template"])
+    place(design="NONE")
+    path = str(tmp_path / "curve.png")
+    with pytest.raises(RuntimeError, match="no predicted-error curve"):
+        bpy.ops.shapesmith.render_landmark_curve(filepath=path)
+    place(design="COUNT", landmarks=30, max_per_shape=1)
+    images = len(bpy.data.images)
+    assert bpy.ops.shapesmith.render_landmark_curve(filepath=path) == {"FINISHED"}
+    assert len(bpy.data.images) == images
+    picture = bpy.data.images.load(path)
+    try:
+        assert tuple(picture.size) == (720, 420)
+        pixels = np.array(picture.pixels[:]).reshape(420, 720, 4)
+        # The orange curve and the blue chosen marker are drawn.
+        assert ((pixels[:, :, 0] > 0.8) & (pixels[:, :, 2] < 0.1)).sum() > 100
+        assert ((pixels[:, :, 2] > 0.8) & (pixels[:, :, 0] < 0.1)).sum() > 50
+    finally:
+        bpy.data.images.remove(picture)
+
+
+@pytest.mark.parametrize(
+    "design, value, message",
+    [
+        ("COUNT", 0, "at least 1"),
+        ("COUNT", -5, "at least 1"),
+        ("COUNT", 3, "the cover alone needs"),
+        ("COUNT", 10**7, "more than the mesh's"),
+        ("TARGET", -0.001, "positive fraction"),
+        ("TARGET", 0.0, "positive fraction"),
+    ],
+)
+def test_a_bad_count_or_target_is_refused_with_the_previous_layout_kept(sample, design, value, message):
+    template = make_active(bpy.data.objects["Template"])
+    document = place()
+    settings = bpy.context.scene.shapesmith.landmarks
+    settings.design = design
+    setattr(settings, "landmarks" if design == "COUNT" else "target_error", value)
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.shapesmith.place_landmarks()
+    assert json.loads(template.shapesmith.landmarks.document) == document
+    assert len(layout_empties(template)) == len(document["landmarks"])
+
+
 # --- batch --------------------------------------------------------------------------------
 
 
@@ -333,9 +447,35 @@ def test_batch_places_scores_exports_renders_and_saves_a_copy(sample, tmp_path):
     assert len(saved.shapesmith.landmarks.collection.objects) == len(report["landmarks"])
 
 
+def test_batch_adds_landmarks_compares_and_plots_the_curve(sample, tmp_path):
+    template = bpy.data.objects["Template"]
+    template.vertex_groups.new(name="Tracked").add(list(range(0, len(template.data.vertices), 70)), 1.0, "REPLACE")
+    source = str(tmp_path / "in.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=source, copy=True)
+    digest = file_digest(source)
+    report_path, curve_path = str(tmp_path / "out.json"), str(tmp_path / "curve.png")
+    proc = run_batch("landmarks", "--input", source, "--object", "Template", "--max-per-shape", "1",
+                     "--landmarks", "28", "--score-group", "Tracked", "--json", report_path, "--curve", curve_path,
+                     check=True)
+    assert "added" in proc.stdout and "<- chosen" in proc.stdout and "against 'Tracked'" in proc.stdout
+    assert file_digest(source) == digest
+    with open(report_path) as f:
+        report = json.load(f)
+    assert report["design_stop"] == "count" and len(report["landmarks"]) in (27, 28)
+    assert report["params"]["landmarks"] == 28 and report["params"]["criterion"] == "a"
+    assert [p["landmarks"] for p in report["curve"]] == sorted({p["landmarks"] for p in report["curve"]})
+    assert report["comparison"]["group"] == "Tracked" and report["comparison"]["predicted"] > 0
+    assert os.path.getsize(curve_path) > 1000
+
+
 @pytest.mark.parametrize(
     "flags, message",
     [
+        (["--landmarks", "0"], "--landmarks must be at least 1"),
+        (["--landmarks", "2"], "the cover alone needs"),
+        (["--target-error", "-0.01"], "--target-error must be a positive"),
+        (["--target-error", "nan"], "--target-error must be a positive"),
+        (["--curve", "x.png"], "--curve plots the landmarks added"),
         (["--epsilon", "0"], "epsilon must be in"),
         (["--epsilon", "1.5"], "epsilon must be in"),
         (["--rays", "0"], "rays must be at least 1"),

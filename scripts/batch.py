@@ -199,7 +199,14 @@ def add_landmarks_args(parser):
     cameras = parser.add_mutually_exclusive_group()
     cameras.add_argument("--scene-cameras", action="store_true", help="visibility from the scene's cameras")
     cameras.add_argument("--camera-collection", help="visibility from the cameras in this collection")
-    parser.add_argument("--score-group", help="also score the layout of this vertex group")
+    design = parser.add_argument_group("landmarks added for reconstruction after the cover")
+    design.add_argument("--landmarks", type=int, metavar="M", help="add landmarks until the layout has M in all")
+    design.add_argument("--target-error", type=float, metavar="E",
+                        help="add landmarks until the predicted error is E (fraction of the bbox diagonal)")
+    design.add_argument("--criterion", choices=("a", "d"), default="a",
+                        help="a: the predicted error (default); d: the log-determinant of the information")
+    design.add_argument("--curve", metavar="PNG", help="plot the predicted error per landmark count to this PNG")
+    parser.add_argument("--score-group", help="also score the layout of this vertex group, and compare with it")
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--csv", help="write one row per landmark here")
     parser.add_argument("--picture", help="render a front view with the landmarks to this PNG")
@@ -220,18 +227,27 @@ def run_landmarks(args):
         collection = bpy.data.collections.get(args.camera_collection)
         if collection is None:
             raise BatchError(f"no collection named '{args.camera_collection}' in the file")
+    if args.landmarks is not None and args.landmarks < 1:
+        raise BatchError(f"--landmarks must be at least 1, got {args.landmarks}")
+    if args.target_error is not None and not args.target_error > 0:
+        raise BatchError(f"--target-error must be a positive fraction of the bbox diagonal, got {args.target_error}")
+    if args.curve and args.landmarks is None and args.target_error is None:
+        raise BatchError("--curve plots the landmarks added after the cover: give --landmarks or --target-error")
     cameras = landmarks.camera_positions(obj, source, scene, collection)
     params = dict(epsilon=args.epsilon, alpha=args.alpha, gamma=args.gamma, rays=args.rays, symmetric=args.symmetric,
-                  max_per_shape=args.max_per_shape, radius=args.radius)
+                  max_per_shape=args.max_per_shape, radius=args.radius, landmarks=args.landmarks,
+                  target_error=args.target_error, criterion=args.criterion)
     score = landmarks.score_group(obj, args.score_group) if args.score_group else None
     document = landmarks.place_landmarks(obj, cameras=cameras, axis="XYZ".index(args.axis), **params)
+    if score is not None:
+        document["comparison"] = score
     landmarks.build_layout(obj, document, scene)
     for line in landmarks.summary_lines(document):
         print(line)
     if score is not None:
         document["score"] = score
         print(f"score of '{args.score_group}' ({score['landmarks']} vertices): mean {score['mean']:.2e}, "
-              f"max {score['max']:.2e} of the bbox diagonal")
+              f"max {score['max']:.2e} of the bbox diagonal, predicted {score['predicted']:.2e}")
     document.update(input=os.path.abspath(args.input))
     write_json(args.json, document)
     if args.csv:
@@ -239,6 +255,8 @@ def run_landmarks(args):
     if args.picture:
         picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
         picture.render_landmarks(obj, os.path.abspath(args.picture))
+    if args.curve:
+        import_module(shapesmith.__name__ + ".blender.landmark_curve").write_curve_png(document, os.path.abspath(args.curve))
     if args.output:
         save_copy(args.output)
 

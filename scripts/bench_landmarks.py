@@ -2,12 +2,18 @@
 
     python scripts/bench_landmarks.py [-- --input SAMPLE.blend] [--json OUT] [--picture OUT.png]
 
-On the bundled Template (about 5k vertices) and its 4x denser version: landmarks M per
-epsilon in {0.3, 0.5, 0.7}, visibility and solve seconds, rays per second, reconstruction
-error. Then the comparison the paper makes: a conventional 68-point layout (jaw line, brows,
-nose, eyelids, lip contours, placed by the geometric rule in `conventional_layout`) scored
-with the same noisy reconstruction as the optimised layouts. Needs the extension installed
-(scripts/install_extension.py) in this Blender's user directory.
+On the bundled Template (about 5k vertices) and its 4x denser version:
+1. The cover alone: landmarks M per epsilon in {0.3, 0.5, 0.7}, visibility and solve
+   seconds, rays per second, reconstruction error (measured) and predicted error.
+2. Conditioned layouts (the single cover at eps 0.5, then landmarks added for reconstruction)
+   at M = 18, 26, 34, and the predicted-error curve (`--curve`, a PNG).
+3. The comparison the paper makes: a conventional 68-point layout (jaw line, brows, nose,
+   eyelids, lip contours, placed by the geometric rule in `conventional_layout`) scored with
+   the same noisy reconstruction. Target: at M <= 34, a mean error at least 10% below it.
+4. Visibility speed: rays cast and rays/s with and without the reuse across poses (same
+   layout asserted), on both rigs and on a ~25k-vertex head whose face is cut once more
+   (bench_transfer's timing mesh), where visibility + cover + selection should take < 3 s.
+Needs the extension installed (scripts/install_extension.py) in this Blender's user directory.
 """
 
 import argparse
@@ -26,6 +32,9 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402  (the same extension loading as the pipelines)
 
 EPSILONS = (0.3, 0.5, 0.7)
+COUNTS = (18, 26, 34)
+# The core of the conditioned layouts: the single cover at this epsilon.
+DESIGN_EPSILON = 0.5
 
 
 def dense_copy(obj):
@@ -150,11 +159,17 @@ def conventional_layout(obj, parts):
     return indices, groups
 
 
-def place(landmarks, obj, epsilon):
-    document = landmarks.place_landmarks(obj, epsilon=epsilon)
+def place(module, obj, epsilon, **params):
+    document = module.place_landmarks(obj, epsilon=epsilon, **params)
     return {
         "epsilon": epsilon,
         "landmarks": len(document["landmarks"]),
+        "added": sum(1 for lm in document["landmarks"] if lm["added"] is not None),
+        "predicted_error": document["predicted_error"],
+        "seconds_design": document["seconds"]["design"],
+        "rays_cast": document["rays_cast"],
+        "rays_reused": document["rays_reused"],
+        "visibility_vertices": document["visibility_vertices"],
         "optimal": document["optimal"],
         "uncovered": document["uncovered"],
         "rounds": document["rounds"],
@@ -167,6 +182,75 @@ def place(landmarks, obj, epsilon):
     }, document
 
 
+def conventional_on(obj, template, conventional):
+    """The conventional layout's vertices on `obj`: the same indices when `obj` keeps the
+    template's vertices first (subdivision appends the new ones), checked by position."""
+    rest = lambda o: np.array([v.co[:] for v in o.data.shape_keys.reference_key.data])  # noqa: E731
+    if not np.allclose(rest(obj)[conventional], rest(template)[conventional], atol=1e-7):
+        raise RuntimeError(f"{obj.name} does not keep the template's vertex order")
+    return conventional
+
+
+def score_conventional(landmarks, obj, vertices):
+    obj.vertex_groups.new(name="Conventional68").add(vertices, 1.0, "REPLACE")
+    return landmarks.score_group(obj, "Conventional68")
+
+
+def cover_table(landmarks, obj, documents):
+    rows = []
+    for epsilon in EPSILONS:
+        row, document = place(landmarks, obj, epsilon)
+        rows.append(row)
+        documents[(obj.name, "cover", epsilon)] = document
+        print(f"{obj.name:<18}{len(obj.data.vertices):>9}{epsilon:>6.1f}{row['landmarks']:>5}"
+              f"{'yes' if row['optimal'] else 'no':>5}{row['seconds_visibility']:>8.2f}{row['seconds_solve']:>9.2f}"
+              f"{row['rays_per_second']:>10.3g}{row['mean_error']:>10.2e}{row['predicted_error']:>10.2e}")
+    return rows
+
+
+def design_table(landmarks, obj, documents):
+    rows = []
+    for count in COUNTS:
+        row, document = place(landmarks, obj, DESIGN_EPSILON, max_per_shape=1, landmarks=count)
+        row["requested"] = count
+        rows.append(row)
+        documents[(obj.name, "design", count)] = document
+        print(f"{obj.name:<18}{count:>5}{row['landmarks']:>5}{row['landmarks'] - row['added']:>7}{row['added']:>7}"
+              f"{row['seconds_visibility']:>8.2f}{row['seconds_solve']:>9.2f}{row['seconds_design']:>9.2f}"
+              f"{row['mean_error']:>10.2e}{row['max_error']:>9.2e}{row['predicted_error']:>10.2e}")
+    return rows
+
+
+def speed_row(landmarks, obj, **params):
+    """Visibility, solve and selection at M = 34 with and without the reuse across poses; the
+    two layouts must be identical."""
+    runs = {}
+    for reuse in (False, True):
+        _, document = place(landmarks, obj, DESIGN_EPSILON, max_per_shape=1, landmarks=34, reuse_visibility=reuse, **params)
+        runs[reuse] = document
+    before, after = runs[False], runs[True]
+    if [lm["vertex"] for lm in before["landmarks"]] != [lm["vertex"] for lm in after["landmarks"]] or \
+            [lm["visibility"] for lm in before["landmarks"]] != [lm["visibility"] for lm in after["landmarks"]]:
+        raise RuntimeError(f"{obj.name}: the reused visibility changed the layout")
+    row = {"vertices": len(obj.data.vertices), "visibility_vertices": after["visibility_vertices"]}
+    for name, document in (("before", before), ("after", after)):
+        seconds = document["seconds"]
+        row[name] = {
+            "rays_cast": document["rays_cast"],
+            "rays_reused": document["rays_reused"],
+            "rays_per_second": document["rays_per_second"],
+            "seconds_visibility": seconds["visibility"],
+            "seconds_solve": seconds["solve"],
+            "seconds_design": seconds["design"],
+            "seconds_total": seconds["visibility"] + seconds["solve"] + seconds["design"],
+        }
+    b, a = row["before"], row["after"]
+    print(f"{obj.name:<18}{row['vertices']:>9}{row['visibility_vertices']:>9}{b['rays_cast']:>12}{a['rays_cast']:>12}"
+          f"{a['rays_reused']:>12}{b['seconds_visibility']:>8.2f}{a['seconds_visibility']:>8.2f}"
+          f"{a['rays_per_second']:>10.3g}{b['seconds_total']:>8.2f}{a['seconds_total']:>8.2f}")
+    return row
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_landmarks.py --")
@@ -175,13 +259,18 @@ def main():
     parser.add_argument("--json", default=os.path.join(cache, "bench", "landmarks.json"))
     parser.add_argument("--picture", default=os.path.join(ROOT, "docs", "landmarks_front.png"))
     parser.add_argument("--conventional-picture", default=os.path.join(ROOT, "docs", "landmarks_conventional68.png"))
+    parser.add_argument("--design-picture", default=os.path.join(ROOT, "docs", "landmarks_conditioned34.png"))
+    parser.add_argument("--curve", default=os.path.join(ROOT, "docs", "landmarks_curve.png"))
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
     from importlib import import_module
 
+    import bench_transfer
+
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
     picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
+    curve = import_module(shapesmith.__name__ + ".blender.landmark_curve")
     if not os.path.isfile(args.input):
         batch.run_sample(argparse.Namespace(output=args.input))
     batch.open_blend(args.input)
@@ -189,50 +278,72 @@ def main():
     started = time.perf_counter()
     dense = dense_copy(template)
     subdivide_seconds = time.perf_counter() - started
-
-    results = {"rigs": {}, "subdivide_seconds": subdivide_seconds}
-    print(f"{'rig':<14}{'vertices':>9}{'eps':>6}{'M':>5}{'opt':>5}{'vis s':>8}{'solve s':>9}"
-          f"{'rays/s':>10}{'mean err':>10}{'max err':>9}")
-    documents = {}
-    for obj in (template, dense):
-        rows = []
-        for epsilon in EPSILONS:
-            row, document = place(landmarks, obj, epsilon)
-            rows.append(row)
-            documents[(obj.name, epsilon)] = document
-            print(f"{obj.name:<14}{len(obj.data.vertices):>9}{epsilon:>6.1f}{row['landmarks']:>5}"
-                  f"{'yes' if row['optimal'] else 'no':>5}{row['seconds_visibility']:>8.2f}{row['seconds_solve']:>9.2f}"
-                  f"{row['rays_per_second']:>10.3g}{row['mean_error']:>10.2e}{row['max_error']:>9.2e}")
-        results["rigs"][obj.name] = {"vertices": len(obj.data.vertices), "runs": rows}
-
-    # The paper's comparison: the conventional layout against the optimised ones, same noise.
     parts = landmarks.mesh_parts(template)
     conventional, groups = conventional_layout(template, parts)
-    template.vertex_groups.new(name="Conventional68").add(conventional, 1.0, "REPLACE")
-    score = landmarks.score_group(template, "Conventional68")
-    comparison = {
-        "conventional": {"points": len(conventional), "distinct_vertices": score["landmarks"],
-                         "mean_error": score["mean"], "max_error": score["max"],
-                         "groups": {k: len(v) for k, v in groups.items()}},
-        "optimised": [{"epsilon": r["epsilon"], "landmarks": r["landmarks"], "mean_error": r["mean_error"],
-                       "max_error": r["max_error"]} for r in results["rigs"][template.name]["runs"]],
-    }
-    results["comparison"] = comparison
-    print(f"\nconventional 68-point layout: {score['landmarks']} distinct vertices, "
-          f"mean {score['mean']:.2e}, max {score['max']:.2e} (noise {score['noise']:.1%} of the diagonal)")
-    for row in comparison["optimised"]:
-        ratio = row["landmarks"] / score["landmarks"]
-        print(f"optimised eps {row['epsilon']:.1f}: {row['landmarks']} landmarks ({ratio:.0%} of the conventional count), "
-              f"mean {row['mean_error']:.2e} ({row['mean_error'] / score['mean']:.2f}x), max {row['max_error']:.2e}")
 
-    landmarks.build_layout(template, documents[(template.name, 0.5)], bpy.context.scene)
+    results = {"rigs": {}, "subdivide_seconds": subdivide_seconds}
+    documents = {}
+    print("1. The cover alone (multi-cover, 2 rounds)")
+    print(f"{'rig':<18}{'vertices':>9}{'eps':>6}{'M':>5}{'opt':>5}{'vis s':>8}{'solve s':>9}"
+          f"{'rays/s':>10}{'mean err':>10}{'predicted':>10}")
+    for obj in (template, dense):
+        results["rigs"][obj.name] = {"vertices": len(obj.data.vertices), "runs": cover_table(landmarks, obj, documents)}
+
+    print(f"\n2. Conditioned layouts: the single cover at eps {DESIGN_EPSILON}, then landmarks added for reconstruction")
+    print(f"{'rig':<18}{'ask':>5}{'M':>5}{'cover':>7}{'added':>7}{'vis s':>8}{'solve s':>9}{'design s':>9}"
+          f"{'mean err':>10}{'max err':>9}{'predicted':>10}")
+    for obj in (template, dense):
+        results["rigs"][obj.name]["conditioned"] = design_table(landmarks, obj, documents)
+
+    print("\n3. Against the conventional 68-point layout (same noise, same poses)")
+    comparison = {"groups": {k: len(v) for k, v in groups.items()}, "points": len(conventional)}
+    scores = {}
+    for obj in (template, dense):
+        score = scores[obj.name] = score_conventional(landmarks, obj, conventional_on(obj, template, conventional))
+        rig = results["rigs"][obj.name]
+        rows = [dict(r, layout=f"cover eps {r['epsilon']:.1f}") for r in rig["runs"]] + \
+            [dict(r, layout=f"conditioned M={r['requested']}") for r in rig["conditioned"]]
+        best = min((r for r in rows if r["landmarks"] <= 34), key=lambda r: r["mean_error"])
+        comparison[obj.name] = {
+            "conventional": {"distinct_vertices": score["landmarks"], "mean_error": score["mean"],
+                             "max_error": score["max"], "predicted_error": score["predicted"]},
+            "layouts": [{"layout": r["layout"], "landmarks": r["landmarks"], "mean_error": r["mean_error"],
+                         "ratio": r["mean_error"] / score["mean"]} for r in rows],
+            "best_at_most_34": {"layout": best["layout"], "landmarks": best["landmarks"],
+                                "mean_error": best["mean_error"], "ratio": best["mean_error"] / score["mean"]},
+            "target_met": best["mean_error"] <= 0.9 * score["mean"],
+        }
+        print(f"{obj.name}: conventional {score['landmarks']} vertices, mean {score['mean']:.2e}, "
+              f"max {score['max']:.2e}, predicted {score['predicted']:.2e}")
+        for row in rows:
+            print(f"  {row['layout']:<22}{row['landmarks']:>4} landmarks ({row['landmarks'] / score['landmarks']:.0%}), "
+                  f"mean {row['mean_error']:.2e} ({row['mean_error'] / score['mean'] - 1:+.0%})")
+        print(f"  best at M <= 34: {best['layout']} with {best['landmarks']}: "
+              f"{best['mean_error'] / score['mean'] - 1:+.0%} against the conventional layout "
+              f"(target -10%: {'met' if comparison[obj.name]['target_met'] else 'NOT met'})")
+    results["comparison"] = comparison
+
+    print("\n4. Visibility + cover + selection at M = 34, 64 rays: without / with the reuse across poses")
+    print(f"{'rig':<18}{'vertices':>9}{'traced':>9}{'rays before':>12}{'rays after':>12}{'reused':>12}"
+          f"{'vis s':>8}{'vis s':>8}{'rays/s':>10}{'total s':>8}{'total s':>8}")
+    face = bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)
+    results["speed"] = {obj.name: speed_row(landmarks, obj) for obj in (template, dense, face)}
+
+    # Pictures: the cover, the conventional layout, the conditioned layout at 34 and its curve.
+    landmarks.build_layout(template, documents[(template.name, "cover", 0.5)], bpy.context.scene)
     os.makedirs(os.path.dirname(os.path.abspath(args.picture)), exist_ok=True)
     picture.render_landmarks(template, os.path.abspath(args.picture))
     picture.render_vertices(template, conventional, os.path.abspath(args.conventional_picture), colour=(0.1, 0.3, 0.9, 1.0))
+    conditioned = documents[(template.name, "design", 34)]
+    landmarks.build_layout(template, conditioned, bpy.context.scene)
+    picture.render_landmarks(template, os.path.abspath(args.design_picture))
+    conditioned["comparison"] = scores[template.name]
+    curve.write_curve_png(conditioned, os.path.abspath(args.curve))
+    results["curve"] = conditioned["curve"]
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
         json.dump(results, f, indent=2)
-    print(f"\nwrote {args.json}, {args.picture} and {args.conventional_picture}")
+    print(f"\nwrote {args.json}, {args.picture}, {args.conventional_picture}, {args.design_picture} and {args.curve}")
 
 
 if __name__ == "__main__":

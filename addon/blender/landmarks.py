@@ -37,6 +37,8 @@ def settings_params(settings):
         symmetric=settings.symmetric,
         max_per_shape=settings.max_per_shape,
         radius=settings.radius,
+        landmarks=settings.landmarks if settings.design == "COUNT" else None,
+        target_error=settings.target_error if settings.design == "TARGET" else None,
     )
 
 
@@ -119,15 +121,27 @@ def score_vertices(obj, rig, vertices):
     return dict(score, noise=SCORE_NOISE, packed_expressions=0 if poses is None else len(poses))
 
 
-def place_landmarks(obj, cameras=None, axis=0, progress=None, **params):
+def check_design(landmarks=None, target_error=None, **_):
+    """Refuses a bad count or target before any work (the core checks them again)."""
+    if landmarks is not None and landmarks < 1:
+        raise MeshDataError(f"the landmark count must be at least 1, got {landmarks}")
+    if target_error is not None and not (target_error > 0 and np.isfinite(target_error)):
+        raise MeshDataError(f"the target error must be a positive fraction of the diagonal, got {target_error}")
+
+
+def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None, **params):
     """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
     nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
-    max_per_shape, radius); `progress(fraction)`, when given, is called as the work advances
-    and stops it by returning False (CancelledError). Raises MeshDataError or the core's
-    errors on bad input."""
+    max_per_shape, radius, landmarks, target_error, criterion); `progress(fraction)`, when
+    given, is called as the work advances and stops it by returning False (CancelledError).
+    With `compare_group`, that vertex group's layout (e.g. a conventional one the user
+    tracks) is scored too, as `comparison`. Raises MeshDataError or the core's errors on bad
+    input."""
+    check_design(**params)
     started = time.perf_counter()
     rig = read_rig(obj)
     parts = mesh_parts(obj)
+    comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(
         rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, progress=progress, **params
@@ -141,6 +155,8 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, **params):
     placed = time.perf_counter()
     layout["reconstruction"] = score_vertices(obj, rig, vertices)
     scored = time.perf_counter()
+    if comparison is not None:
+        layout["comparison"] = comparison
     layout["mesh"] = {
         "vertices": len(rig.neutral),
         "loose_parts": parts["loose_parts"],
@@ -153,6 +169,7 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, **params):
         "io": read - started,
         "visibility": layout["seconds"]["visibility"],
         "solve": layout["seconds"]["solve"],
+        "design": layout["seconds"]["design"],
         "score": scored - placed,
     }
     return layout
@@ -219,6 +236,9 @@ def store_layout(obj, document, collection):
     result.inert = ", ".join(document["inert"])
     result.mean_error = document["reconstruction"]["mean"]
     result.max_error = document["reconstruction"]["max"]
+    result.predicted_error = document["predicted_error"]
+    result.added = sum(1 for landmark in document["landmarks"] if landmark.get("added") is not None)
+    result.design_stop = document.get("design_stop") or ""
     result.mesh_note = document["mesh"]["note"]
     result.document = json.dumps(document)
 
@@ -236,6 +256,14 @@ def group_vertices(obj, name):
     return vertices
 
 
+def comparison_group(obj, name):
+    """The vertex group to compare a new layout with: the panel's scored group when the
+    object has it, never the layout's own `Landmarks` group (the run replaces it)."""
+    if name and name != VERTEX_GROUP_NAME and obj.vertex_groups.get(name) is not None:
+        return name
+    return None
+
+
 def score_group(obj, name):
     """Reconstruction error of the layout a vertex group describes (same poses and noise as
     Place Landmarks' own score), relative to the bbox diagonal. Writes nothing."""
@@ -250,6 +278,7 @@ def store_score(obj, score):
     result.landmarks = score["landmarks"]
     result.mean_error = score["mean"]
     result.max_error = score["max"]
+    result.predicted_error = score.get("predicted") or 0.0
 
 
 def stored_document(obj):
@@ -265,7 +294,7 @@ def write_json(path, document):
         json.dump(document, f, indent=2)
 
 
-CSV_COLUMNS = ("vertex", "x", "y", "z", "strongest", "shapes", "visibility", "round")
+CSV_COLUMNS = ("vertex", "x", "y", "z", "strongest", "shapes", "visibility", "round", "added")
 
 
 def write_csv(path, document):
@@ -278,23 +307,66 @@ def write_csv(path, document):
             x, y, z = landmark["position"]
             writer.writerow(
                 (landmark["vertex"], x, y, z, landmark["strongest"], " ".join(landmark["shapes"]),
-                 landmark["visibility"], landmark["round"])
+                 landmark["visibility"], landmark["round"], "" if landmark.get("added") is None else landmark["added"])
             )
+
+
+STOP_REASONS = {
+    "count": "reached the requested count",
+    "target": "reached the target error",
+    "pool_exhausted": "no visible vertex outside the radius was left to add",
+}
+
+
+def curve_lines(document, every=4):
+    """The predicted-error curve as text rows (cover, every `every`-th step, the chosen
+    layout, the end), for the panel's report and the batch log."""
+    curve = document.get("curve") or []
+    chosen = len(document["landmarks"])
+    keep = [i for i, point in enumerate(curve)
+            if i == 0 or i == len(curve) - 1 or i % every == 0 or point["landmarks"] == chosen]
+    return [
+        f"{curve[i]['landmarks']:>4} landmarks: predicted {curve[i]['predicted_error']:.2e}"
+        + ("  (cover)" if i == 0 else "  <- chosen" if curve[i]["landmarks"] == chosen else "")
+        for i in keep
+    ]
+
+
+def comparison_line(document):
+    """The layout's error beside a tracked layout's, or None when there is none to compare."""
+    other = document.get("comparison")
+    if other is None:
+        return None
+    mean = document["reconstruction"]["mean"]
+    change = mean / other["mean"] - 1.0
+    return (
+        f"{len(document['landmarks'])} landmarks: mean {mean:.2e} against '{other['group']}' "
+        f"({other['landmarks']} vertices): mean {other['mean']:.2e} ({change:+.0%})"
+    )
 
 
 def summary_lines(document):
     """A short human-readable summary (for the batch log and the demo)."""
     rec = document["reconstruction"]
     seconds = document["seconds"]
+    added = sum(1 for landmark in document["landmarks"] if landmark.get("added") is not None)
     lines = [
         f"{len(document['landmarks'])} landmarks in {document['rounds']} round(s), "
         f"{'proven optimal' if document['optimal'] else 'NOT proven optimal'}",
         f"uncovered shapes: {', '.join(document['uncovered']) or 'none'}; inert: {', '.join(document['inert']) or 'none'}",
         f"reconstruction error (noise {rec['noise']:.1%} of the diagonal, {rec['poses']} poses, "
         f"{rec['packed_expressions']} of them packed expressions): "
-        f"mean {rec['mean']:.2e}, max {rec['max']:.2e} of the bbox diagonal",
+        f"mean {rec['mean']:.2e}, max {rec['max']:.2e} of the bbox diagonal; "
+        f"predicted {document['predicted_error']:.2e} (RMS, design model)",
         f"mesh: {document['mesh']['note']}",
         f"seconds: I/O {seconds['io']:.2f}, visibility {seconds['visibility']:.2f} "
-        f"({document['rays_per_second']:.3g} rays/s), solve {seconds['solve']:.2f}, score {seconds['score']:.2f}",
+        f"({document['rays_per_second']:.3g} rays/s, {document['rays_cast']} rays), solve {seconds['solve']:.2f}, "
+        f"design {seconds['design']:.2f}, score {seconds['score']:.2f}",
     ]
+    if document.get("design_stop"):
+        lines.append(f"added {added} landmark(s) for reconstruction after the cover: "
+                     f"{STOP_REASONS[document['design_stop']]}")
+        lines += ["  " + line for line in curve_lines(document)]
+    if document.get("comparison"):
+        lines.append(comparison_line(document))
     return lines + [f"warning: {w}" for w in document["warnings"]]

@@ -3,7 +3,14 @@ moving, visible landmark; built as empties on the vertices, replacing the previo
 
 import bpy
 
-from ..blender.landmarks import build_layout, camera_positions, place_landmarks, settings_params
+from ..blender.landmarks import (
+    build_layout,
+    camera_positions,
+    comparison_group,
+    comparison_line,
+    place_landmarks,
+    settings_params,
+)
 from .base import expected_errors, poll_mesh, progress_cursor
 
 
@@ -29,7 +36,7 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
             with progress_cursor(context) as progress:
                 document = place_landmarks(
                     obj, cameras=cameras, axis=int(scene.shapesmith.symmetry_axis), progress=progress,
-                    **settings_params(settings),
+                    compare_group=comparison_group(obj, settings.score_group), **settings_params(settings),
                 )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
@@ -42,9 +49,13 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
         rec = document["reconstruction"]
         self.report(
             {"INFO"},
-            f"{len(document['landmarks'])} landmarks ({'optimal' if document['optimal'] else 'not proven optimal'}); "
-            f"reconstruction error mean {rec['mean']:.2%}, max {rec['max']:.2%} of the head's diagonal",
+            f"{len(document['landmarks'])} landmarks ({'optimal' if document['optimal'] else 'not proven optimal'} cover"
+            f"{', %d added for reconstruction' % obj.shapesmith.landmarks.added if document['design_stop'] else ''}); "
+            f"reconstruction error mean {rec['mean']:.2%}, max {rec['max']:.2%} of the head's diagonal, "
+            f"predicted {document['predicted_error']:.2%}",
         )
+        if document.get("comparison"):
+            self.report({"INFO"}, comparison_line(document))
         return {"FINISHED"}
 
 

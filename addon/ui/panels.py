@@ -1,8 +1,11 @@
 """The Shapesmith tab in the 3D View sidebar: one panel per tool under a Rig panel."""
 
+import json
+
 import bpy
 
 from .. import native
+from ..blender.landmarks import STOP_REASONS, VERTEX_GROUP_NAME, curve_lines
 
 
 class SHAPESMITH_UL_pairs(bpy.types.UIList):
@@ -81,6 +84,11 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
         elif settings.camera_source == "COLLECTION":
             layout.prop(settings, "camera_collection")
         layout.prop(settings, "symmetric", text=f"Symmetric (across {'XYZ'[int(context.scene.shapesmith.symmetry_axis)]} = 0)")
+        layout.prop(settings, "design")
+        if settings.design == "COUNT":
+            layout.prop(settings, "landmarks")
+        elif settings.design == "TARGET":
+            layout.prop(settings, "target_error")
         layout.operator("shapesmith.place_landmarks", icon="EMPTY_DATA")
         obj = context.active_object
         if obj is None or obj.type != "MESH":
@@ -93,6 +101,21 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
             col.label(text="Proven optimal" if result.optimal else "Not proven optimal",
                       icon="CHECKMARK" if result.optimal else "ERROR")
             col.label(text=f"Error: mean {result.mean_error:.2%}, max {result.max_error:.2%} of diagonal")
+            col.label(text=f"Predicted error: {result.predicted_error:.3%} (RMS)")
+            document = json.loads(result.document) if result.document else {}
+            if result.design_stop:
+                col.label(text=f"{result.added} added for reconstruction: {STOP_REASONS[result.design_stop]}")
+            score = obj.shapesmith.landmark_score
+            if score.done and score.group != VERTEX_GROUP_NAME:
+                change = result.mean_error / score.mean_error - 1.0 if score.mean_error > 0 else 0.0
+                col.label(text=f"vs '{score.group}' ({score.landmarks}): mean {score.mean_error:.2%} ({change:+.0%})",
+                          icon="CHECKMARK" if change < 0 else "ERROR")
+            if document.get("curve"):
+                curve = box.column(align=True)
+                curve.label(text="Predicted error per landmark count:")
+                for line in curve_lines(document):
+                    curve.label(text=line.strip())
+                box.operator("shapesmith.render_landmark_curve", icon="GRAPH")
             if result.uncovered:
                 col.label(text=f"Uncovered: {result.uncovered}", icon="ERROR")
             if result.inert:

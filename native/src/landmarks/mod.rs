@@ -33,6 +33,7 @@
 pub mod bvls;
 pub mod candidates;
 pub mod cover;
+pub mod design;
 pub mod score;
 pub mod visibility;
 
@@ -48,6 +49,8 @@ use crate::progress::Progress;
 use crate::rig::{norm, RigView};
 use candidates::{candidate_relation, mutual_partners};
 use cover::{adaptive_multi_cover, MultiCoverSettings};
+use design::{error_weight, extend_layout, predicted_error, DesignInput, DesignSettings};
+pub use design::{Criterion, CurvePoint, DesignStop};
 use visibility::{worst_case_visibility, Sampling};
 
 pub use score::{score_layout, LayoutScore, ScoreParams};
@@ -81,6 +84,28 @@ pub struct LandmarkParams {
     pub seed: u64,
     /// Seconds per HiGHS solve; `None` solves to proven optimality.
     pub time_limit: Option<f64>,
+    /// Conditioned layout ([`design`]): add landmarks after the cover until the layout has
+    /// this many in all (mirror partners count).
+    pub landmarks: Option<usize>,
+    /// Conditioned layout: add landmarks until the predicted error (fraction of the diagonal)
+    /// is at most this. With `landmarks` too, whichever comes first.
+    pub target_error: Option<f64>,
+    pub criterion: Criterion,
+    /// The design's pool: vertices whose relative displacement reaches this in some shape
+    /// (`epsilon` when that is lower). Every pool vertex needs visibility rays.
+    pub pool_epsilon: f64,
+    /// Pool vertices seen less than this in their worst pose are not added: a tracker
+    /// would lose them (cover landmarks keep the paper's rule, `min_visibility`).
+    pub pool_visibility: f64,
+    /// Noise of the predicted error, per coordinate, as a fraction of the diagonal (the
+    /// score's 0.2%).
+    pub noise: f64,
+    /// The predicted-error curve runs at least to this many landmarks (a conventional
+    /// layout's 68), so that the user sees where more stop paying.
+    pub curve_to: usize,
+    /// Reuse the neutral's ray outcomes where a pose does not move the region (same answer,
+    /// fewer rays; off only to measure the saving).
+    pub reuse_visibility: bool,
 }
 
 impl Default for LandmarkParams {
@@ -100,6 +125,14 @@ impl Default for LandmarkParams {
             min_visibility: 0.0,
             seed: 0,
             time_limit: None,
+            landmarks: None,
+            target_error: None,
+            criterion: Criterion::A,
+            pool_epsilon: 0.3,
+            pool_visibility: 0.25,
+            noise: 0.002,
+            curve_to: 68,
+            reuse_visibility: true,
         }
     }
 }
@@ -128,6 +161,25 @@ impl LandmarkParams {
         }
         if self.max_per_shape == 0 {
             return Err(invalid!("max_per_shape must be at least 1"));
+        }
+        if self.landmarks == Some(0) {
+            return Err(invalid!("landmarks must be at least 1, got 0"));
+        }
+        if self.target_error.is_some_and(|e| !(e.is_finite() && e > 0.0)) {
+            return Err(invalid!(
+                "target_error must be a positive fraction of the diagonal, got {}",
+                self.target_error.unwrap_or_default()
+            ));
+        }
+        if !(self.pool_epsilon > 0.0 && self.pool_epsilon <= 1.0) || !unit(self.pool_visibility) {
+            return Err(invalid!(
+                "pool_epsilon must be in (0, 1] and pool_visibility in [0, 1], got {} and {}",
+                self.pool_epsilon,
+                self.pool_visibility
+            ));
+        }
+        if !(self.noise.is_finite() && self.noise > 0.0) {
+            return Err(invalid!("noise must be a positive fraction of the diagonal, got {}", self.noise));
         }
         if self.axis > 2 {
             return Err(invalid!("the symmetry axis must be 0, 1 or 2, got {}", self.axis));
@@ -160,8 +212,11 @@ pub struct Landmark {
     pub strongest: usize,
     /// Worst-case visibility `l[n]` (Eq. 4).
     pub visibility: f64,
-    /// 0 for the single cover, 1 for the first backup round, ...
+    /// 0 for the single cover, 1 for the first backup round, ...; the design's additions
+    /// come one round after the cover's last.
     pub round: usize,
+    /// The design step (1-based) that added this landmark; `None` for the cover's.
+    pub added: Option<usize>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -177,7 +232,19 @@ pub struct LandmarkLayout {
     pub rounds: usize,
     pub seconds_visibility: f64,
     pub seconds_solve: f64,
+    /// Seconds of the design stage (and of the predicted error).
+    pub seconds_design: f64,
     pub rays_cast: u64,
+    /// Rays answered without tracing the whole pose ([`visibility::worst_case_visibility`]).
+    pub rays_reused: u64,
+    /// Vertices whose visibility was measured (candidates, pool, their mirror partners).
+    pub visibility_vertices: usize,
+    /// Predicted RMS reconstruction error of the layout, fraction of the diagonal ([`design`]).
+    pub predicted_error: f64,
+    /// The cover's predicted error, then one point per greedy step (empty without a design).
+    pub curve: Vec<CurvePoint>,
+    /// Why the design stopped; `None` without a design.
+    pub design_stop: Option<DesignStop>,
 }
 
 /// Places landmarks (SPEC section 2): candidates (Eq. 3), worst-case visibility over the
@@ -188,6 +255,9 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     params.validate()?;
     if rig.n_shapes() == 0 {
         return Err(invalid!("the rig has no shape keys: landmarks go where shapes move"));
+    }
+    if let Some(m) = params.landmarks.filter(|&m| m > rig.n_vertices()) {
+        return Err(invalid!("landmarks = {m} is more than the mesh's {} vertices", rig.n_vertices()));
     }
     let inert = rig.inert_shapes();
     let live: Vec<usize> = (0..rig.n_shapes()).filter(|k| !inert.contains(k)).collect();
@@ -200,7 +270,13 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         rounds: 0,
         seconds_visibility: 0.0,
         seconds_solve: 0.0,
+        seconds_design: 0.0,
         rays_cast: 0,
+        rays_reused: 0,
+        visibility_vertices: 0,
+        predicted_error: 0.0,
+        curve: Vec::new(),
+        design_stop: None,
     };
     if live.is_empty() {
         return Ok(layout);
@@ -209,10 +285,20 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         .symmetric
         .then(|| mutual_partners(&MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance)));
     let mut relation = candidate_relation(rig, &live, params.epsilon, partners.as_deref(), params.axis);
+    let designing = params.landmarks.is_some() || params.target_error.is_some();
+    // The design's pool (folded like the cover's candidates, so a pick brings its partner).
+    let pool_epsilon = params.pool_epsilon.min(params.epsilon);
+    let pool: Vec<bool> = if designing {
+        let wide = candidate_relation(rig, &live, pool_epsilon, partners.as_deref(), params.axis);
+        wide.iter().map(|shapes| !shapes.is_empty()).collect()
+    } else {
+        vec![false; rig.n_vertices()]
+    };
 
-    // Visibility of every candidate, and of its mirror partner when the layout is symmetric.
+    // Visibility of every candidate and pool vertex, and of its mirror partner when the
+    // layout is symmetric.
     let mut needed = vec![false; rig.n_vertices()];
-    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty()) {
+    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty() || pool[n]) {
         needed[n] = true;
         if let Some(m) = partners.as_ref().and_then(|p| p[n]) {
             needed[m as usize] = true;
@@ -224,9 +310,12 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         None => Sampling::Hemisphere { rays: params.rays, seed: params.seed },
     };
     let started = Instant::now();
-    let seen = worst_case_visibility(rig, &live, &vertices, &sampling, &Stage { inner: progress, start: 0.0, span: 0.8 })?;
+    let stage = Stage { inner: progress, start: 0.0, span: 0.8 };
+    let seen = worst_case_visibility(rig, &live, &vertices, &sampling, params.reuse_visibility, &stage)?;
     layout.seconds_visibility = started.elapsed().as_secs_f64();
     layout.rays_cast = seen.rays_cast;
+    layout.rays_reused = seen.rays_reused;
+    layout.visibility_vertices = vertices.len();
     let mut visibility = vec![1.0; rig.n_vertices()];
     for (&v, &l) in vertices.iter().zip(&seen.worst) {
         visibility[v as usize] = l;
@@ -275,11 +364,57 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     layout.rounds = chosen.statuses.len();
     layout.statuses = chosen.statuses;
     layout.seconds_solve = chosen.seconds_solve;
+    let mut placed: Vec<(u32, usize, Option<usize>)> = chosen.landmarks.iter().map(|&(v, round)| (v, round, None)).collect();
+    let started = Instant::now();
+    let deltas: Vec<&[[f32; 3]]> = live.iter().map(|&k| rig.delta(k)).collect();
+    let cover: Vec<u32> = placed.iter().map(|p| p.0).collect();
+    if let Some(m) = params.landmarks.filter(|&m| m < cover.len()) {
+        return Err(invalid!(
+            "the cover alone needs {} landmarks to give every shape one, more than landmarks = {m}: ask for at \
+             least {}, or make the cover smaller (a higher epsilon, max_per_shape = 1)",
+            cover.len(),
+            cover.len()
+        ));
+    }
+    if designing {
+        let taken: std::collections::HashSet<u32> = cover.iter().copied().collect();
+        let units: Vec<Vec<u32>> = (0..rig.n_vertices() as u32)
+            .filter(|&n| pool[n as usize] && effective[n as usize] >= params.pool_visibility && !taken.contains(&n))
+            .map(|n| std::iter::once(n).chain(partners.as_ref().and_then(|p| p[n as usize])).collect())
+            .collect();
+        let input = DesignInput {
+            deltas,
+            neutral: rig.neutral,
+            pool: units,
+            cover,
+            radius: settings.radius,
+            diagonal: rig.bbox_diagonal(),
+        };
+        let design_settings = DesignSettings {
+            landmarks: params.landmarks,
+            target_error: params.target_error,
+            criterion: params.criterion,
+            noise: params.noise,
+            curve_to: params.curve_to,
+        };
+        let outcome = extend_layout(&input, &design_settings);
+        for (step, vertices) in outcome.added.iter().enumerate() {
+            placed.extend(vertices.iter().map(|&v| (v, layout.rounds, Some(step + 1))));
+        }
+        layout.predicted_error = outcome.curve[outcome.added.len()].predicted_error;
+        layout.curve = outcome.curve;
+        layout.design_stop = Some(outcome.stop);
+    } else {
+        let weight = error_weight(&deltas);
+        let sigma = params.noise * rig.bbox_diagonal();
+        layout.predicted_error = predicted_error(&deltas, &weight, &cover, sigma * sigma) / rig.bbox_diagonal();
+    }
+    layout.seconds_design = started.elapsed().as_secs_f64();
+    placed.sort();
     let maxima: Vec<f64> = (0..rig.n_shapes()).map(|k| rig.max_displacement(k)).collect();
-    layout.landmarks = chosen
-        .landmarks
+    layout.landmarks = placed
         .iter()
-        .map(|&(vertex, round)| {
+        .map(|&(vertex, round, added)| {
             // Report in terms of the rig as it is (not folded), strongest first.
             let mut strengths: Vec<(usize, f64)> =
                 live.iter().map(|&k| (k, norm(&rig.delta(k)[vertex as usize]) / maxima[k])).collect();
@@ -291,6 +426,7 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
                 strongest: strengths[0].0,
                 visibility: visibility[vertex as usize],
                 round,
+                added,
             }
         })
         .collect();

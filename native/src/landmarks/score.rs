@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::bvls::{solve_bounded, Gram};
+use super::design::{error_weight, predicted_error};
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::rig::RigView;
@@ -40,6 +41,9 @@ pub struct LayoutScore {
     pub poses: usize,
     /// Distinct landmark vertices used.
     pub landmarks: usize,
+    /// The design model's prediction of the error (RMS, fraction of the diagonal; see
+    /// [`super::design`]) for the same noise; `None` without noise.
+    pub predicted: Option<f64>,
 }
 
 /// Scores the layout `vertices`. Test poses: each non-inert shape alone at weight 1, then
@@ -102,7 +106,11 @@ pub fn score_layout(rig: &RigView, vertices: &[u32], params: &ScoreParams) -> Sh
         .collect();
     let mean = errors.iter().map(|e| e.0).sum::<f64>() / errors.len() as f64 / diagonal;
     let max = errors.iter().map(|e| e.1).fold(0.0, f64::max) / diagonal;
-    Ok(LayoutScore { mean, max, poses: poses.len(), landmarks: landmarks.len() })
+    let predicted = (sigma > 0.0).then(|| {
+        let deltas: Vec<&[[f32; 3]]> = live.iter().map(|&k| rig.delta(k)).collect();
+        predicted_error(&deltas, &error_weight(&deltas), &landmarks, sigma * sigma) / diagonal
+    });
+    Ok(LayoutScore { mean, max, poses: poses.len(), landmarks: landmarks.len(), predicted })
 }
 
 /// Singles, the caller's poses, then seeded sparse mixes (stream `u64::MAX` of `seed`).

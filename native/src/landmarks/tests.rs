@@ -211,3 +211,109 @@ fn cancellation_stops_the_job() {
     let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
     assert_eq!(place_landmarks(&rig, &LandmarkParams::default(), &StopAtOnce).unwrap_err(), ShapesmithError::Cancelled);
 }
+
+/// A conditioned layout keeps the cover, stops at the requested count, stays mirror-symmetric
+/// and keeps its additions out of each other's radius.
+#[test]
+fn conditioned_layouts_keep_the_cover_and_stay_symmetric() {
+    let (points, _) = grid();
+    for symmetric in [false, true] {
+        let base = LandmarkParams { symmetric, rays: 16, max_per_shape: 1, radius: 0.05, curve_to: 0, ..LandmarkParams::default() };
+        let cover = run(&BUMPS, &base).unwrap();
+        let cover_vertices: Vec<u32> = cover.landmarks.iter().map(|l| l.vertex).collect();
+        assert!(cover.curve.is_empty() && cover.design_stop.is_none() && cover.predicted_error > 0.0);
+        let m = cover_vertices.len() + 6;
+        let layout = run(&BUMPS, &LandmarkParams { landmarks: Some(m), ..base.clone() }).unwrap();
+        let vertices: Vec<u32> = layout.landmarks.iter().map(|l| l.vertex).collect();
+        // Every covered shape keeps its landmark: the cover is a subset, unchanged.
+        for l in &cover.landmarks {
+            assert!(layout.landmarks.contains(l), "cover landmark {l:?} lost");
+        }
+        assert!(vertices.len() <= m && vertices.len() >= m - 1, "{} for {m}", vertices.len());
+        assert_eq!(layout.design_stop, Some(DesignStop::Count));
+        assert!(layout.predicted_error < cover.predicted_error, "{} vs {}", layout.predicted_error, cover.predicted_error);
+        let added: Vec<&Landmark> = layout.landmarks.iter().filter(|l| l.added.is_some()).collect();
+        assert_eq!(added.len(), vertices.len() - cover_vertices.len());
+        let radius = 0.05 * crate::rig::bbox_diagonal(&points);
+        for a in &added {
+            assert!(a.visibility >= base.pool_visibility && a.round == cover.rounds);
+            for b in layout.landmarks.iter().filter(|b| b.added.is_none_or(|s| s < a.added.unwrap())) {
+                let d: f64 = (0..3).map(|i| (a.position[i] - b.position[i]).powi(2)).sum::<f64>().sqrt();
+                assert!(d > radius, "added {} is {d} from {}", a.vertex, b.vertex);
+            }
+        }
+        // The curve starts at the cover and falls with every step.
+        assert_eq!(layout.curve[0].landmarks, cover_vertices.len());
+        assert!((layout.curve[0].predicted_error - cover.predicted_error).abs() < 1e-12);
+        assert!(layout.curve.windows(2).all(|w| w[1].predicted_error <= w[0].predicted_error && w[1].landmarks > w[0].landmarks));
+        if symmetric {
+            for &v in &vertices {
+                let p = points[v as usize];
+                let mirror = index(-p[0] as i32, p[1] as i32) as u32;
+                assert!(vertices.contains(&mirror), "vertex {v} at {p:?} lacks its mirror");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_target_error_stops_the_design_where_the_curve_reaches_it() {
+    let base = LandmarkParams { rays: 16, max_per_shape: 1, curve_to: 0, ..LandmarkParams::default() };
+    let probe = run(&BUMPS, &LandmarkParams { landmarks: Some(20), ..base.clone() }).unwrap();
+    // Halfway between the errors after the third and fourth additions.
+    let target = 0.5 * (probe.curve[3].predicted_error + probe.curve[4].predicted_error);
+    let layout = run(&BUMPS, &LandmarkParams { target_error: Some(target), ..base.clone() }).unwrap();
+    assert_eq!(layout.design_stop, Some(DesignStop::Target));
+    assert_eq!(layout.landmarks.len(), probe.curve[4].landmarks);
+    assert!(layout.predicted_error <= target && layout.curve[3].predicted_error > target);
+    // Already below target: the cover alone.
+    let easy = run(&BUMPS, &LandmarkParams { target_error: Some(1.0), ..base.clone() }).unwrap();
+    assert_eq!(easy.design_stop, Some(DesignStop::Target));
+    assert!(easy.landmarks.iter().all(|l| l.added.is_none()));
+    // Unreachable: the pool runs out.
+    let hard = run(&BUMPS, &LandmarkParams { target_error: Some(1e-12), radius: 0.2, ..base }).unwrap();
+    assert_eq!(hard.design_stop, Some(DesignStop::PoolExhausted));
+}
+
+#[test]
+fn design_input_is_checked() {
+    let message = |params: LandmarkParams| run(&BUMPS, &params).unwrap_err().to_string();
+    let base = LandmarkParams { rays: 8, ..LandmarkParams::default() };
+    assert!(message(LandmarkParams { landmarks: Some(0), ..base.clone() }).contains("landmarks must be at least 1"));
+    assert!(message(LandmarkParams { target_error: Some(-0.1), ..base.clone() }).contains("target_error"));
+    assert!(message(LandmarkParams { target_error: Some(f64::NAN), ..base.clone() }).contains("target_error"));
+    let few = message(LandmarkParams { landmarks: Some(2), ..base });
+    assert!(few.contains("the cover alone needs") && few.contains("landmarks = 2"), "{few}");
+}
+
+/// The predicted error tracks the measured noisy bounded reconstruction error across random
+/// layouts of random rigs.
+#[test]
+fn predicted_error_correlates_with_measured_error() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let mut pairs = Vec::new();
+    for _ in 0..4 {
+        let bumps: Vec<Bump> = (0..8)
+            .map(|_| ("b", rng.random_range(-5.0..5.0), rng.random_range(1.0..10.0), rng.random_range(1.5..4.0), rng.random_range(0.2..1.0)))
+            .collect();
+        let (points, deltas, triangles, names) = face(&bumps);
+        let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
+        let live: Vec<usize> = (0..names.len()).collect();
+        let shape_deltas: Vec<&[[f32; 3]]> = live.iter().map(|&k| rig.delta(k)).collect();
+        let weight = error_weight(&shape_deltas);
+        let sigma = 0.002 * rig.bbox_diagonal();
+        for size in [2, 4, 6, 9, 14, 20, 30] {
+            let vertices: Vec<u32> = rand::seq::index::sample(&mut rng, points.len(), size).iter().map(|v| v as u32).collect();
+            let measured = score_layout(&rig, &vertices, &ScoreParams::default()).unwrap().mean;
+            let predicted = predicted_error(&shape_deltas, &weight, &vertices, sigma * sigma) / rig.bbox_diagonal();
+            pairs.push((predicted.ln(), measured.ln()));
+        }
+    }
+    let n = pairs.len() as f64;
+    let (mx, my) = (pairs.iter().map(|p| p.0).sum::<f64>() / n, pairs.iter().map(|p| p.1).sum::<f64>() / n);
+    let cov: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let (vx, vy): (f64, f64) = (pairs.iter().map(|p| (p.0 - mx).powi(2)).sum(), pairs.iter().map(|p| (p.1 - my).powi(2)).sum());
+    let correlation = cov / (vx * vy).sqrt();
+    assert!(correlation > 0.8, "correlation of log errors {correlation}: {pairs:?}");
+}

@@ -28,7 +28,11 @@ pub enum Sampling<'a> {
 pub struct Visibility {
     /// `l[n]` for each requested vertex, in the order given.
     pub worst: Vec<f64>,
+    /// Rays traced through a whole posed mesh.
     pub rays_cast: u64,
+    /// Rays of a shaped pose answered from the neutral's outcome or by the moving region's
+    /// triangles alone, without tracing the whole pose.
+    pub rays_reused: u64,
 }
 
 /// `l[n] = min_k L_k[n]` (Eq. 4) over the neutral pose and each of `shapes` at weight 1, for
@@ -36,52 +40,113 @@ pub struct Visibility {
 ///
 /// Hemisphere mode casts `rays` rays per vertex and pose: a jittered golden-ratio lattice
 /// mapped to cosine-weighted directions (one stratum of `sin^2 theta` per ray), so that the
-/// grazing directions from which a tracker cannot see a point count least. Each (pose,
-/// vertex) draws from its own ChaCha stream of `seed`: results do not depend on the number
-/// of threads. Camera mode counts a camera as seeing the vertex when it lies in front
-/// (`n . (c - p) > 0`) and the segment to it is unobstructed.
+/// grazing directions from which a tracker cannot see a point count least. Each vertex draws
+/// from its own ChaCha stream of `seed` (the same in every pose): results do not depend on
+/// the number of threads. Camera mode counts a camera as seeing the vertex when it lies in
+/// front (`n . (c - p) > 0`) and the segment to it is unobstructed.
 ///
 /// A vertex whose posed normal vanishes (no triangle, or triangles that cancel) has no
 /// hemisphere: it is sampled over the whole sphere, and every camera counts as in front.
-/// `rays_cast` counts the rays actually cast: a pose stops casting for a vertex once it
-/// cannot lower that vertex's minimum.
+///
+/// Work saved, with the same answer as tracing every ray through every pose (`reuse =
+/// false`; the tests compare the two):
+/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum, and a
+///   vertex already at 0 casts nothing.
+/// - Reuse across poses. A shape moves a small part of the head. In pose k the triangles
+///   split into static ones (identical corners to the neutral's) and moved ones. A vertex
+///   none of whose triangles moves has the neutral's origin, normal and so rays. Its ray is
+///   blocked in pose k iff it meets a static triangle or a moved triangle as posed; in the
+///   neutral iff it meets a static one or a moved one at rest. So: blocked if it meets the
+///   posed moved triangles (a small BVH); else the neutral's outcome if it misses the moved
+///   triangles at rest too (another small BVH); only otherwise is the whole pose traced.
 pub fn worst_case_visibility(
     rig: &RigView,
     shapes: &[usize],
     vertices: &[u32],
     sampling: &Sampling,
+    reuse: bool,
     progress: &dyn Progress,
 ) -> ShapesmithResult<Visibility> {
     let nudge = NUDGE_FRACTION * rig.bbox_diagonal();
     let mut worst = vec![1.0f64; vertices.len()];
-    let mut rays_cast = 0u64;
-    let poses: Vec<Option<usize>> = std::iter::once(None).chain(shapes.iter().map(|&k| Some(k))).collect();
-    let mut next = Some(PosedMesh::new(rig, poses[0]));
-    for pose_index in 0..poses.len() {
-        progress.checkpoint(pose_index as f64 / poses.len() as f64)?;
+    let (mut rays_cast, mut rays_reused) = (0u64, 0u64);
+    let poses = shapes.len() + 1;
+    progress.checkpoint(0.0)?;
+    let neutral = PosedMesh::new(rig, None, None);
+    // The neutral pose traces every ray and keeps the rays and their outcomes.
+    let at_rest: Vec<RaysAtRest> = vertices.par_iter().map(|&v| neutral.outcomes(v, nudge, sampling)).collect();
+    let total = sampling.rays_per_vertex();
+    for (w, rest) in worst.iter_mut().zip(&at_rest) {
+        let bits = &rest.escaped;
+        *w = bits.iter().map(|b| b.count_ones() as f64).sum::<f64>() / total as f64;
+        rays_cast += total as u64;
+    }
+    // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
+    // the boxes stay tight, and a refit costs far less than a build.
+    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.bvh)));
+    let mut next = posed(0);
+    for (i, &shape) in shapes.iter().enumerate() {
+        progress.checkpoint((i + 1) as f64 / poses as f64)?;
         let Some(mesh) = next.take() else { break };
-        // The next pose's BVH builds on one thread while the others trace this one.
+        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points));
         let (per_vertex, prepared) = rayon::join(
             || {
                 vertices
                     .par_iter()
                     .zip(&worst)
-                    .map(|(&v, &current)| {
-                        let stream = pose_index as u64 * rig.n_vertices() as u64 + v as u64;
-                        mesh.lower_visibility(v, current, nudge, sampling, stream)
+                    .zip(&at_rest)
+                    .map(|((&v, &current), rest)| match &region {
+                        Some(region) if region.is_static(v) => lower_visibility_reusing(&mesh, current, total, region, rest),
+                        _ => (mesh.lower_visibility(v, current, nudge, sampling), 0),
                     })
-                    .collect::<Vec<(f64, u64)>>()
+                    .collect::<Vec<((f64, u64), u64)>>()
             },
-            || poses.get(pose_index + 1).map(|&pose| PosedMesh::new(rig, pose)),
+            || posed(i + 1),
         );
         next = prepared;
-        for (w, (fraction, cast)) in worst.iter_mut().zip(per_vertex) {
+        for (w, ((fraction, cast), reused)) in worst.iter_mut().zip(per_vertex) {
             *w = fraction;
             rays_cast += cast;
+            rays_reused += reused;
         }
     }
     progress.checkpoint(1.0)?;
-    Ok(Visibility { worst, rays_cast })
+    Ok(Visibility { worst, rays_cast, rays_reused })
+}
+
+impl Sampling<'_> {
+    fn rays_per_vertex(&self) -> usize {
+        match self {
+            Sampling::Hemisphere { rays, .. } => *rays,
+            Sampling::Cameras(cameras) => cameras.len(),
+        }
+    }
+}
+
+/// The triangles shape k moves, at rest and posed, and the vertices none of whose
+/// triangles moves (so their rays are the neutral's).
+struct MovingRegion {
+    at_rest: TriangleBvh,
+    posed: TriangleBvh,
+    touched: Vec<bool>,
+}
+
+impl MovingRegion {
+    fn new(rig: &RigView, shape: usize, rest: &[[f64; 3]], posed: &[[f64; 3]]) -> Self {
+        let delta = rig.delta(shape);
+        let mut touched: Vec<bool> = delta.iter().map(|d| *d != [0.0; 3]).collect();
+        let moved: Vec<[u32; 3]> = rig.triangles.iter().filter(|t| t.iter().any(|&v| touched[v as usize])).copied().collect();
+        for t in &moved {
+            for &v in t {
+                touched[v as usize] = true;
+            }
+        }
+        Self { at_rest: TriangleBvh::build(rest, &moved), posed: TriangleBvh::build(posed, &moved), touched }
+    }
+
+    fn is_static(&self, v: u32) -> bool {
+        !self.touched[v as usize]
+    }
 }
 
 /// One pose: positions, vertex normals and the BVH of its triangles.
@@ -91,35 +156,89 @@ struct PosedMesh {
     bvh: TriangleBvh,
 }
 
+/// A ray from a vertex: direction, end (`t` in the direction's units), and whether an
+/// observer there could see the vertex at all (cameras behind the surface cannot).
+type Ray = ([f64; 3], f64, bool);
+
+/// A vertex's rays in the neutral pose and which of them escaped (bit `i` of `escaped`):
+/// a vertex a shape does not touch has the same rays in that pose.
+struct RaysAtRest {
+    origin: [f64; 3],
+    rays: Vec<Ray>,
+    escaped: Vec<u64>,
+}
+
 impl PosedMesh {
-    fn new(rig: &RigView, shape: Option<usize>) -> Self {
+    /// The pose's points, normals and hierarchy: built, or `base` refitted.
+    fn new(rig: &RigView, shape: Option<usize>, base: Option<&TriangleBvh>) -> Self {
         let points = posed_points(rig, shape);
         let normals = vertex_normals(&points, rig.triangles);
-        let bvh = TriangleBvh::build(&points, rig.triangles);
+        let bvh = match base {
+            Some(base) => base.refitted(&points, rig.triangles),
+            None => TriangleBvh::build(&points, rig.triangles),
+        };
         Self { points, normals, bvh }
     }
 
-    /// `min(current, L[v])` for this pose, and the rays it took.
-    fn lower_visibility(&self, v: u32, current: f64, nudge: f64, sampling: &Sampling, stream: u64) -> (f64, u64) {
+    /// The nudged origin and the lazy sequence of rays of vertex `v` in this pose.
+    fn rays<'s>(&self, v: u32, nudge: f64, sampling: &'s Sampling) -> ([f64; 3], Box<dyn Iterator<Item = Ray> + 's>) {
         let normal = self.normals[v as usize];
         let origin: [f64; 3] = std::array::from_fn(|a| self.points[v as usize][a] + nudge * normal[a]);
-        match sampling {
+        let rays: Box<dyn Iterator<Item = Ray>> = match sampling {
             Sampling::Hemisphere { rays, seed } => {
-                let directions = hemisphere_directions(&normal, *rays, *seed, stream);
-                lower_visibility(current, *rays, directions.map(|d| !self.bvh.any_hit(&origin, &d, f64::INFINITY)))
+                Box::new(hemisphere_directions(&normal, *rays, *seed, v as u64).map(|d| (d, f64::INFINITY, true)))
             }
-            Sampling::Cameras(cameras) => {
-                let seen = cameras.iter().map(|camera| {
-                    let to_camera = sub(camera, &origin);
-                    // `t` runs from the vertex (0) to the camera (1): geometry behind the
-                    // camera is ignored.
-                    let in_front = dot(&normal, &to_camera) > 0.0 || dot(&normal, &normal) == 0.0;
-                    in_front && !self.bvh.any_hit(&origin, &to_camera, 1.0)
-                });
-                lower_visibility(current, cameras.len(), seen)
+            Sampling::Cameras(cameras) => Box::new(cameras.iter().map(move |camera| {
+                let to_camera = sub(camera, &origin);
+                // `t` runs from the vertex (0) to the camera (1): geometry behind the camera
+                // is ignored.
+                let in_front = dot(&normal, &to_camera) > 0.0 || dot(&normal, &normal) == 0.0;
+                (to_camera, 1.0, in_front)
+            })),
+        };
+        (origin, rays)
+    }
+
+    /// Every ray of vertex `v` and its outcome.
+    fn outcomes(&self, v: u32, nudge: f64, sampling: &Sampling) -> RaysAtRest {
+        let mut escaped = vec![0u64; sampling.rays_per_vertex().div_ceil(64)];
+        let (origin, rays) = self.rays(v, nudge, sampling);
+        let rays: Vec<Ray> = rays.collect();
+        for (i, (direction, t_max, in_front)) in rays.iter().enumerate() {
+            if *in_front && !self.bvh.any_hit(&origin, direction, *t_max) {
+                escaped[i / 64] |= 1u64 << (i % 64);
             }
         }
+        RaysAtRest { origin, rays, escaped }
     }
+
+    /// `min(current, L[v])` for this pose, and the rays it took.
+    fn lower_visibility(&self, v: u32, current: f64, nudge: f64, sampling: &Sampling) -> (f64, u64) {
+        let (origin, rays) = self.rays(v, nudge, sampling);
+        let seen = rays.map(|(direction, t_max, in_front)| in_front && !self.bvh.any_hit(&origin, &direction, t_max));
+        lower_visibility(current, sampling.rays_per_vertex(), seen)
+    }
+}
+
+/// [`PosedMesh::lower_visibility`] for a vertex the pose does not touch: its rays are the
+/// neutral's, and those that miss the moving region take the neutral's outcome (see
+/// [`worst_case_visibility`]). Returns the result with the rays traced through the whole
+/// pose, and the rays answered without.
+fn lower_visibility_reusing(mesh: &PosedMesh, current: f64, total: usize, region: &MovingRegion, rest: &RaysAtRest) -> ((f64, u64), u64) {
+    let origin = &rest.origin;
+    let traced = std::cell::Cell::new(0u64);
+    let seen = rest.rays.iter().enumerate().map(|(i, (direction, t_max, in_front))| {
+        if !in_front || region.posed.any_hit(origin, direction, *t_max) {
+            false
+        } else if !region.at_rest.any_hit(origin, direction, *t_max) {
+            rest.escaped[i / 64] >> (i % 64) & 1 == 1
+        } else {
+            traced.set(traced.get() + 1);
+            !mesh.bvh.any_hit(origin, direction, *t_max)
+        }
+    });
+    let (fraction, taken) = lower_visibility(current, total, seen);
+    ((fraction, traced.get()), taken - traced.get())
 }
 
 /// `V0 + D_k` in f64 (the neutral for `None`).
@@ -305,12 +424,12 @@ mod tests {
         let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 64, seed: 1 };
-        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, &NoProgress).unwrap();
+        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
         assert!(vis.worst.iter().all(|&l| l == 1.0), "min {:?}", vis.worst.iter().cloned().fold(1.0, f64::min));
         assert_eq!(vis.rays_cast, 64 * points.len() as u64);
         // Cameras all around: a vertex sees the cameras in front of it, never those behind.
         let cameras: Vec<[f64; 3]> = icosphere(0, 5.0, [0.0; 3]).0;
-        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), &NoProgress).unwrap();
+        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true, &NoProgress).unwrap();
         assert!(vis.worst.iter().all(|&l| l > 0.0 && l < 1.0), "{:?}", &vis.worst[..5]);
     }
 
@@ -321,12 +440,12 @@ mod tests {
         let rig = RigView::new(&points, &[], &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 32, seed: 5 };
-        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, &NoProgress).unwrap();
+        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
         assert!(vis.worst[..inner].iter().all(|&l| l == 0.0));
         // The box's own corners look outward onto nothing.
         assert!(vis.worst[inner..].iter().all(|&l| l == 1.0));
         let cameras = [[0.0, 0.0, 3.0], [3.0, 0.0, 0.0]];
-        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), &NoProgress).unwrap();
+        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true, &NoProgress).unwrap();
         assert!(vis.worst[..inner].iter().all(|&l| l == 0.0));
     }
 
@@ -347,11 +466,13 @@ mod tests {
         let names = vec!["lidDown".to_string()];
         let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
         let sampling = Sampling::Hemisphere { rays: 64, seed: 0 };
-        let neutral_only = worst_case_visibility(&rig, &[], &[4], &sampling, &NoProgress).unwrap();
-        let with_pose = worst_case_visibility(&rig, &[0], &[4], &sampling, &NoProgress).unwrap();
+        let neutral_only = worst_case_visibility(&rig, &[], &[4], &sampling, true, &NoProgress).unwrap();
+        let with_pose = worst_case_visibility(&rig, &[0], &[4], &sampling, true, &NoProgress).unwrap();
         assert!(neutral_only.worst[0] > 0.9, "{:?}", neutral_only.worst);
         assert!(with_pose.worst[0] < 0.05, "{:?}", with_pose.worst);
-        assert_eq!(with_pose.rays_cast, 2 * 64);
+        assert_eq!(with_pose.rays_cast + with_pose.rays_reused, 2 * 64);
+        // The patch does not move: the lid's own triangles answer its rays in the pose.
+        assert!(with_pose.rays_reused > 32, "{with_pose:?}");
     }
 
     #[test]
@@ -363,10 +484,51 @@ mod tests {
         let rig = RigView::new(&points, &[], &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 16, seed: 9 };
-        let run = || worst_case_visibility(&rig, &[], &vertices, &sampling, &NoProgress).unwrap();
+        let run = || worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
         let serial = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(run);
         let parallel = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(run);
         assert_eq!(serial, parallel);
         assert!(serial.worst.iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
+    }
+
+    /// Reusing the neutral's outcomes where a pose does not touch a vertex gives exactly the
+    /// answer of tracing every ray through every pose, on random lumpy meshes whose shapes
+    /// push random caps far out (so that they shadow the static part), in both modes.
+    #[test]
+    fn reuse_equals_the_full_computation_on_random_meshes() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for trial in 0..6 {
+            let (sphere, triangles) = icosphere(2, 1.0, [0.0; 3]);
+            let points: Vec<[f64; 3]> = sphere.iter().map(|p| p.map(|c| c * (1.0 + 0.25 * rng.random::<f64>()))).collect();
+            let n = points.len();
+            let k_count = 4;
+            let mut deltas = vec![[0.0f32; 3]; k_count * n];
+            let names: Vec<String> = (0..k_count).map(|k| format!("cap{k}")).collect();
+            for k in 0..k_count {
+                let centre = sphere[rng.random_range(0..n)];
+                let reach = rng.random_range(0.3..0.8);
+                let push = rng.random_range(-0.6..1.5);
+                for v in 0..n {
+                    let d: f64 = (0..3).map(|a| (sphere[v][a] - centre[a]).powi(2)).sum::<f64>().sqrt();
+                    if d < reach {
+                        deltas[k * n + v] = sphere[v].map(|c| (c * push * (1.0 - d / reach)) as f32);
+                    }
+                }
+            }
+            let points = to_rig_arrays(&points);
+            let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
+            let vertices: Vec<u32> = (0..n as u32).step_by(2).collect();
+            let cameras: Vec<[f64; 3]> = icosphere(0, 4.0, [0.3, 0.1, 0.0]).0;
+            let modes = [Sampling::Hemisphere { rays: 40, seed: trial }, Sampling::Cameras(&cameras)];
+            for sampling in &modes {
+                let shapes: Vec<usize> = (0..k_count).collect();
+                let full = worst_case_visibility(&rig, &shapes, &vertices, sampling, false, &NoProgress).unwrap();
+                let reused = worst_case_visibility(&rig, &shapes, &vertices, sampling, true, &NoProgress).unwrap();
+                assert_eq!(full.worst, reused.worst, "trial {trial} {sampling:?}");
+                assert_eq!(full.rays_reused, 0);
+                assert!(reused.rays_reused > 0 && reused.rays_cast < full.rays_cast, "{reused:?} vs {full:?}");
+                assert!(full.worst.iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
+            }
+        }
     }
 }

@@ -10,7 +10,9 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use crate::ilp::SolveStatus;
 use crate::invalid;
-use crate::landmarks::{place_landmarks as place, score_layout as score, LandmarkLayout, LandmarkParams, ScoreParams};
+use crate::landmarks::{
+    place_landmarks as place, score_layout as score, Criterion, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
+};
 use crate::rig::RigView;
 
 #[derive(Serialize)]
@@ -21,12 +23,14 @@ struct NamedLandmark {
     strongest: String,
     visibility: f64,
     round: usize,
+    added: Option<usize>,
 }
 
 #[derive(Serialize)]
 struct Seconds {
     visibility: f64,
     solve: f64,
+    design: f64,
 }
 
 #[derive(Serialize)]
@@ -44,6 +48,14 @@ struct EchoedParams {
     axis: usize,
     seed: u64,
     time_limit: Option<f64>,
+    landmarks: Option<usize>,
+    target_error: Option<f64>,
+    criterion: Criterion,
+    pool_epsilon: f64,
+    pool_visibility: f64,
+    noise: f64,
+    curve_to: usize,
+    reuse_visibility: bool,
 }
 
 #[derive(Serialize)]
@@ -56,7 +68,12 @@ struct LayoutReport {
     rounds: usize,
     seconds: Seconds,
     rays_cast: u64,
+    rays_reused: u64,
+    visibility_vertices: usize,
     rays_per_second: f64,
+    predicted_error: f64,
+    curve: Vec<CurvePoint>,
+    design_stop: Option<DesignStop>,
     params: EchoedParams,
 }
 
@@ -73,6 +90,7 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
                 strongest: name(&l.strongest),
                 visibility: l.visibility,
                 round: l.round,
+                added: l.added,
             })
             .collect(),
         optimal: layout.optimal,
@@ -80,13 +98,18 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
         uncovered: layout.uncovered.iter().map(name).collect(),
         inert: layout.inert.iter().map(name).collect(),
         rounds: layout.rounds,
-        seconds: Seconds { visibility: layout.seconds_visibility, solve: layout.seconds_solve },
+        seconds: Seconds { visibility: layout.seconds_visibility, solve: layout.seconds_solve, design: layout.seconds_design },
         rays_cast: layout.rays_cast,
+        rays_reused: layout.rays_reused,
+        visibility_vertices: layout.visibility_vertices,
         rays_per_second: if layout.seconds_visibility > 0.0 {
             layout.rays_cast as f64 / layout.seconds_visibility
         } else {
             0.0
         },
+        predicted_error: layout.predicted_error,
+        curve: layout.curve,
+        design_stop: layout.design_stop,
         params: EchoedParams {
             epsilon: params.epsilon,
             alpha: params.alpha,
@@ -101,6 +124,14 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
             axis: params.axis,
             seed: params.seed,
             time_limit: params.time_limit,
+            landmarks: params.landmarks,
+            target_error: params.target_error,
+            criterion: params.criterion,
+            pool_epsilon: params.pool_epsilon,
+            pool_visibility: params.pool_visibility,
+            noise: params.noise,
+            curve_to: params.curve_to,
+            reuse_visibility: params.reuse_visibility,
         },
     }
 }
@@ -108,15 +139,22 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
 /// place_landmarks(neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
 ///                 rays=64, symmetric=False, max_per_shape=2, radius=0.03, cameras=None,
 ///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0,
+///                 landmarks=None, target_error=None, criterion="a", pool_epsilon=0.3,
+///                 pool_visibility=0.25, noise=0.002, curve_to=68, reuse_visibility=True,
 ///                 progress=None) -> dict
 ///
 /// `cameras`: optional (C, 3) float32 camera positions in the mesh's local space.
+/// `landmarks` / `target_error`: add landmarks after the cover by the design `criterion`
+/// ("a": the predicted error, "d": the log-determinant) up to this count in all, or until the
+/// predicted error (fraction of the diagonal) reaches the target.
 /// `progress(fraction)` is called on the calling thread as the work advances; returning
 /// `False` stops it (`CancelledError`).
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
                     rays=64, symmetric=false, max_per_shape=2, radius=0.03, cameras=None,
-                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0, progress=None))]
+                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0, landmarks=None,
+                    target_error=None, criterion="a", pool_epsilon=0.3, pool_visibility=0.25, noise=0.002,
+                    curve_to=68, reuse_visibility=true, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn place_landmarks<'py>(
     py: Python<'py>,
@@ -137,8 +175,25 @@ fn place_landmarks<'py>(
     time_limit: Option<f64>,
     share_limit: f64,
     min_visibility: f64,
+    landmarks: Option<i64>,
+    target_error: Option<f64>,
+    criterion: &str,
+    pool_epsilon: f64,
+    pool_visibility: f64,
+    noise: f64,
+    curve_to: usize,
+    reuse_visibility: bool,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let criterion = match criterion.to_ascii_lowercase().as_str() {
+        "a" => Criterion::A,
+        "d" => Criterion::D,
+        other => return Err(py_err(py)(invalid!("criterion must be 'a' (predicted error) or 'd' (log-determinant), got '{other}'"))),
+    };
+    let landmarks = match landmarks {
+        Some(m) if m < 1 => return Err(py_err(py)(invalid!("landmarks must be at least 1, got {m}"))),
+        other => other.map(|m| m as usize),
+    };
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
@@ -160,6 +215,14 @@ fn place_landmarks<'py>(
         min_visibility,
         seed,
         time_limit,
+        landmarks,
+        target_error,
+        criterion,
+        pool_epsilon,
+        pool_visibility,
+        noise,
+        curve_to,
+        reuse_visibility,
         ..LandmarkParams::default()
     };
     let layout = detached_with_progress(py, progress.as_ref(), |progress| {
