@@ -1,7 +1,10 @@
 """The foundation: the zip installs, the native core loads, Analyze Rig finds the true
 symmetric pairs and antagonists of the MakeHuman rig, and bad input is refused cleanly."""
 
+import glob
+import importlib.util
 import json
+import os
 
 import bpy
 import numpy as np
@@ -26,6 +29,24 @@ def test_native_core_loads_from_the_installed_wheel(shapesmith):
     assert "user_default" in shapesmith_native.__file__ or "extensions" in shapesmith_native.__file__
     assert issubclass(shapesmith_native.InvalidInputError, ValueError)
     assert issubclass(shapesmith_native.SolverError, RuntimeError)
+
+
+def test_a_wheel_that_cannot_load_is_reported_with_this_and_the_built_platforms(shapesmith):
+    # The add-on names this machine as Blender does when it matches wheels and zips to platforms.
+    path = glob.glob(os.path.join(bpy.utils.system_resource("SCRIPTS"), "addons_core", "bl_pkg", "cli", "blender_ext.py"))
+    spec = importlib.util.spec_from_file_location("blender_ext_for_test", path[0])
+    blender_ext = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(blender_ext)
+    assert shapesmith.native.this_platform() == blender_ext.platform_from_this_system()
+    # The installed zip's manifest says which platforms it was built for.
+    assert shapesmith.native.built_platforms() == [shapesmith.native.this_platform()]
+
+    status = shapesmith.native.unavailable_status(
+        ImportError("DLL load failed while importing shapesmith_native"), "windows-x64", ["linux-x64"])
+    assert "on windows-x64" in status and "built for linux-x64" in status
+    assert "install the Shapesmith zip for windows-x64" in status and "DLL load failed" in status
+    status = shapesmith.native.unavailable_status(ImportError("broken"), "macos-arm64", ["macos-arm64", "macos-x64"])
+    assert "built for macos-arm64, macos-x64 (reinstall the Shapesmith extension)" in status
 
 
 def test_analyze_rig_finds_the_arkit_pairs_geometrically(sample):

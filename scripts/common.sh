@@ -20,3 +20,25 @@ EXTENSION_ZIP=$ROOT/dist/shapesmith-$EXTENSION_VERSION.zip
 
 log() { printf '\033[1m[shapesmith]\033[0m %s\n' "$*" >&2; }
 die() { printf 'shapesmith: error: %s\n' "$*" >&2; exit 1; }
+
+# Cross builds (scripts/build --all-platforms, scripts/test-windows) share one target dir of
+# their own, one subdirectory per target triple, so the Linux loop never rebuilds for them.
+CROSS_TARGET_DIR=$ROOT/target/cross
+WINDOWS_TRIPLE=x86_64-pc-windows-gnu
+
+# Windows through Debian's MinGW-w64 (the MSVC target needs Microsoft's SDK). HiGHS is C++ with
+# std::thread, so the POSIX-threads g++ builds it. Its build links `-lstdc++`; a link directory
+# searched first that holds only the static C++ and winpthread runtimes makes the linker take
+# those, so the .pyd needs no MinGW DLL that another add-on could shadow with its own copy.
+windows_toolchain() {
+  local static=$CROSS_TARGET_DIR/mingw-static
+  mkdir -p "$static"
+  ln -sf "$(x86_64-w64-mingw32-g++-posix -print-file-name=libstdc++.a)" "$static/libstdc++.a"
+  ln -sf "$(x86_64-w64-mingw32-gcc-posix -print-file-name=libwinpthread.a)" "$static/libwinpthread.a"
+  ln -sf "$(x86_64-w64-mingw32-gcc-posix -print-file-name=libwinpthread.a)" "$static/libpthread.a"
+  export CC_x86_64_pc_windows_gnu=x86_64-w64-mingw32-gcc-posix
+  export CXX_x86_64_pc_windows_gnu=x86_64-w64-mingw32-g++-posix
+  export AR_x86_64_pc_windows_gnu=x86_64-w64-mingw32-ar
+  export CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=x86_64-w64-mingw32-gcc-posix
+  export CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUSTFLAGS="-L native=$static -C link-arg=-static-libgcc"
+}
