@@ -1,6 +1,6 @@
 //! 3-vectors and row-major 3x3 matrices (`m[r][c]`), and the per-triangle frames of
 //! deformation gradients (Sumner & Popovic 2004, Eq. (3)). The wrap's alignment, fit and
-//! carry use these; transfer keeps its own copy in `transfer/gradients.rs` for now.
+//! carry use these; transfer re-exports them from `transfer/gradients.rs`.
 
 pub type Vec3 = [f64; 3];
 pub type Mat3 = [[f64; 3]; 3];

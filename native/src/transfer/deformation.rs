@@ -9,7 +9,7 @@ use super::alignment::{best_rotation, centroid};
 use super::collisions::{CollisionGuard, CollisionOutcome, ShapeSystem};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
-    TriangleOperator, Vec3, IDENTITY, ZERO,
+    HatGradients, Vec3, IDENTITY, ZERO,
 };
 use super::system::NormalMatrix;
 use super::virtual_edges::find_virtual_edges;
@@ -29,7 +29,7 @@ pub struct DeformationTransfer {
     source_rest_inverse: Vec<Mat3>,
     /// The target neutral rotated into the source's orientation (the working frame).
     pub(super) target_neutral: Vec<Vec3>,
-    target_operators: Vec<TriangleOperator>,
+    target_operators: Vec<HatGradients>,
     matrix: NormalMatrix,
     virtual_edges: Vec<(u32, u32)>,
     /// Per virtual edge: `A_ij`, the mean target-rest / source-rest gradient at its ends.
@@ -109,7 +109,7 @@ impl DeformationTransfer {
             .map(|t| inverse(&edge_frame(corners(&source, None, &triangles[t]))).ok_or_else(|| degenerate("template", t)))
             .collect::<ShapesmithResult<Vec<_>>>()?;
         let target_operators = (0..triangles.len())
-            .map(|t| TriangleOperator::new(corners(&target, None, &triangles[t])).ok_or_else(|| degenerate("target", t)))
+            .map(|t| HatGradients::new(corners(&target, None, &triangles[t])).ok_or_else(|| degenerate("target", t)))
             .collect::<ShapesmithResult<Vec<_>>>()?;
 
         let (piece, n_pieces) = connected_components(n, triangles);
@@ -332,7 +332,7 @@ impl DeformationTransfer {
                 continue;
             }
             let h = gradient(t);
-            for (&v, &grad) in tri.iter().zip(&op.hat_gradients) {
+            for (&v, &grad) in tri.iter().zip(&op.gradients) {
                 let v = v as usize;
                 rhs[v] = add(rhs[v], scale(mat_vec(&h, grad), op.area));
             }

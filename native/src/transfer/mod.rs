@@ -15,7 +15,7 @@
 //! | `B0`, `B_k - B0` (target neutral, target deltas) | `target_neutral`, [`TransferResult::deltas`] |
 //! | `V = [v2-v1, v3-v1, v4-v1]` (S&P Eq. 3) | `gradients::edge_frame` |
 //! | `S_kt = V~ V^{-1}` (S&P Eq. 1), stored as `S_kt - I` | `gradients::delta_gradient` |
-//! | `G_t` (gradient operator of the target rest triangle) | `gradients::TriangleOperator` |
+//! | `G_t` (gradient operator of the target rest triangle) | `gradients::HatGradients` |
 //! | `sum_t area_t G_t^T G_t` (+ virtual-edge springs) | `system::NormalMatrix` |
 //! | `tau_d`, `tau_r` (paper 004, section 4) | [`VirtualEdgeParams`] |
 //! | `w_ve` (virtual-edge weight) | [`TransferParams::edge_weight`] |

@@ -16,7 +16,7 @@ use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, Symbol
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-use super::gradients::{dot, TriangleOperator};
+use super::gradients::{dot, HatGradients};
 use crate::error::{ShapesmithError, ShapesmithResult};
 
 /// The lower triangle of the symmetric normal matrix in compressed columns, sorted rows.
@@ -36,7 +36,7 @@ impl NormalMatrix {
     pub fn assemble(
         n: usize,
         triangles: &[[u32; 3]],
-        operators: &[TriangleOperator],
+        operators: &[HatGradients],
         springs: &[(u32, u32)],
         spring_weight: f64,
     ) -> ShapesmithResult<Self> {
@@ -46,7 +46,7 @@ impl NormalMatrix {
                 for b in 0..3 {
                     let (r, c) = (tri[a] as usize, tri[b] as usize);
                     if r >= c {
-                        entries.push((c, r, op.area * dot(op.hat_gradients[a], op.hat_gradients[b])));
+                        entries.push((c, r, op.area * dot(op.gradients[a], op.gradients[b])));
                     }
                 }
             }
@@ -288,9 +288,9 @@ mod tests {
     #[test]
     fn laplacian_kills_constants_and_restricted_solve_has_zero_residual() {
         let (pts, tris) = grid(6, 5);
-        let ops: Vec<TriangleOperator> = tris
+        let ops: Vec<HatGradients> = tris
             .iter()
-            .map(|t| TriangleOperator::new(t.map(|v| pts[v as usize])).unwrap())
+            .map(|t| HatGradients::new(t.map(|v| pts[v as usize])).unwrap())
             .collect();
         let a = NormalMatrix::assemble(pts.len(), &tris, &ops, &[(0, 29)], 0.7).unwrap();
         // Constants are in the null space (springs included).
