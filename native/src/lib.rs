@@ -9,7 +9,7 @@
 //!   Romdhani & Vetter 2007) and shapes carried onto the character's own mesh.
 //!
 //! Shared parts: [`rig`] (the borrowed rig and its validation), [`geometry`] (mirror map,
-//! symmetric and antagonist shape pairs, k-d tree neighbours, closest points), [`sparse`] (sparse Cholesky), [`ilp`] (HiGHS through good_lp).
+//! symmetric and antagonist shape pairs, k-d tree neighbours, closest points, the penetration metric), [`sparse`] (sparse Cholesky), [`ilp`] (HiGHS through good_lp).
 //! No Blender notion enters this crate; the `python` feature adds the thin pyo3 layer in `py`.
 
 pub mod analysis;

@@ -5,4 +5,5 @@ pub mod closest_point;
 pub mod mat3;
 pub mod mirror;
 pub mod neighbours;
+pub mod penetration;
 pub mod topology;

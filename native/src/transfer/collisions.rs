@@ -47,7 +47,7 @@ use std::collections::BTreeMap;
 
 use super::deformation::DeformationTransfer;
 use super::gradients::{add, cross, dot, length, scale, sub, to_f64, Vec3};
-use super::penetration::{crossings, intersection_length};
+use crate::geometry::penetration::{crossings, intersection_length};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;

@@ -116,7 +116,6 @@ mod alignment;
 mod collisions;
 mod deformation;
 mod gradients;
-mod penetration;
 mod personalise;
 mod report;
 mod system;
@@ -124,7 +123,7 @@ mod virtual_edges;
 
 pub use collisions::{CollisionOutcome, CollisionParams};
 pub use deformation::{DeformationTransfer, MAX_MARGIN};
-pub use penetration::{measure_penetration, Penetration, PenetrationBaseline};
+pub use crate::geometry::penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};
 pub use report::{
     measure_rig_penetration, transfer_shapes, RigPenetration, ShapePenetration, StageSeconds, TrainingExpressions, TransferReport,

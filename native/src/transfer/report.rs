@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::penetration::PenetrationBaseline;
+use crate::geometry::penetration::PenetrationBaseline;
 use super::{CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::invalid;

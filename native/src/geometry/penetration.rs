@@ -11,9 +11,9 @@
 
 use rayon::prelude::*;
 
-use super::gradients::{add, cross, dot, length, scale, sub, Vec3};
-use crate::geometry::bvh::{Aabb, TriangleBvh};
-use crate::geometry::topology::connected_components;
+use super::mat3::{add, cross, dot, length, scale, sub, Vec3};
+use super::bvh::{Aabb, TriangleBvh};
+use super::topology::connected_components;
 
 /// Self-intersection of a surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -90,7 +90,7 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
 /// over `points`. With `moved`, only pairs with at least one moved triangle are tested.
-pub(super) fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
+pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
     let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
