@@ -5,6 +5,16 @@ registers and evolves on its own."""
 import bpy
 
 
+def _refresh_markers(owner, context):
+    """Markers follow the pairs: rebuilt when shown, hidden or edited by hand (`self.id_data`
+    is the character that stores them)."""
+    from .blender.wrap import refresh_markers
+
+    wrap = owner.id_data.shapesmith_wrap
+    if wrap.show_markers or owner == wrap:
+        refresh_markers(owner.id_data, context.scene.shapesmith.transfer.source)
+
+
 class SHAPESMITH_PG_point_pair(bpy.types.PropertyGroup):
     """One pair: a point on the template and the same feature on the character, each in its
     object's local space (the vertex index too when the point is a vertex, else -1)."""
@@ -12,13 +22,19 @@ class SHAPESMITH_PG_point_pair(bpy.types.PropertyGroup):
     # `name` (built in) labels the pair: "nose tip", "mouth corner L".
     template_vertex: bpy.props.IntProperty(name="Template Vertex", default=-1, min=-1)
     character_vertex: bpy.props.IntProperty(name="Character Vertex", default=-1, min=-1)
-    template_co: bpy.props.FloatVectorProperty(name="On Template", size=3, subtype="XYZ")
-    character_co: bpy.props.FloatVectorProperty(name="On Character", size=3, subtype="XYZ")
+    template_co: bpy.props.FloatVectorProperty(name="On Template", size=3, subtype="XYZ", update=_refresh_markers)
+    character_co: bpy.props.FloatVectorProperty(name="On Character", size=3, subtype="XYZ", update=_refresh_markers)
 
 
 class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
     pairs: bpy.props.CollectionProperty(type=SHAPESMITH_PG_point_pair)
     active_pair: bpy.props.IntProperty(name="Active Pair", default=0)
+    show_markers: bpy.props.BoolProperty(
+        name="Show Markers",
+        description="Show each pair as two labelled empties, one on the template and one on the character",
+        default=False,
+        update=_refresh_markers,
+    )
     # The last Align or Wrap on this character.
     done: bpy.props.BoolProperty(default=False)
     stage: bpy.props.StringProperty(description="ALIGN or WRAP")

@@ -310,3 +310,139 @@ def test_point_pairs_load_from_json_and_a_bad_file_changes_nothing(sample, shape
     with pytest.raises(RuntimeError, match="out of range"):
         bpy.ops.shapesmith.load_point_pairs(filepath=str(bad))
     assert len(obj.shapesmith_wrap.pairs) == 4
+
+
+def world(obj, local):
+    """A local point of `obj` in world space (after the depsgraph has placed parented markers)."""
+    import mathutils
+
+    bpy.context.view_layer.update()
+    return np.array(obj.matrix_world @ mathutils.Vector(local))
+
+
+def test_a_pair_end_moves_to_a_selected_vertex_and_the_markers_follow_with_undo(sample, shapesmith):
+    template, obj = bpy.data.objects["Template"], bpy.data.objects["Character_YoungWoman"]
+    bpy.context.scene.shapesmith.transfer.source = template
+    make_active(obj)
+    settings = obj.shapesmith_wrap
+    settings.show_markers = True  # lists the sample's pairs (stored as JSON by the script that built it)
+    settings.active_pair = 2
+    markers = bpy.data.collections[f"{obj.name} Point Pairs"].objects
+    assert len(markers) == 2 * len(settings.pairs) == 20
+    pair = settings.pairs[2]
+    marker = markers[f"{pair.name} (character)"]
+    expected = world(obj, pair.character_co)
+    assert marker.parent == obj and np.allclose(marker.matrix_world.translation, expected, atol=1e-3)
+    before = (pair.character_vertex, tuple(pair.character_co))
+    selection = np.zeros(len(obj.data.vertices), dtype=bool)
+    selection[7] = True
+    obj.data.vertices.foreach_set("select", selection)
+    bpy.ops.ed.undo_push(message="before moves")
+    assert bpy.ops.shapesmith.move_point_pair(side="CHARACTER") == {"FINISHED"}
+    pair = obj.shapesmith_wrap.pairs[2]
+    assert pair.character_vertex == 7 and np.allclose(pair.character_co, obj.data.vertices[7].co)
+    marker = bpy.data.collections[f"{obj.name} Point Pairs"].objects[f"{pair.name} (character)"]
+    expected = world(obj, obj.data.vertices[7].co)
+    assert np.allclose(marker.matrix_world.translation, expected, atol=1e-3)
+    # The template end, with nothing selected there: the 3D cursor snapped onto the template.
+    template.data.vertices.foreach_set("select", np.zeros(len(template.data.vertices), dtype=bool))
+    bpy.context.scene.cursor.location = template.matrix_world @ template.data.vertices[20].co
+    assert bpy.ops.shapesmith.move_point_pair(side="TEMPLATE") == {"FINISHED"}
+    assert pair.template_vertex == -1 and np.linalg.norm(np.subtract(pair.template_co, template.data.vertices[20].co)) < 1e-4
+    bpy.ops.ed.undo_push(message="after moves")
+    bpy.ops.ed.undo()
+    obj = bpy.data.objects["Character_YoungWoman"]
+    assert (obj.shapesmith_wrap.pairs[2].character_vertex, tuple(obj.shapesmith_wrap.pairs[2].character_co)) == before
+    obj.shapesmith_wrap.show_markers = False
+    assert f"{obj.name} Point Pairs" not in bpy.data.collections
+
+
+def group_weights(obj, name):
+    group, weights = obj.vertex_groups[name], np.zeros(len(obj.data.vertices))
+    for vertex in obj.data.vertices:
+        for membership in vertex.groups:
+            if membership.group == group.index:
+                weights[vertex.index] = membership.weight
+    return weights
+
+
+def test_the_vertex_group_masking_a_key_is_carried_by_the_binding(sample, shapesmith):
+    """A ramp over the lower face (0 to 1 across 10% of the diagonal) masks jawOpen; the
+    character gets the group, sampled where its vertices correspond to the template's."""
+    template, identity = bpy.data.objects["Template"], bpy.data.objects[IDENTITY]
+    rest = positions(template)
+    diagonal = np.linalg.norm(rest.max(0) - rest.min(0))
+    ramp = np.clip((rest[:, 2].mean() - rest[:, 2]) / (0.1 * diagonal) + 0.5, 0.0, 1.0)
+    group = template.vertex_groups.new(name="LowerFace")
+    for vertex in np.flatnonzero(ramp > 0):
+        group.add([int(vertex)], float(ramp[vertex]), "REPLACE")
+    template.data.shape_keys.key_blocks["jawOpen"].vertex_group = "LowerFace"
+    motion = MOTIONS["cm_y_up"]
+    obj, entries = character(motion)
+    written, _, result = wrap_and_carry(shapesmith, obj, entries)
+    assert "jawOpen" in written and set(result.vertex_groups) == {"LowerFace"}
+    assert obj.data.shape_keys.key_blocks["jawOpen"].vertex_group == "LowerFace"
+    carried = group_weights(obj, "LowerFace")
+    # The truth: the ramp on the identity (same vertices as the template), sampled at the
+    # character's vertices moved back into the identity's space.
+    scale, angles, shift = motion
+    back = ((positions(obj) - np.array(shift)) @ rotation(angles)) / scale
+    triangles = module(shapesmith, "blender.mesh_arrays").read_triangles(identity)
+    native = module(shapesmith, "native").module()
+    triangle, barycentric, _ = native.bind_to_surface(back.astype(np.float32), positions(identity).astype(np.float32), triangles)
+    truth = np.einsum("vc,vc->v", barycentric, ramp[triangles[triangle]])
+    error = np.abs(carried - truth)
+    print(f"vertex group: mean error {error.mean():.3f}, 99th percentile {np.percentile(error, 99):.3f}, mean weight {truth.mean():.3f}")
+    assert carried.min() >= 0.0 and carried.max() <= 1.0 + 1e-6
+    assert error.mean() < 0.1 * truth.mean(), (error.mean(), truth.mean())
+
+
+def test_a_denser_character_gets_keys_as_smooth_as_the_same_topology_result(sample, shapesmith, truth):
+    """The identity head subdivided twice (16x the faces): the carried keys have no stair
+    steps: their roughness (mean uniform Laplacian on moving vertices) stays near that of the
+    same-topology result sampled on the dense mesh, far below the nearest-vertex copy's."""
+    names, truth_deltas = truth
+    identity = bpy.data.objects[IDENTITY]
+    obj = identity.copy()
+    obj.data = identity.data.copy()
+    obj.name = "Character_Dense"
+    bpy.context.scene.collection.objects.link(obj)
+    obj.shape_key_clear()
+    modifier = obj.modifiers.new("Subdivide", "SUBSURF")
+    modifier.subdivision_type, modifier.levels = "SIMPLE", 2
+    obj.data = bpy.data.meshes.new_from_object(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    obj.modifiers.clear()
+    assert len(obj.data.vertices) > 10 * len(identity.data.vertices)
+    import makehuman
+
+    template = bpy.data.objects["Template"]
+    vertices = makehuman.pair_vertices(positions(template), skin_vertices(template))
+    entries = [[int(v), [float(x) for x in positions(identity)[v]]] for v in vertices]
+    written, wrapped, result = wrap_and_carry(shapesmith, obj, entries)
+    chosen = [names.index(n) for n in ("jawOpen", "mouthSmileLeft", "eyeBlinkLeft", "browInnerUp")]
+    dense = positions(obj)
+    diagonal = wrapped.report["diagonal"]
+    triangles = module(shapesmith, "blender.mesh_arrays").read_triangles(identity)
+    native = module(shapesmith, "native").module()
+    triangle, barycentric, _ = native.bind_to_surface(dense.astype(np.float32), positions(identity).astype(np.float32), triangles)
+    reference = np.einsum("vc,kvcx->kvx", barycentric, truth_deltas[chosen][:, triangles[triangle]])
+    carried = key_deltas(obj, [names[k] for k in chosen])
+    wrapped_object = obj.shapesmith_wrap.wrapped
+    wrapped_deltas = module(shapesmith, "blender.transfer").transfer_object(template, wrapped_object).deltas[chosen]
+    nearest = nearest_vertex_copy(positions(wrapped_object), wrapped_deltas, dense)
+    edges = np.array([e.vertices[:] for e in obj.data.edges])
+
+    def roughness(deltas):
+        degree = np.bincount(edges.ravel(), minlength=len(dense)).astype(np.float64)
+        values = []
+        for est, ref in zip(deltas, reference):
+            summed = np.zeros_like(est, dtype=np.float64)
+            np.add.at(summed, edges[:, 0], est[edges[:, 1]])
+            np.add.at(summed, edges[:, 1], est[edges[:, 0]])
+            moving = np.linalg.norm(ref, axis=1) > 1e-3 * diagonal
+            values.append(np.linalg.norm((summed / degree[:, None] - est)[moving], axis=1).mean() / diagonal)
+        return float(np.mean(values))
+
+    carry, same, stairs = roughness(carried), roughness(reference), roughness(nearest)
+    print(f"roughness on {len(dense)} vertices: carry {carry:.2e}, same-topology sampled {same:.2e}, nearest vertex {stairs:.2e}")
+    assert carry < 2.0 * same and carry < 0.5 * stairs, (carry, same, stairs)

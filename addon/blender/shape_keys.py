@@ -3,6 +3,7 @@ changes a mesh. Everything that can be refused is checked by `plan_keys` before 
 write."""
 
 import bpy
+import numpy as np
 
 from .mesh_arrays import MeshDataError
 
@@ -99,17 +100,38 @@ def copy_driver(fcurve, keys, mapping):
     return warnings
 
 
+def write_vertex_groups(target, groups, overwrite):
+    """Writes each group of `groups` (name -> weights (N,)) on `target`: vertices of weight 0
+    are left out of it. A group the target already has is kept as it is unless `overwrite`
+    (then its weights are replaced). Returns the warnings."""
+    warnings = []
+    for name, weights in groups.items():
+        group = target.vertex_groups.get(name)
+        if group is not None and not overwrite:
+            warnings.append(f"vertex group '{name}' was already on '{target.name}': kept as it was (overwrite replaces it)")
+            continue
+        if group is None:
+            group = target.vertex_groups.new(name=name)
+        else:
+            group.remove(list(range(len(target.data.vertices))))
+        for vertex in np.flatnonzero(weights > 0.0):
+            group.add([int(vertex)], float(weights[vertex]), "REPLACE")
+    return warnings
+
+
 def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
     """Writes `transfer` (a solved `transfer.Transfer`) onto its target: a Basis first when
     the target has no shape keys; then each template key with the template's name, slider
     range, vertex group, mute, interpolation and relative key (mapped by name, else the
-    reference key); new keys at value 0. Existing keys are kept unless `overwrite`. Returns
-    (written, skipped, warnings)."""
+    reference key); new keys at value 0. Vertex groups the transfer carries (a wrap's) are
+    written first. Existing keys and groups are kept unless `overwrite`. Returns (written,
+    skipped, warnings)."""
     source, target = transfer.source, transfer.target
     written, skipped = plan_keys(target, transfer.names, overwrite)
     drivers = key_drivers(source, written) if copy_drivers else {}
     source_keys = source.data.shape_keys
-    warnings = [
+    warnings = write_vertex_groups(target, transfer.vertex_groups, overwrite)
+    warnings += [
         f"vertex group '{source_keys.key_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
         for n in written
         if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups

@@ -20,7 +20,8 @@ _DUPLICATE_SUFFIX = re.compile(r"\.\d{3}$")
 @dataclass
 class Transfer:
     """A solved transfer, not yet written: the target deltas (K, N, 3) in the template's key
-    order, the native report, and the training expressions used (object name -> weight row)."""
+    order, the native report, the training expressions used (object name -> weight row) and,
+    for a wrap, the template's vertex groups carried onto the target (name -> weights (N,))."""
 
     source: object
     target: object
@@ -30,6 +31,7 @@ class Transfer:
     report: dict
     training: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    vertex_groups: dict = field(default_factory=dict)
 
 
 def rest_positions(obj):

@@ -120,6 +120,47 @@ def store_pairs(character, entries, template, names=None):
     character.shapesmith_wrap.active_pair = max(len(pairs) - 1, 0)
 
 
+def marker_collection_name(character):
+    return f"{character.name} Point Pairs"
+
+
+def refresh_markers(character, template):
+    """Rebuilds the collection `<character> Point Pairs`: for each stored pair a sphere empty
+    on the template and one on the character, each parented to its object at the pair's local
+    point and named after the pair. Removed (with its empties) when the character's
+    `show_markers` is off or there is no template."""
+    import bpy
+
+    name = marker_collection_name(character)
+    collection = bpy.data.collections.get(name)
+    if collection is not None:
+        for marker in list(collection.objects):
+            bpy.data.objects.remove(marker)
+    settings = character.shapesmith_wrap
+    if not settings.show_markers or template is None or template == character:
+        if collection is not None:
+            bpy.data.collections.remove(collection)
+        return
+    stored_pairs(character, template)  # pairs a script left as JSON join the list first
+    if collection is None:
+        collection = bpy.data.collections.new(name)
+        bpy.context.scene.collection.children.link(collection)
+    for side, obj, colour in (("template", template, (0.2, 0.5, 1.0, 1.0)), ("character", character, (1.0, 0.45, 0.1, 1.0))):
+        # 0.5% of the object's world-space diagonal, in its local units (markers are parented).
+        size = 0.005 * float(np.linalg.norm(obj.dimensions)) / max(max(abs(x) for x in obj.scale), 1e-12)
+        for pair in settings.pairs:
+            marker = bpy.data.objects.new(f"{pair.name} ({side})", None)
+            marker.empty_display_type = "SPHERE"
+            marker.empty_display_size = size or 0.01
+            marker.show_name = True
+            marker.show_in_front = True
+            marker.color = colour
+            collection.objects.link(marker)
+            marker.parent = obj
+            marker.matrix_parent_inverse.identity()
+            marker.location = getattr(pair, f"{side}_co")
+
+
 def wrap_object(template, character, template_points, character_points, *, align_only=False, progress=None):
     """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing."""
     started = time.perf_counter()
@@ -244,7 +285,31 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
     stage_seconds["carry"] = time.perf_counter() - transferred
     report["stage_seconds"] = stage_seconds
-    return Transfer(template, character, onto_wrapped.names, character_neutral, deltas, report, {}, list(onto_wrapped.warnings))
+    groups = carried_vertex_groups(template, wrapped_object, character, onto_wrapped.names)
+    return Transfer(
+        template, character, onto_wrapped.names, character_neutral, deltas, report, {}, list(onto_wrapped.warnings), groups
+    )
+
+
+def carried_vertex_groups(template, wrapped_object, character, names):
+    """The template's vertex groups that the keys `names` are masked by, carried onto the
+    character (name -> float32 weights (Nc,)): each character vertex takes the weights at its
+    closest point on the wrapped template, mixed barycentrically (the binding of
+    `bind_to_surface`)."""
+    blocks = template.data.shape_keys.key_blocks
+    wanted = sorted({blocks[n].vertex_group for n in names if blocks[n].vertex_group in template.vertex_groups})
+    if not wanted:
+        return {}
+    row = {template.vertex_groups[name].index: k for k, name in enumerate(wanted)}
+    weights = np.zeros((len(wanted), len(template.data.vertices)), dtype=np.float32)
+    for vertex in template.data.vertices:
+        for membership in vertex.groups:
+            if membership.group in row:
+                weights[row[membership.group], vertex.index] = membership.weight
+    triangles = read_triangles(wrapped_object)
+    triangle, barycentric, _ = native.module().bind_to_surface(rest_positions(character), rest_positions(wrapped_object), triangles)
+    carried = np.einsum("vc,gvc->gv", barycentric, weights[:, triangles[triangle]])
+    return {name: carried[k].astype(np.float32) for k, name in enumerate(wanted)}
 
 
 def remove_object(obj):

@@ -1,5 +1,7 @@
 """Edit the point pairs stored on the character: add one (each side from the object's one
-selected vertex, else the 3D cursor snapped to its surface), remove, clear, load from JSON."""
+selected vertex, else the 3D cursor snapped to its surface), move one side of the active
+pair the same way, remove, clear, load from JSON. The markers (when shown) follow every
+edit."""
 
 import json
 
@@ -10,7 +12,7 @@ from bpy_extras.io_utils import ImportHelper
 from .. import native
 from ..blender.mesh_arrays import MeshDataError, read_triangles
 from ..blender.transfer import rest_positions
-from ..blender.wrap import pairs_from_json, store_pairs
+from ..blender.wrap import pairs_from_json, refresh_markers, store_pairs
 from .base import expected_errors, poll_mesh
 
 
@@ -81,6 +83,49 @@ class SHAPESMITH_OT_add_point_pair(bpy.types.Operator):
         pair.template_vertex, pair.character_vertex = template_vertex, character_vertex
         pair.template_co, pair.character_co = template_co.tolist(), character_co.tolist()
         settings.active_pair = len(settings.pairs) - 1
+        refresh_markers(character, template)
+        return {"FINISHED"}
+
+
+class SHAPESMITH_OT_move_point_pair(bpy.types.Operator):
+    bl_idname = "shapesmith.move_point_pair"
+    bl_label = "Move Point"
+    bl_description = (
+        "Move one end of the active point pair: to the object's one selected vertex (Edit Mode), "
+        "else to the 3D cursor snapped to its surface"
+    )
+    bl_options = {"REGISTER", "UNDO"}
+
+    side: bpy.props.EnumProperty(
+        name="Side",
+        items=(("TEMPLATE", "On Template", "Move the point on the template"), ("CHARACTER", "On Character", "Move the point on the character")),
+    )
+
+    @classmethod
+    def poll(cls, context):
+        if not poll_character(cls, context):
+            return False
+        settings = context.active_object.shapesmith_wrap
+        if not 0 <= settings.active_pair < len(settings.pairs):
+            cls.poll_message_set("Pick a point pair in the list")
+            return False
+        return True
+
+    def execute(self, context):
+        character = context.active_object
+        template = context.scene.shapesmith.transfer.source
+        obj = template if self.side == "TEMPLATE" else character
+        try:
+            vertex, co = pair_point(obj, context.scene.cursor.location)
+        except expected_errors() as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        pair = character.shapesmith_wrap.pairs[character.shapesmith_wrap.active_pair]
+        side = self.side.lower()
+        setattr(pair, f"{side}_vertex", vertex)
+        setattr(pair, f"{side}_co", co.tolist())
+        refresh_markers(character, template)
+        self.report({"INFO"}, f"'{pair.name}' now at {'vertex %d' % vertex if vertex >= 0 else 'the snapped 3D cursor'} of '{obj.name}'")
         return {"FINISHED"}
 
 
@@ -99,6 +144,7 @@ class SHAPESMITH_OT_remove_point_pair(bpy.types.Operator):
         settings = context.active_object.shapesmith_wrap
         settings.pairs.remove(settings.active_pair)
         settings.active_pair = max(min(settings.active_pair, len(settings.pairs) - 1), 0)
+        refresh_markers(context.active_object, context.scene.shapesmith.transfer.source)
         return {"FINISHED"}
 
 
@@ -116,6 +162,7 @@ class SHAPESMITH_OT_clear_point_pairs(bpy.types.Operator):
     def execute(self, context):
         context.active_object.shapesmith_wrap.pairs.clear()
         context.active_object.shapesmith_wrap.active_pair = 0
+        refresh_markers(context.active_object, context.scene.shapesmith.transfer.source)
         return {"FINISHED"}
 
 
@@ -145,6 +192,7 @@ class SHAPESMITH_OT_load_point_pairs(bpy.types.Operator, ImportHelper):
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
+        refresh_markers(character, template)
         self.report({"INFO"}, f"{len(character.shapesmith_wrap.pairs)} point pairs loaded")
         return {"FINISHED"}
 
@@ -152,6 +200,7 @@ class SHAPESMITH_OT_load_point_pairs(bpy.types.Operator, ImportHelper):
 register, unregister = bpy.utils.register_classes_factory(
     (
         SHAPESMITH_OT_add_point_pair,
+        SHAPESMITH_OT_move_point_pair,
         SHAPESMITH_OT_remove_point_pair,
         SHAPESMITH_OT_clear_point_pairs,
         SHAPESMITH_OT_load_point_pairs,

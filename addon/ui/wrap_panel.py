@@ -4,6 +4,7 @@ to the character), then Transfer onto Character."""
 
 import bpy
 
+from ..blender.wrap import PAIRS_PROPERTY
 from .panels import ShapesmithPanel
 
 
@@ -31,6 +32,8 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
         layout.label(text=f"Character: {obj.name}", icon="USER")
         settings = obj.shapesmith_wrap
         layout.label(text=f"Point pairs: {len(settings.pairs)} (at least 4; none = rough guess)")
+        if not len(settings.pairs) and PAIRS_PROPERTY in obj.keys():
+            layout.label(text="Pairs stored by a script: Show Markers or Align lists them", icon="INFO")
         row = layout.row()
         row.template_list("SHAPESMITH_UL_point_pairs", "", settings, "pairs", settings, "active_pair", rows=4)
         col = row.column(align=True)
@@ -43,6 +46,10 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
             box = layout.box().column(align=True)
             box.prop(pair, "template_co")
             box.prop(pair, "character_co")
+            row = box.row(align=True)
+            row.operator("shapesmith.move_point_pair", text="Move on Template", icon="EMPTY_SINGLE_ARROW").side = "TEMPLATE"
+            row.operator("shapesmith.move_point_pair", text="Move on Character", icon="EMPTY_SINGLE_ARROW").side = "CHARACTER"
+        layout.prop(settings, "show_markers", icon="HIDE_OFF")
         row = layout.row(align=True)
         row.operator("shapesmith.align_template", icon="ORIENTATION_GLOBAL")
         row.operator("shapesmith.wrap_template", icon="MOD_SHRINKWRAP")
