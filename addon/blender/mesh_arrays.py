@@ -91,3 +91,22 @@ def read_rig(obj):
                 f"shape key '{block.name}' is relative to '{block.relative_key.name}'; it is taken against '{reference.name}'"
             )
     return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], warnings)
+
+
+def show_mesh(name, mesh, beside):
+    """The object `name` showing `mesh`: a new one linked to the first collection of `beside`
+    (else the scene's), or the existing one given `mesh` (its old mesh removed when nothing
+    else uses it). For previews that a second run replaces."""
+    import bpy
+
+    obj = bpy.data.objects.get(name)
+    if obj is None:
+        obj = bpy.data.objects.new(name, mesh)
+        collection = beside.users_collection[0] if beside.users_collection else bpy.context.scene.collection
+        collection.objects.link(obj)
+    else:
+        old = obj.data
+        obj.data = mesh
+        if old.users == 0:
+            bpy.data.meshes.remove(old)
+    return obj

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import native
-from .mesh_arrays import MeshDataError, check_mesh, read_rig, read_triangles
+from .mesh_arrays import MeshDataError, check_mesh, read_rig, read_triangles, show_mesh
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
 _EXPRESSION_NAME = re.compile(r"(?:^|[_.\- ])REF_(\d+)$")
@@ -246,16 +246,7 @@ def show_virtual_edges(target, edges, positions):
     name = preview_name(target)
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(positions.tolist(), np.asarray(edges).tolist(), [])
-    obj = bpy.data.objects.get(name)
-    if obj is None:
-        obj = bpy.data.objects.new(name, mesh)
-        collection = target.users_collection[0] if target.users_collection else bpy.context.scene.collection
-        collection.objects.link(obj)
-    else:
-        old = obj.data
-        obj.data = mesh
-        if old.users == 0:
-            bpy.data.meshes.remove(old)
+    obj = show_mesh(name, mesh, beside=target)
     obj.parent = target
     obj.matrix_parent_inverse.identity()
     obj.matrix_basis.identity()

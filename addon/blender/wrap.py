@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import native
-from .mesh_arrays import MeshDataError, check_mesh, read_triangles
+from .mesh_arrays import MeshDataError, check_mesh, read_triangles, show_mesh
 from .transfer import Transfer, face_corners, rest_positions, transfer_object
 
 # A custom property holding point pairs in the JSON form of `batch.py wrap --pairs`.
@@ -205,16 +205,7 @@ def show_wrapped(wrapped):
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(wrapped.positions.tolist(), [], [corners[a:a + n].tolist() for a, n in zip(starts, sizes)])
-    obj = bpy.data.objects.get(name)
-    if obj is None:
-        obj = bpy.data.objects.new(name, mesh)
-        collection = character.users_collection[0] if character.users_collection else bpy.context.scene.collection
-        collection.objects.link(obj)
-    else:
-        old = obj.data
-        obj.data = mesh
-        if old.users == 0:
-            bpy.data.meshes.remove(old)
+    obj = show_mesh(name, mesh, beside=character)
     character_neutral, character_triangles = read_surface(character, "character")
     _, _, distance = native.module().bind_to_surface(
         np.ascontiguousarray(wrapped.positions, dtype=np.float32), character_neutral, character_triangles
