@@ -277,10 +277,27 @@ impl MovingRegion {
         farthest < -self.margin
     }
 
+    /// Whether the ray meets the box around the moved triangles (padded by `margin`).
+    fn reaches(&self, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+        let Some([lo, hi]) = self.bounds else { return false };
+        let (mut enter, mut exit) = (0.0f64, t_max);
+        for a in 0..3 {
+            let inverse = 1.0 / direction[a];
+            let t0 = (lo[a] - self.margin - origin[a]) * inverse;
+            let t1 = (hi[a] + self.margin - origin[a]) * inverse;
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        enter <= exit
+    }
+
     /// Whether ray `r` of a static vertex escapes in the pose whose hierarchy is `pose`.
     fn outcome(&self, r: usize, rest: &mut RaysAtRest, pose: &OcclusionBvh, neutral: &OcclusionBvh, cast: &mut u64, reused: &mut u64) -> bool {
         let (direction, t_max, in_front) = rest.rays[r];
-        if !in_front || self.posed.any_hit(&rest.origin, &direction, t_max) {
+        if in_front && !self.reaches(&rest.origin, &direction, t_max) {
+            *reused += 1;
+            rest.neutral_outcome(r, neutral, cast)
+        } else if !in_front || self.posed.any_hit(&rest.origin, &direction, t_max) {
             *reused += 1;
             false
         } else if !self.at_rest.any_hit(&rest.origin, &direction, t_max) {
