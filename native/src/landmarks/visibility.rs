@@ -258,8 +258,10 @@ impl MovingRegion {
                 }
             }
         }
-        let wide = |points: &[[f64; 3]]| OcclusionBvh::new(&TriangleBvh::build(points, &moved));
-        Self { at_rest: wide(rest), posed: wide(posed), bounds, margin, touched }
+        // The posed tree refits the one at rest: one build per shape.
+        let at_rest = TriangleBvh::build(rest, &moved);
+        let posed = OcclusionBvh::new(&at_rest.refitted(posed, &moved));
+        Self { at_rest: OcclusionBvh::new(&at_rest), posed, bounds, margin, touched }
     }
 
     fn is_static(&self, v: u32) -> bool {
