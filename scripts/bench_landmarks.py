@@ -10,9 +10,11 @@ On the bundled Template (about 5k vertices) and its 4x denser version:
 3. The comparison the paper makes: a conventional 68-point layout (jaw line, brows, nose,
    eyelids, lip contours, placed by the geometric rule in `conventional_layout`) scored with
    the same noisy reconstruction. Target: at M <= 34, a mean error at least 10% below it.
-4. Visibility speed: rays cast and rays/s with and without the reuse across poses (same
-   layout asserted), on both rigs and on a ~25k-vertex head whose face is cut once more
-   (bench_transfer's timing mesh), where visibility + cover + selection should take < 3 s.
+4. Visibility speed: rays cast and rays/s traced exhaustively and with the savings (reuse
+   across poses, pool vertices asked only their threshold; same layout asserted), on both
+   rigs and on a ~25k-vertex head whose face is cut once more (bench_transfer's timing
+   mesh), where visibility + cover + selection should take < 3 s; wall and CPU seconds.
+   `--speed-only` runs this section alone.
 Needs the extension installed (scripts/install_extension.py) in this Blender's user directory.
 """
 
@@ -222,12 +224,16 @@ def design_table(landmarks, obj, documents):
 
 
 def speed_row(landmarks, obj, **params):
-    """Visibility, solve and selection at M = 34 with and without the reuse across poses; the
-    two layouts must be identical."""
-    runs = {}
+    """Visibility, solve and selection at M = 34 traced exhaustively (every measured vertex
+    through every pose) and with the savings (reuse across poses, pool vertices asked only
+    their threshold); the two layouts must be identical. Wall and CPU seconds of the whole
+    call (the machine may be shared: CPU time says what the work cost)."""
+    runs, clocks = {}, {}
     for reuse in (False, True):
+        wall, cpu = time.perf_counter(), time.process_time()
         _, document = place(landmarks, obj, DESIGN_EPSILON, max_per_shape=1, landmarks=34, reuse_visibility=reuse, **params)
-        runs[reuse] = document
+        runs[reuse], clocks[reuse] = document, (time.perf_counter() - wall, time.process_time() - cpu)
+        document["clock"] = clocks[reuse]
     before, after = runs[False], runs[True]
     if [lm["vertex"] for lm in before["landmarks"]] != [lm["vertex"] for lm in after["landmarks"]] or \
             [lm["visibility"] for lm in before["landmarks"]] != [lm["visibility"] for lm in after["landmarks"]]:
@@ -243,12 +249,33 @@ def speed_row(landmarks, obj, **params):
             "seconds_solve": seconds["solve"],
             "seconds_design": seconds["design"],
             "seconds_total": seconds["visibility"] + seconds["solve"] + seconds["design"],
+            "seconds_call_wall": document["clock"][0],
+            "seconds_call_cpu": document["clock"][1],
         }
     b, a = row["before"], row["after"]
     print(f"{obj.name:<18}{row['vertices']:>9}{row['visibility_vertices']:>9}{b['rays_cast']:>12}{a['rays_cast']:>12}"
           f"{a['rays_reused']:>12}{b['seconds_visibility']:>8.2f}{a['seconds_visibility']:>8.2f}"
-          f"{a['rays_per_second']:>10.3g}{b['seconds_total']:>8.2f}{a['seconds_total']:>8.2f}")
+          f"{b['rays_per_second']:>10.3g}{a['rays_per_second']:>10.3g}{b['seconds_total']:>8.2f}{a['seconds_total']:>8.2f}"
+          f"{a['seconds_call_cpu']:>8.2f}")
     return row
+
+
+def speed(results, landmarks, template, dense):
+    import bench_transfer  # the 25k timing mesh
+
+    print("\n4. Visibility + cover + selection at M = 34, 64 rays: exhaustive (before) / with the savings (after)")
+    print(f"{'rig':<18}{'vertices':>9}{'traced':>9}{'rays before':>12}{'rays after':>12}{'reused':>12}"
+          f"{'vis s':>8}{'vis s':>8}{'rays/s':>10}{'rays/s':>10}{'total s':>8}{'total s':>8}{'cpu s':>8}")
+    face = bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)
+    results["speed"] = {obj.name: speed_row(landmarks, obj) for obj in (template, dense, face)}
+    results["speed_cores"] = os.cpu_count()
+    results["speed_load_average"] = os.getloadavg()
+
+
+def write_json(path, results):
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as f:
+        json.dump(results, f, indent=2)
 
 
 def main():
@@ -261,12 +288,11 @@ def main():
     parser.add_argument("--conventional-picture", default=os.path.join(ROOT, "docs", "landmarks_conventional68.png"))
     parser.add_argument("--design-picture", default=os.path.join(ROOT, "docs", "landmarks_conditioned34.png"))
     parser.add_argument("--curve", default=os.path.join(ROOT, "docs", "landmarks_curve.png"))
+    parser.add_argument("--speed-only", action="store_true", help="only the visibility speed table (section 4)")
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
     from importlib import import_module
-
-    import bench_transfer
 
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
     picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
@@ -283,6 +309,10 @@ def main():
 
     results = {"rigs": {}, "subdivide_seconds": subdivide_seconds}
     documents = {}
+    if args.speed_only:
+        speed(results, landmarks, template, dense)
+        write_json(args.json, results)
+        return
     print("1. The cover alone (multi-cover, 2 rounds)")
     print(f"{'rig':<18}{'vertices':>9}{'eps':>6}{'M':>5}{'opt':>5}{'vis s':>8}{'solve s':>9}"
           f"{'rays/s':>10}{'mean err':>10}{'predicted':>10}")
@@ -323,11 +353,10 @@ def main():
               f"(target -10%: {'met' if comparison[obj.name]['target_met'] else 'NOT met'})")
     results["comparison"] = comparison
 
-    print("\n4. Visibility + cover + selection at M = 34, 64 rays: without / with the reuse across poses")
-    print(f"{'rig':<18}{'vertices':>9}{'traced':>9}{'rays before':>12}{'rays after':>12}{'reused':>12}"
-          f"{'vis s':>8}{'vis s':>8}{'rays/s':>10}{'total s':>8}{'total s':>8}")
-    face = bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)
-    results["speed"] = {obj.name: speed_row(landmarks, obj) for obj in (template, dense, face)}
+    speed(results, landmarks, template, dense)
+    if args.speed_only:
+        write_json(args.json, results)
+        return
 
     # Pictures: the cover, the conventional layout, the conditioned layout at 34 and its curve.
     landmarks.build_layout(template, documents[(template.name, "cover", 0.5)], bpy.context.scene)
@@ -340,9 +369,7 @@ def main():
     conditioned["comparison"] = scores[template.name]
     curve.write_curve_png(conditioned, os.path.abspath(args.curve))
     results["curve"] = conditioned["curve"]
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(results, f, indent=2)
+    write_json(args.json, results)
     print(f"\nwrote {args.json}, {args.picture}, {args.conventional_picture}, {args.design_picture} and {args.curve}")
 
 

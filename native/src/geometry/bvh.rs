@@ -9,8 +9,8 @@ use super::closest_point::{closest_on_triangle, distance_squared, SurfacePoint};
 /// Axis-aligned box; `lo > hi` on every axis when empty.
 #[derive(Clone, Copy, Debug)]
 pub struct Aabb {
-    lo: [f64; 3],
-    hi: [f64; 3],
+    pub(super) lo: [f64; 3],
+    pub(super) hi: [f64; 3],
 }
 
 impl Aabb {
@@ -46,7 +46,7 @@ impl Aabb {
         (0..3).map(|a| (self.lo[a] - p[a]).max(p[a] - self.hi[a]).max(0.0).powi(2)).sum()
     }
 
-    fn half_area(&self) -> f64 {
+    pub(super) fn half_area(&self) -> f64 {
         let e = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
         if e.iter().any(|&x| x < 0.0) {
             return 0.0;
@@ -72,24 +72,24 @@ impl Aabb {
 /// An internal node's children are `first` and `first + 1`; a leaf holds the reordered
 /// triangles `first..first + count`.
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    bounds: Aabb,
-    first: u32,
-    count: u32,
+pub(super) struct Node {
+    pub(super) bounds: Aabb,
+    pub(super) first: u32,
+    pub(super) count: u32,
 }
 
 /// Triangle corner `a` and edges `b - a`, `c - a`, as the ray test wants them.
 #[derive(Clone, Copy, Debug)]
-struct PreparedTriangle {
-    a: [f64; 3],
-    ab: [f64; 3],
-    ac: [f64; 3],
+pub(super) struct PreparedTriangle {
+    pub(super) a: [f64; 3],
+    pub(super) ab: [f64; 3],
+    pub(super) ac: [f64; 3],
 }
 
 pub struct TriangleBvh {
-    nodes: Vec<Node>,
+    pub(super) nodes: Vec<Node>,
     /// In leaf order, with each one's box and index in the caller's triangle list.
-    triangles: Vec<PreparedTriangle>,
+    pub(super) triangles: Vec<PreparedTriangle>,
     boxes: Vec<Aabb>,
     original: Vec<u32>,
 }
@@ -98,7 +98,7 @@ const LEAF_SIZE: usize = 4;
 const BINS: usize = 12;
 /// Deeper nodes become leaves, so that the traversal stack (one slot per level plus one)
 /// never overflows.
-const MAX_DEPTH: usize = 60;
+pub(super) const MAX_DEPTH: usize = 60;
 const STACK: usize = MAX_DEPTH + 4;
 
 impl TriangleBvh {
@@ -382,7 +382,7 @@ fn best_split(
 }
 
 /// Moller-Trumbore, double-sided, hit parameter strictly inside `(0, t_max)`.
-fn ray_meets(tri: &PreparedTriangle, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+pub(super) fn ray_meets(tri: &PreparedTriangle, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
     let p = cross(direction, &tri.ac);
     let det = dot(&tri.ab, &p);
     if det == 0.0 {

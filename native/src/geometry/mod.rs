@@ -1,6 +1,7 @@
 //! Geometry shared by the tools.
 
 pub mod bvh;
+pub mod wide_bvh;
 pub mod closest_point;
 pub mod mat3;
 pub mod mirror;

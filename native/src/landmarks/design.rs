@@ -30,6 +30,7 @@
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::geometry::neighbours::PointTree;
@@ -151,9 +152,17 @@ fn spd_inverse(m: &Mat<f64>) -> Mat<f64> {
     inverse
 }
 
-/// The gains of every unit for the current `P`: A-gain `tr(S^{-1} B P W P B^T)` or D-gain
-/// `log det(S / sigma^2)`, with `S = sigma^2 I + B P B^T` (module docs).
-fn gains(problem: &DesignProblem, stacked: MatRef<'_, f64>, offsets: &[usize], posterior: &Posterior, criterion: Criterion) -> Vec<f64> {
+/// The gains of every allowed unit for the current `P`: A-gain `tr(S^{-1} B P W P B^T)` or
+/// D-gain `log det(S / sigma^2)`, with `S = sigma^2 I + B P B^T` (module docs); `-inf` for
+/// the others, which no step may choose.
+fn gains(
+    problem: &DesignProblem,
+    stacked: MatRef<'_, f64>,
+    offsets: &[usize],
+    posterior: &Posterior,
+    criterion: Criterion,
+    allowed: &[bool],
+) -> Vec<f64> {
     let k = problem.k;
     let p = posterior.p.as_ref();
     let rows = stacked.nrows();
@@ -170,8 +179,13 @@ fn gains(problem: &DesignProblem, stacked: MatRef<'_, f64>, offsets: &[usize], p
         }
     };
     let sigma2 = problem.noise_variance;
+    // Each unit's gain on its own: in parallel, in order, the same numbers as in series.
     (0..problem.units.len())
+        .into_par_iter()
         .map(|u| {
+            if !allowed[u] {
+                return f64::NEG_INFINITY;
+            }
             let (start, end) = (offsets[u], offsets[u + 1]);
             let r = end - start;
             let inner = |left: &Mat<f64>, i: usize, j: usize| (0..k).map(|c| left[(start + i, c)] * stacked[(start + j, c)]).sum::<f64>();
@@ -231,7 +245,7 @@ pub fn greedy(
         if !allowed.iter().any(|&a| a) {
             break;
         }
-        let gain = gains(problem, stacked, &offsets, &posterior, criterion);
+        let gain = gains(problem, stacked, &offsets, &posterior, criterion, &allowed);
         let best = (0..gain.len()).filter(|&u| allowed[u]).fold(None, |best: Option<usize>, u| match best {
             Some(b) if gain[b] >= gain[u] => Some(b),
             _ => Some(u),

@@ -51,7 +51,8 @@ use candidates::{candidate_relation, mutual_partners};
 use cover::{adaptive_multi_cover, MultiCoverSettings};
 use design::{error_weight, extend_layout, predicted_error, DesignInput, DesignSettings};
 pub use design::{Criterion, CurvePoint, DesignStop};
-use visibility::{worst_case_visibility, Sampling};
+use visibility::{worst_case_visibility, Need, Sampling, Seen};
+use crate::progress::NoProgress;
 
 pub use score::{score_layout, LayoutScore, ScoreParams};
 
@@ -92,7 +93,8 @@ pub struct LandmarkParams {
     pub target_error: Option<f64>,
     pub criterion: Criterion,
     /// The design's pool: vertices whose relative displacement reaches this in some shape
-    /// (`epsilon` when that is lower). Every pool vertex needs visibility rays.
+    /// (`epsilon` when that is lower). Every pool vertex needs visibility rays, though only
+    /// until it is certain to reach `pool_visibility` or not.
     pub pool_epsilon: f64,
     /// Pool vertices seen less than this in their worst pose are not added: a tracker
     /// would lose them (cover landmarks keep the paper's rule, `min_visibility`).
@@ -103,8 +105,11 @@ pub struct LandmarkParams {
     /// The predicted-error curve runs at least to this many landmarks (a conventional
     /// layout's 68), so that the user sees where more stop paying.
     pub curve_to: usize,
-    /// Reuse the neutral's ray outcomes where a pose does not move the region (same answer,
-    /// fewer rays; off only to measure the saving).
+    /// Save visibility rays with the same layout ([`visibility::worst_case_visibility`]):
+    /// reuse the neutral's ray outcomes where a pose does not move the region, and ask pool
+    /// vertices that are no candidate only whether they reach `pool_visibility` (measured
+    /// after the design if added). Off (every vertex traced through every pose) only to
+    /// measure the saving.
     pub reuse_visibility: bool,
 }
 
@@ -295,31 +300,48 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         vec![false; rig.n_vertices()]
     };
 
-    // Visibility of every candidate and pool vertex, and of its mirror partner when the
-    // layout is symmetric.
-    let mut needed = vec![false; rig.n_vertices()];
-    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty() || pool[n]) {
-        needed[n] = true;
-        if let Some(m) = partners.as_ref().and_then(|p| p[n]) {
-            needed[m as usize] = true;
+    // Visibility: exact for every candidate and its mirror partner (the cost uses it); for
+    // the rest of the pool and its partners only whether it reaches `pool_visibility`.
+    let mut needs: Vec<Option<Need>> = vec![None; rig.n_vertices()];
+    for n in (0..rig.n_vertices()).filter(|&n| pool[n]) {
+        let partner = partners.as_ref().and_then(|p| p[n]);
+        for v in std::iter::once(n).chain(partner.map(|m| m as usize)) {
+            needs[v].get_or_insert(Need::AtLeast(params.pool_visibility));
         }
     }
-    let vertices: Vec<u32> = (0..rig.n_vertices() as u32).filter(|&n| needed[n as usize]).collect();
+    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty()) {
+        needs[n] = Some(Need::Exact);
+        if let Some(m) = partners.as_ref().and_then(|p| p[n]) {
+            needs[m as usize] = Some(Need::Exact);
+        }
+    }
+    let (vertices, vertex_needs): (Vec<u32>, Vec<Need>) =
+        needs.iter().enumerate().filter_map(|(n, need)| need.map(|need| (n as u32, need))).unzip();
     let sampling = match &params.cameras {
         Some(cameras) => Sampling::Cameras(cameras),
         None => Sampling::Hemisphere { rays: params.rays, seed: params.seed },
     };
     let started = Instant::now();
     let stage = Stage { inner: progress, start: 0.0, span: 0.8 };
-    let seen = worst_case_visibility(rig, &live, &vertices, &sampling, params.reuse_visibility, &stage)?;
+    let exhaustive: Vec<Need>;
+    let vertex_needs = if params.reuse_visibility {
+        &vertex_needs
+    } else {
+        exhaustive = vec![Need::Exact; vertices.len()];
+        &exhaustive
+    };
+    let measured = worst_case_visibility(rig, &live, &vertices, vertex_needs, &sampling, params.reuse_visibility, &stage)?;
     layout.seconds_visibility = started.elapsed().as_secs_f64();
-    layout.rays_cast = seen.rays_cast;
-    layout.rays_reused = seen.rays_reused;
+    layout.rays_cast = measured.rays_cast;
+    layout.rays_reused = measured.rays_reused;
     layout.visibility_vertices = vertices.len();
-    let mut visibility = vec![1.0; rig.n_vertices()];
-    for (&v, &l) in vertices.iter().zip(&seen.worst) {
-        visibility[v as usize] = l;
+    let mut seen: Vec<Option<Seen>> = vec![None; rig.n_vertices()];
+    for (&v, &s) in vertices.iter().zip(&measured.worst) {
+        seen[v as usize] = Some(s);
     }
+    // `l[n]` where measured, NaN (not computed) elsewhere: the cover reads it only for
+    // candidates, all measured.
+    let mut visibility: Vec<f64> = seen.iter().map(|s| s.and_then(|s| s.exact()).unwrap_or(f64::NAN)).collect();
     let effective: Vec<f64> = match &partners {
         None => visibility.clone(),
         Some(p) => (0..rig.n_vertices()).map(|n| p[n].map_or(visibility[n], |m| visibility[n].min(visibility[m as usize]))).collect(),
@@ -378,9 +400,11 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     }
     if designing {
         let taken: std::collections::HashSet<u32> = cover.iter().copied().collect();
+        let visible = |v: usize| seen[v].and_then(|s| s.at_least(params.pool_visibility)) == Some(true);
         let units: Vec<Vec<u32>> = (0..rig.n_vertices() as u32)
-            .filter(|&n| pool[n as usize] && effective[n as usize] >= params.pool_visibility && !taken.contains(&n))
-            .map(|n| std::iter::once(n).chain(partners.as_ref().and_then(|p| p[n as usize])).collect())
+            .filter(|&n| pool[n as usize] && !taken.contains(&n))
+            .map(|n| std::iter::once(n).chain(partners.as_ref().and_then(|p| p[n as usize])).collect::<Vec<u32>>())
+            .filter(|unit| unit.iter().all(|&v| visible(v as usize)))
             .collect();
         let input = DesignInput {
             deltas,
@@ -411,6 +435,20 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     }
     layout.seconds_design = started.elapsed().as_secs_f64();
     placed.sort();
+    // Added landmarks from the pool were only measured against the threshold: measure them
+    // now (the same rays, so the value is the one a full computation gives).
+    let started = Instant::now();
+    let unmeasured: Vec<u32> = placed.iter().map(|p| p.0).filter(|&v| visibility[v as usize].is_nan()).collect();
+    if !unmeasured.is_empty() {
+        let needs = vec![Need::Exact; unmeasured.len()];
+        let late = worst_case_visibility(rig, &live, &unmeasured, &needs, &sampling, params.reuse_visibility, &NoProgress)?;
+        layout.rays_cast += late.rays_cast;
+        layout.rays_reused += late.rays_reused;
+        for (&v, s) in unmeasured.iter().zip(&late.worst) {
+            visibility[v as usize] = s.exact().unwrap_or(f64::NAN);
+        }
+    }
+    layout.seconds_visibility += started.elapsed().as_secs_f64();
     let maxima: Vec<f64> = (0..rig.n_shapes()).map(|k| rig.max_displacement(k)).collect();
     layout.landmarks = placed
         .iter()

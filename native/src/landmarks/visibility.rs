@@ -6,8 +6,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use crate::geometry::bvh::{cross, dot, sub, TriangleBvh};
 use crate::error::ShapesmithResult;
+use crate::geometry::bvh::{cross, dot, sub, TriangleBvh};
+use crate::geometry::wide_bvh::OcclusionBvh;
 use crate::progress::Progress;
 use crate::rig::RigView;
 
@@ -24,10 +25,49 @@ pub enum Sampling<'a> {
     Cameras(&'a [[f64; 3]]),
 }
 
+/// What a caller needs to know of a vertex's worst case `l[n]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Need {
+    /// `l[n]` itself (a cost uses it, or it is reported).
+    Exact,
+    /// Only whether `l[n] >= threshold` (a rule that keeps or drops the vertex).
+    AtLeast(f64),
+}
+
+/// A vertex's worst case, as far as it was needed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Seen {
+    Exact(f64),
+    /// `l[n] >= threshold`, not measured further.
+    AtLeast(f64),
+    /// `l[n] < threshold`, not measured further.
+    Below(f64),
+}
+
+impl Seen {
+    /// `l[n]` when it was measured.
+    pub fn exact(&self) -> Option<f64> {
+        match *self {
+            Seen::Exact(l) => Some(l),
+            _ => None,
+        }
+    }
+
+    /// Whether `l[n] >= threshold`; `None` when the result cannot tell (it was measured
+    /// against another threshold).
+    pub fn at_least(&self, threshold: f64) -> Option<bool> {
+        match *self {
+            Seen::Exact(l) => Some(l >= threshold),
+            Seen::AtLeast(t) => (threshold <= t).then_some(true),
+            Seen::Below(t) => (threshold >= t).then_some(false),
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Visibility {
-    /// `l[n]` for each requested vertex, in the order given.
-    pub worst: Vec<f64>,
+    /// For each requested vertex, in the order given.
+    pub worst: Vec<Seen>,
     /// Rays traced through a whole posed mesh.
     pub rays_cast: u64,
     /// Rays of a shaped pose answered from the neutral's outcome or by the moving region's
@@ -36,80 +76,120 @@ pub struct Visibility {
 }
 
 /// `l[n] = min_k L_k[n]` (Eq. 4) over the neutral pose and each of `shapes` at weight 1, for
-/// each of `vertices`.
+/// each of `vertices`, as far as `needs` asks (one per vertex).
 ///
 /// Hemisphere mode casts `rays` rays per vertex and pose: a jittered golden-ratio lattice
 /// mapped to cosine-weighted directions (one stratum of `sin^2 theta` per ray), so that the
 /// grazing directions from which a tracker cannot see a point count least. Each vertex draws
 /// from its own ChaCha stream of `seed` (the same in every pose): results do not depend on
-/// the number of threads. Camera mode counts a camera as seeing the vertex when it lies in
-/// front (`n . (c - p) > 0`) and the segment to it is unobstructed.
+/// the number of threads, nor on which other vertices are asked. Camera mode counts a camera
+/// as seeing the vertex when it lies in front (`n . (c - p) > 0`) and the segment to it is
+/// unobstructed.
 ///
 /// A vertex whose posed normal vanishes (no triangle, or triangles that cancel) has no
 /// hemisphere: it is sampled over the whole sphere, and every camera counts as in front.
 ///
 /// Work saved, with the same answer as tracing every ray through every pose (`reuse =
 /// false`; the tests compare the two):
-/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum, and a
-///   vertex already at 0 casts nothing.
+/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum. A vertex
+///   asked only whether `l >= t` stops a pose once `t` of its rays escaped, and stops
+///   altogether once a pose is certain to stay below `t`.
 /// - Reuse across poses. A shape moves a small part of the head. In pose k the triangles
 ///   split into static ones (identical corners to the neutral's) and moved ones. A vertex
 ///   none of whose triangles moves has the neutral's origin, normal and so rays. Its ray is
 ///   blocked in pose k iff it meets a static triangle or a moved triangle as posed; in the
-///   neutral iff it meets a static one or a moved one at rest. So: blocked if it meets the
-///   posed moved triangles (a small BVH); else the neutral's outcome if it misses the moved
-///   triangles at rest too (another small BVH); only otherwise is the whole pose traced.
+///   neutral iff it meets a static one or a moved one at rest. So: when the moved triangles
+///   (posed and at rest) lie behind the vertex's tangent plane, no ray of its can reach
+///   them and the pose sees what the neutral saw; else a ray is blocked if it meets the
+///   posed moved triangles (a small hierarchy), takes the neutral's outcome if it misses
+///   them at rest too (another small one; the neutral traces a ray the first time its
+///   outcome is asked), and only otherwise is traced through the whole pose.
 pub fn worst_case_visibility(
     rig: &RigView,
     shapes: &[usize],
     vertices: &[u32],
+    needs: &[Need],
     sampling: &Sampling,
     reuse: bool,
     progress: &dyn Progress,
 ) -> ShapesmithResult<Visibility> {
     let nudge = NUDGE_FRACTION * rig.bbox_diagonal();
-    let mut worst = vec![1.0f64; vertices.len()];
+    let total = sampling.rays_per_vertex();
     let (mut rays_cast, mut rays_reused) = (0u64, 0u64);
     let poses = shapes.len() + 1;
     progress.checkpoint(0.0)?;
     let neutral = PosedMesh::new(rig, None, None);
-    // The neutral pose traces every ray and keeps the rays and their outcomes.
-    let at_rest: Vec<RaysAtRest> = vertices.par_iter().map(|&v| neutral.outcomes(v, nudge, sampling)).collect();
-    let total = sampling.rays_per_vertex();
-    for (w, rest) in worst.iter_mut().zip(&at_rest) {
-        let bits = &rest.escaped;
-        *w = bits.iter().map(|b| b.count_ones() as f64).sum::<f64>() / total as f64;
-        rays_cast += total as u64;
-    }
+    // The neutral pose keeps each vertex's rays and the outcomes it traced.
+    let mut tracks: Vec<Track> = vertices
+        .par_iter()
+        .zip(needs)
+        .map(|(&v, &need)| {
+            let (origin, rays) = neutral.rays(v, nudge, sampling);
+            let mut rest = RaysAtRest { origin, rays: rays.collect(), known: vec![0; total.div_ceil(64)], escaped: vec![0; total.div_ceil(64)] };
+            let mut track = Track { vertex: v, level: 1.0, threshold: None, below: false, cast: 0, reused: 0, rest: RaysAtRest::default() };
+            if let Need::AtLeast(t) = need {
+                track.level = t;
+                track.threshold = Some(t);
+            }
+            let seen = (0..total).map(|i| rest.neutral_outcome(i, &neutral.bvh, &mut track.cast));
+            let level = pose_visibility(track.level, total, track.threshold.is_none(), seen);
+            track.settle(level);
+            track.rest = rest;
+            track
+        })
+        .collect();
     // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
     // the boxes stay tight, and a refit costs far less than a build.
-    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.bvh)));
+    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.binary)));
     let mut next = posed(0);
     for (i, &shape) in shapes.iter().enumerate() {
         progress.checkpoint((i + 1) as f64 / poses as f64)?;
         let Some(mesh) = next.take() else { break };
-        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points));
-        let (per_vertex, prepared) = rayon::join(
+        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points, nudge));
+        let ((), prepared) = rayon::join(
             || {
-                vertices
-                    .par_iter()
-                    .zip(&worst)
-                    .zip(&at_rest)
-                    .map(|((&v, &current), rest)| match &region {
-                        Some(region) if region.is_static(v) => lower_visibility_reusing(&mesh, current, total, region, rest),
-                        _ => (mesh.lower_visibility(v, current, nudge, sampling), 0),
-                    })
-                    .collect::<Vec<((f64, u64), u64)>>()
+                tracks.par_iter_mut().filter(|t| !t.done()).for_each(|track| {
+                    let v = track.vertex;
+                    let exact_below = track.threshold.is_none();
+                    let level = match &region {
+                        Some(region) if region.is_static(v) => {
+                            if region.behind(&track.rest.origin, &neutral.normals[v as usize]) {
+                                track.reused += total as u64;
+                                return;
+                            }
+                            let Track { rest, cast, reused, level, .. } = track;
+                            let seen = (0..total).map(|r| region.outcome(r, rest, &mesh.bvh, &neutral.bvh, cast, reused));
+                            pose_visibility(*level, total, exact_below, seen)
+                        }
+                        _ => {
+                            let (origin, rays) = mesh.rays(v, nudge, sampling);
+                            let cast = &mut track.cast;
+                            let seen = rays.map(|ray| {
+                                *cast += 1;
+                                ray.2 && !mesh.bvh.any_hit(&origin, &ray.0, ray.1)
+                            });
+                            pose_visibility(track.level, total, exact_below, seen)
+                        }
+                    };
+                    track.settle(level);
+                })
             },
             || posed(i + 1),
         );
         next = prepared;
-        for (w, ((fraction, cast), reused)) in worst.iter_mut().zip(per_vertex) {
-            *w = fraction;
-            rays_cast += cast;
-            rays_reused += reused;
-        }
     }
+    let worst = tracks
+        .iter()
+        .map(|t| {
+            rays_cast += t.cast;
+            rays_reused += t.reused;
+            match t.threshold {
+                None => Seen::Exact(t.level),
+                Some(threshold) if t.below => Seen::Below(threshold),
+                Some(threshold) => Seen::AtLeast(threshold),
+            }
+        })
+        .collect();
     progress.checkpoint(1.0)?;
     Ok(Visibility { worst, rays_cast, rays_reused })
 }
@@ -123,61 +203,166 @@ impl Sampling<'_> {
     }
 }
 
-/// The triangles shape k moves, at rest and posed, and the vertices none of whose
-/// triangles moves (so their rays are the neutral's).
+/// One vertex's state across the poses.
+struct Track {
+    vertex: u32,
+    /// The minimum so far (exact); for a threshold, the threshold until a pose falls below.
+    level: f64,
+    threshold: Option<f64>,
+    /// A pose fell below the threshold: nothing more to learn.
+    below: bool,
+    cast: u64,
+    reused: u64,
+    rest: RaysAtRest,
+}
+
+impl Track {
+    fn settle(&mut self, level: f64) {
+        match self.threshold {
+            Some(t) if level < t => self.below = true,
+            _ => self.level = level,
+        }
+    }
+
+    /// Nothing a later pose can change: below the threshold, or invisible.
+    fn done(&self) -> bool {
+        self.below || self.level == 0.0
+    }
+}
+
+/// The triangles shape k moves, at rest and posed, one box around both, and the vertices
+/// none of whose triangles moves (so their rays are the neutral's).
 struct MovingRegion {
-    at_rest: TriangleBvh,
-    posed: TriangleBvh,
+    at_rest: OcclusionBvh,
+    posed: OcclusionBvh,
+    bounds: Option<[[f64; 3]; 2]>,
+    margin: f64,
     touched: Vec<bool>,
 }
 
 impl MovingRegion {
-    fn new(rig: &RigView, shape: usize, rest: &[[f64; 3]], posed: &[[f64; 3]]) -> Self {
+    fn new(rig: &RigView, shape: usize, rest: &[[f64; 3]], posed: &[[f64; 3]], margin: f64) -> Self {
         let delta = rig.delta(shape);
         let mut touched: Vec<bool> = delta.iter().map(|d| *d != [0.0; 3]).collect();
         let moved: Vec<[u32; 3]> = rig.triangles.iter().filter(|t| t.iter().any(|&v| touched[v as usize])).copied().collect();
+        let mut bounds: Option<[[f64; 3]; 2]> = None;
         for t in &moved {
             for &v in t {
                 touched[v as usize] = true;
+                for p in [&rest[v as usize], &posed[v as usize]] {
+                    let [lo, hi] = bounds.get_or_insert([*p, *p]);
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                }
             }
         }
-        Self { at_rest: TriangleBvh::build(rest, &moved), posed: TriangleBvh::build(posed, &moved), touched }
+        // The posed tree refits the one at rest: one build per shape.
+        let at_rest = TriangleBvh::build(rest, &moved);
+        let posed = OcclusionBvh::new(&at_rest.refitted(posed, &moved));
+        Self { at_rest: OcclusionBvh::new(&at_rest), posed, bounds, margin, touched }
     }
 
     fn is_static(&self, v: u32) -> bool {
         !self.touched[v as usize]
     }
+
+    /// Whether the moved triangles lie (by `margin`) behind the plane through `origin` with
+    /// normal `normal`: every ray that counts leaves into `n . d > 0` and cannot reach them.
+    fn behind(&self, origin: &[f64; 3], normal: &[f64; 3]) -> bool {
+        let Some([lo, hi]) = self.bounds else { return true };
+        if dot(normal, normal) == 0.0 {
+            return false;
+        }
+        let farthest: f64 = (0..3).map(|a| (normal[a] * (lo[a] - origin[a])).max(normal[a] * (hi[a] - origin[a]))).sum();
+        farthest < -self.margin
+    }
+
+    /// Whether the ray meets the box around the moved triangles (padded by `margin`).
+    fn reaches(&self, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+        let Some([lo, hi]) = self.bounds else { return false };
+        let (mut enter, mut exit) = (0.0f64, t_max);
+        for a in 0..3 {
+            let inverse = 1.0 / direction[a];
+            let t0 = (lo[a] - self.margin - origin[a]) * inverse;
+            let t1 = (hi[a] + self.margin - origin[a]) * inverse;
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        enter <= exit
+    }
+
+    /// Whether ray `r` of a static vertex escapes in the pose whose hierarchy is `pose`.
+    fn outcome(&self, r: usize, rest: &mut RaysAtRest, pose: &OcclusionBvh, neutral: &OcclusionBvh, cast: &mut u64, reused: &mut u64) -> bool {
+        let (direction, t_max, in_front) = rest.rays[r];
+        if in_front && !self.reaches(&rest.origin, &direction, t_max) {
+            *reused += 1;
+            rest.neutral_outcome(r, neutral, cast)
+        } else if !in_front || self.posed.any_hit(&rest.origin, &direction, t_max) {
+            *reused += 1;
+            false
+        } else if !self.at_rest.any_hit(&rest.origin, &direction, t_max) {
+            *reused += 1;
+            rest.neutral_outcome(r, neutral, cast)
+        } else {
+            *cast += 1;
+            !pose.any_hit(&rest.origin, &direction, t_max)
+        }
+    }
 }
 
-/// One pose: positions, vertex normals and the BVH of its triangles.
+/// One pose: positions, vertex normals and the hierarchy of its triangles (binary, to be
+/// refitted by the next pose, and four-wide, to be traced).
 struct PosedMesh {
     points: Vec<[f64; 3]>,
     normals: Vec<[f64; 3]>,
-    bvh: TriangleBvh,
+    binary: TriangleBvh,
+    bvh: OcclusionBvh,
 }
 
 /// A ray from a vertex: direction, end (`t` in the direction's units), and whether an
 /// observer there could see the vertex at all (cameras behind the surface cannot).
 type Ray = ([f64; 3], f64, bool);
 
-/// A vertex's rays in the neutral pose and which of them escaped (bit `i` of `escaped`):
-/// a vertex a shape does not touch has the same rays in that pose.
+/// A vertex's rays in the neutral pose and the outcomes traced so far (bit `i` of `known`,
+/// and of `escaped` when the ray escaped): a vertex a shape does not touch has the same rays
+/// in that pose.
+#[derive(Default)]
 struct RaysAtRest {
     origin: [f64; 3],
     rays: Vec<Ray>,
+    known: Vec<u64>,
     escaped: Vec<u64>,
 }
 
+impl RaysAtRest {
+    /// Whether ray `i` escapes in the neutral pose, traced (and counted) the first time.
+    fn neutral_outcome(&mut self, i: usize, neutral: &OcclusionBvh, cast: &mut u64) -> bool {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if self.known[word] & bit == 0 {
+            let (direction, t_max, in_front) = self.rays[i];
+            *cast += 1;
+            if in_front && !neutral.any_hit(&self.origin, &direction, t_max) {
+                self.escaped[word] |= bit;
+            }
+            self.known[word] |= bit;
+        }
+        self.escaped[word] & bit != 0
+    }
+}
+
 impl PosedMesh {
-    /// The pose's points, normals and hierarchy: built, or `base` refitted.
+    /// The pose's points, normals and hierarchies: built, or `base` refitted.
     fn new(rig: &RigView, shape: Option<usize>, base: Option<&TriangleBvh>) -> Self {
         let points = posed_points(rig, shape);
         let normals = vertex_normals(&points, rig.triangles);
-        let bvh = match base {
+        let binary = match base {
             Some(base) => base.refitted(&points, rig.triangles),
             None => TriangleBvh::build(&points, rig.triangles),
         };
-        Self { points, normals, bvh }
+        let bvh = OcclusionBvh::new(&binary);
+        Self { points, normals, binary, bvh }
     }
 
     /// The nudged origin and the lazy sequence of rays of vertex `v` in this pose.
@@ -198,47 +383,6 @@ impl PosedMesh {
         };
         (origin, rays)
     }
-
-    /// Every ray of vertex `v` and its outcome.
-    fn outcomes(&self, v: u32, nudge: f64, sampling: &Sampling) -> RaysAtRest {
-        let mut escaped = vec![0u64; sampling.rays_per_vertex().div_ceil(64)];
-        let (origin, rays) = self.rays(v, nudge, sampling);
-        let rays: Vec<Ray> = rays.collect();
-        for (i, (direction, t_max, in_front)) in rays.iter().enumerate() {
-            if *in_front && !self.bvh.any_hit(&origin, direction, *t_max) {
-                escaped[i / 64] |= 1u64 << (i % 64);
-            }
-        }
-        RaysAtRest { origin, rays, escaped }
-    }
-
-    /// `min(current, L[v])` for this pose, and the rays it took.
-    fn lower_visibility(&self, v: u32, current: f64, nudge: f64, sampling: &Sampling) -> (f64, u64) {
-        let (origin, rays) = self.rays(v, nudge, sampling);
-        let seen = rays.map(|(direction, t_max, in_front)| in_front && !self.bvh.any_hit(&origin, &direction, t_max));
-        lower_visibility(current, sampling.rays_per_vertex(), seen)
-    }
-}
-
-/// [`PosedMesh::lower_visibility`] for a vertex the pose does not touch: its rays are the
-/// neutral's, and those that miss the moving region take the neutral's outcome (see
-/// [`worst_case_visibility`]). Returns the result with the rays traced through the whole
-/// pose, and the rays answered without.
-fn lower_visibility_reusing(mesh: &PosedMesh, current: f64, total: usize, region: &MovingRegion, rest: &RaysAtRest) -> ((f64, u64), u64) {
-    let origin = &rest.origin;
-    let traced = std::cell::Cell::new(0u64);
-    let seen = rest.rays.iter().enumerate().map(|(i, (direction, t_max, in_front))| {
-        if !in_front || region.posed.any_hit(origin, direction, *t_max) {
-            false
-        } else if !region.at_rest.any_hit(origin, direction, *t_max) {
-            rest.escaped[i / 64] >> (i % 64) & 1 == 1
-        } else {
-            traced.set(traced.get() + 1);
-            !mesh.bvh.any_hit(origin, direction, *t_max)
-        }
-    });
-    let (fraction, taken) = lower_visibility(current, total, seen);
-    ((fraction, traced.get()), taken - traced.get())
 }
 
 /// `V0 + D_k` in f64 (the neutral for `None`).
@@ -273,23 +417,38 @@ pub fn vertex_normals(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 
     normals
 }
 
-/// `min(current, escaped / total)` from a lazy sequence of `total` ray outcomes (`true` =
-/// escaped), and how many rays it took. Exact, but stops as soon as enough rays escape that
-/// this pose cannot lower the minimum; a vertex already at 0 casts nothing.
-fn lower_visibility(current: f64, total: usize, mut escapes: impl Iterator<Item = bool>) -> (f64, u64) {
-    // Reaching `needed` escapes means `escaped / total >= current`.
-    let needed = (current * total as f64).ceil() as usize;
+/// The smallest escape count `e` with `e / total >= level`, computed as the callers compare.
+fn escapes_needed(level: f64, total: usize) -> usize {
+    let mut needed = ((level * total as f64).ceil() as usize).min(total);
+    while needed > 0 && (needed - 1) as f64 / total as f64 >= level {
+        needed -= 1;
+    }
+    while needed < total && (needed as f64 / total as f64) < level {
+        needed += 1;
+    }
+    needed
+}
+
+/// One pose's `L` against `level` from a lazy sequence of `total` ray outcomes (`true` =
+/// escaped), taking only the rays it needs: `level` as soon as enough rays escaped that
+/// `L >= level`; below that `L` itself with `exact_below`, else as soon as `L < level` is
+/// certain, some value below `level`. A level of 0 takes no ray.
+fn pose_visibility(level: f64, total: usize, exact_below: bool, mut escapes: impl Iterator<Item = bool>) -> f64 {
+    let needed = escapes_needed(level, total);
     let mut escaped = 0;
     for cast in 0..total {
         if escaped >= needed {
-            return (current, cast as u64);
+            return level;
+        }
+        if !exact_below && escaped + (total - cast) < needed {
+            return (escaped + total - cast) as f64 / total as f64;
         }
         escaped += escapes.next().unwrap_or(false) as usize;
     }
     if escaped >= needed {
-        (current, total as u64)
+        level
     } else {
-        (escaped as f64 / total as f64, total as u64)
+        escaped as f64 / total as f64
     }
 }
 
@@ -396,20 +555,44 @@ mod tests {
         (to_rig_arrays(&points), triangles, inner)
     }
 
-    /// Stopping early gives exactly `min(current, escaped / total)`, and never more rays.
+    /// Every vertex measured exactly.
+    fn exact(rig: &RigView, shapes: &[usize], vertices: &[u32], sampling: &Sampling, reuse: bool) -> Visibility {
+        worst_case_visibility(rig, shapes, vertices, &vec![Need::Exact; vertices.len()], sampling, reuse, &NoProgress).unwrap()
+    }
+
+    fn values(vis: &Visibility) -> Vec<f64> {
+        vis.worst.iter().map(|s| s.exact().expect("measured exactly")).collect()
+    }
+
+    /// A pose's answer taken from the fewest rays equals the one from all of them: the
+    /// minimum with the level when exact below it, the side of the level otherwise.
     #[test]
-    fn early_stop_is_exact() {
+    fn stopping_early_keeps_the_answer() {
         let mut rng = ChaCha8Rng::seed_from_u64(2);
-        for _ in 0..500 {
-            let total = rng.random_range(1..40);
+        for _ in 0..2000 {
+            let total = rng.random_range(1..70);
             let outcomes: Vec<bool> = (0..total).map(|_| rng.random_bool(0.6)).collect();
-            let current = [0.0, 1.0, rng.random::<f64>()][rng.random_range(0..3)];
+            let level = [0.0, 1.0, 0.25, 0.3, rng.random::<f64>(), rng.random_range(0..=total) as f64 / total as f64][rng.random_range(0..6)];
             let full = outcomes.iter().filter(|&&o| o).count() as f64 / total as f64;
-            let (got, cast) = lower_visibility(current, total, outcomes.iter().copied());
-            assert_eq!(got, current.min(full), "{outcomes:?} from {current}");
-            assert!(cast <= total as u64);
-            if current == 0.0 {
-                assert_eq!(cast, 0);
+            let taken = std::cell::Cell::new(0);
+            let counted = outcomes.iter().map(|&o| {
+                taken.set(taken.get() + 1);
+                o
+            });
+            let exact = pose_visibility(level, total, true, counted.clone());
+            assert_eq!(exact, level.min(full), "{outcomes:?} at {level}");
+            let sided = pose_visibility(level, total, false, outcomes.iter().copied());
+            assert_eq!(sided >= level, full >= level, "{outcomes:?} at {level}: {sided}");
+            if full < level {
+                assert!(sided >= full, "an upper bound of the pose's value");
+            }
+            let needed = escapes_needed(level, total);
+            assert!(needed as f64 / total as f64 >= level || needed == total);
+            assert!(needed == 0 || ((needed - 1) as f64 / total as f64) < level);
+            if level == 0.0 {
+                taken.set(0);
+                pose_visibility(level, total, true, counted);
+                assert_eq!(taken.get(), 0, "a vertex at 0 casts nothing");
             }
         }
     }
@@ -424,13 +607,13 @@ mod tests {
         let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 64, seed: 1 };
-        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
-        assert!(vis.worst.iter().all(|&l| l == 1.0), "min {:?}", vis.worst.iter().cloned().fold(1.0, f64::min));
+        let vis = exact(&rig, &[], &vertices, &sampling, true);
+        assert!(values(&vis).iter().all(|&l| l == 1.0), "{:?}", vis.worst);
         assert_eq!(vis.rays_cast, 64 * points.len() as u64);
         // Cameras all around: a vertex sees the cameras in front of it, never those behind.
         let cameras: Vec<[f64; 3]> = icosphere(0, 5.0, [0.0; 3]).0;
-        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true, &NoProgress).unwrap();
-        assert!(vis.worst.iter().all(|&l| l > 0.0 && l < 1.0), "{:?}", &vis.worst[..5]);
+        let vis = exact(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true);
+        assert!(values(&vis).iter().all(|&l| l > 0.0 && l < 1.0), "{:?}", &vis.worst[..5]);
     }
 
     #[test]
@@ -440,13 +623,13 @@ mod tests {
         let rig = RigView::new(&points, &[], &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 32, seed: 5 };
-        let vis = worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
-        assert!(vis.worst[..inner].iter().all(|&l| l == 0.0));
+        let vis = values(&exact(&rig, &[], &vertices, &sampling, true));
+        assert!(vis[..inner].iter().all(|&l| l == 0.0));
         // The box's own corners look outward onto nothing.
-        assert!(vis.worst[inner..].iter().all(|&l| l == 1.0));
+        assert!(vis[inner..].iter().all(|&l| l == 1.0));
         let cameras = [[0.0, 0.0, 3.0], [3.0, 0.0, 0.0]];
-        let vis = worst_case_visibility(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true, &NoProgress).unwrap();
-        assert!(vis.worst[..inner].iter().all(|&l| l == 0.0));
+        let vis = values(&exact(&rig, &[], &vertices, &Sampling::Cameras(&cameras), true));
+        assert!(vis[..inner].iter().all(|&l| l == 0.0));
     }
 
     /// A pose that slides a lid over a vertex makes its worst case (nearly) zero; the neutral
@@ -466,10 +649,10 @@ mod tests {
         let names = vec!["lidDown".to_string()];
         let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
         let sampling = Sampling::Hemisphere { rays: 64, seed: 0 };
-        let neutral_only = worst_case_visibility(&rig, &[], &[4], &sampling, true, &NoProgress).unwrap();
-        let with_pose = worst_case_visibility(&rig, &[0], &[4], &sampling, true, &NoProgress).unwrap();
-        assert!(neutral_only.worst[0] > 0.9, "{:?}", neutral_only.worst);
-        assert!(with_pose.worst[0] < 0.05, "{:?}", with_pose.worst);
+        let neutral_only = exact(&rig, &[], &[4], &sampling, true);
+        let with_pose = exact(&rig, &[0], &[4], &sampling, true);
+        assert!(values(&neutral_only)[0] > 0.9, "{:?}", neutral_only.worst);
+        assert!(values(&with_pose)[0] < 0.05, "{:?}", with_pose.worst);
         assert_eq!(with_pose.rays_cast + with_pose.rays_reused, 2 * 64);
         // The patch does not move: the lid's own triangles answer its rays in the pose.
         assert!(with_pose.rays_reused > 32, "{with_pose:?}");
@@ -484,19 +667,21 @@ mod tests {
         let rig = RigView::new(&points, &[], &triangles, &names).unwrap();
         let vertices: Vec<u32> = (0..points.len() as u32).collect();
         let sampling = Sampling::Hemisphere { rays: 16, seed: 9 };
-        let run = || worst_case_visibility(&rig, &[], &vertices, &sampling, true, &NoProgress).unwrap();
+        let run = || exact(&rig, &[], &vertices, &sampling, true);
         let serial = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(run);
         let parallel = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(run);
         assert_eq!(serial, parallel);
-        assert!(serial.worst.iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
+        assert!(values(&serial).iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
     }
 
-    /// Reusing the neutral's outcomes where a pose does not touch a vertex gives exactly the
-    /// answer of tracing every ray through every pose, on random lumpy meshes whose shapes
-    /// push random caps far out (so that they shadow the static part), in both modes.
+    /// Reusing the neutral's outcomes where a pose does not touch a vertex, and asking only
+    /// a threshold of some vertices, give exactly the answer of tracing every ray through
+    /// every pose, on random lumpy meshes whose shapes push random caps far out (so that
+    /// they shadow the static part), in both modes.
     #[test]
-    fn reuse_equals_the_full_computation_on_random_meshes() {
+    fn pruned_and_reused_equal_the_full_computation_on_random_meshes() {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let mut sides = [0usize; 2];
         for trial in 0..6 {
             let (sphere, triangles) = icosphere(2, 1.0, [0.0; 3]);
             let points: Vec<[f64; 3]> = sphere.iter().map(|p| p.map(|c| c * (1.0 + 0.25 * rng.random::<f64>()))).collect();
@@ -518,17 +703,33 @@ mod tests {
             let points = to_rig_arrays(&points);
             let rig = RigView::new(&points, &deltas, &triangles, &names).unwrap();
             let vertices: Vec<u32> = (0..n as u32).step_by(2).collect();
+            let needs: Vec<Need> =
+                vertices.iter().map(|_| if rng.random_bool(0.5) { Need::Exact } else { Need::AtLeast(rng.random_range(0.05..0.6)) }).collect();
             let cameras: Vec<[f64; 3]> = icosphere(0, 4.0, [0.3, 0.1, 0.0]).0;
             let modes = [Sampling::Hemisphere { rays: 40, seed: trial }, Sampling::Cameras(&cameras)];
             for sampling in &modes {
                 let shapes: Vec<usize> = (0..k_count).collect();
-                let full = worst_case_visibility(&rig, &shapes, &vertices, sampling, false, &NoProgress).unwrap();
-                let reused = worst_case_visibility(&rig, &shapes, &vertices, sampling, true, &NoProgress).unwrap();
+                let full = exact(&rig, &shapes, &vertices, sampling, false);
+                let reused = exact(&rig, &shapes, &vertices, sampling, true);
                 assert_eq!(full.worst, reused.worst, "trial {trial} {sampling:?}");
                 assert_eq!(full.rays_reused, 0);
                 assert!(reused.rays_reused > 0 && reused.rays_cast < full.rays_cast, "{reused:?} vs {full:?}");
-                assert!(full.worst.iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
+                assert!(values(&full).iter().any(|&l| l > 0.0 && l < 1.0), "the test needs partial visibility");
+                for reuse in [false, true] {
+                    let pruned = worst_case_visibility(&rig, &shapes, &vertices, &needs, sampling, reuse, &NoProgress).unwrap();
+                    assert!(pruned.rays_cast < full.rays_cast);
+                    for ((need, seen), l) in needs.iter().zip(&pruned.worst).zip(values(&full)) {
+                        match *need {
+                            Need::Exact => assert_eq!(*seen, Seen::Exact(l)),
+                            Need::AtLeast(t) => {
+                                assert_eq!(seen.at_least(t), Some(l >= t), "{seen:?} against {l}");
+                                sides[(l >= t) as usize] += 1;
+                            }
+                        }
+                    }
+                }
             }
         }
+        assert!(sides.iter().all(|&s| s > 20), "the test needs vertices on both sides of their thresholds: {sides:?}");
     }
 }

@@ -1,0 +1,209 @@
+//! A four-wide hierarchy for occlusion rays ("does anything lie on this segment?"), the
+//! query landmark visibility asks tens of millions of times. Collapsed from a
+//! [`TriangleBvh`] (Wald et al. 2008, "Getting rid of packets": each node keeps the boxes of
+//! its four children side by side, so one node visit tests four boxes in single precision
+//! and halves the depth), traversed nearest child first and left at the first hit.
+//!
+//! The answers are those of [`TriangleBvh::any_hit`]: the leaves hold the same prepared
+//! triangles and run the same double-precision test; the single-precision boxes are padded
+//! outward so that rounding can only make a box test more permissive, never drop a hit.
+
+use super::bvh::{ray_meets, Node, PreparedTriangle, TriangleBvh, MAX_DEPTH};
+
+const WIDTH: usize = 4;
+/// A node pushes at most `WIDTH - 1` more entries than it pops, once per level.
+const STACK: usize = (WIDTH - 1) * (MAX_DEPTH + 2) + 1;
+/// Padding of each single-precision box, relative to the scene's extent plus its largest
+/// coordinate: far above the rounding of a box corner, a ray origin or a slab distance to
+/// f32 (about 6e-8 of the magnitudes involved), far below the size of a triangle.
+const PAD: f64 = 1e-5;
+
+/// Up to four children: their boxes by axis then slot, and for each either an inner node
+/// (`count == 0`, `first` is its index) or a leaf (triangles `first..first + count`).
+#[derive(Clone, Copy, Debug)]
+struct WideNode {
+    lo: [[f32; WIDTH]; 3],
+    hi: [[f32; WIDTH]; 3],
+    first: [u32; WIDTH],
+    count: [u32; WIDTH],
+    used: u8,
+}
+
+pub struct OcclusionBvh {
+    nodes: Vec<WideNode>,
+    triangles: Vec<PreparedTriangle>,
+}
+
+impl OcclusionBvh {
+    /// The four-wide version of `binary`: each node takes the binary tree's nodes two levels
+    /// down, opening the largest (by surface area) inner one first.
+    pub fn new(binary: &TriangleBvh) -> Self {
+        let mut nodes = Vec::new();
+        if !binary.triangles.is_empty() {
+            let root = &binary.nodes[0].bounds;
+            let magnitude = (0..3).map(|a| root.lo[a].abs().max(root.hi[a].abs())).fold(0.0, f64::max);
+            let extent = (0..3).map(|a| root.hi[a] - root.lo[a]).fold(0.0, f64::max);
+            collapse(&binary.nodes, 0, PAD * (extent + magnitude), &mut nodes);
+        }
+        Self { nodes, triangles: binary.triangles.clone() }
+    }
+
+    /// Whether the ray `origin + t * direction` meets a triangle at some `t` in `(0, t_max)`:
+    /// the answer of [`TriangleBvh::any_hit`] on the hierarchy this was collapsed from.
+    pub fn any_hit(&self, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let o = origin.map(|x| x as f32);
+        let inverse = direction.map(|d| (1.0 / d) as f32);
+        let t_end = t_max as f32;
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            let entries = node.entries(&o, &inverse, t_end);
+            // Leaves first (cheap to settle), then inner children far to near so that the
+            // nearest is visited next.
+            let mut inner: [(f32, u32); WIDTH] = [(0.0, 0); WIDTH];
+            let mut inner_count = 0;
+            for slot in 0..node.used as usize {
+                let Some(t) = entries[slot] else { continue };
+                let (first, count) = (node.first[slot], node.count[slot]);
+                if count > 0 {
+                    let range = first as usize..(first + count) as usize;
+                    if self.triangles[range].iter().any(|tri| ray_meets(tri, origin, direction, t_max)) {
+                        return true;
+                    }
+                } else {
+                    let mut i = inner_count;
+                    while i > 0 && inner[i - 1].0 < t {
+                        inner[i] = inner[i - 1];
+                        i -= 1;
+                    }
+                    inner[i] = (t, first);
+                    inner_count += 1;
+                }
+            }
+            for &(_, child) in &inner[..inner_count] {
+                stack[top] = child;
+                top += 1;
+            }
+        }
+        false
+    }
+}
+
+impl WideNode {
+    /// Slab tests of the four boxes: where the ray enters each, if it does within
+    /// `[0, t_end]`. `min`/`max` drop the NaN of an origin on a slab plane of a parallel ray.
+    #[inline]
+    fn entries(&self, origin: &[f32; 3], inverse: &[f32; 3], t_end: f32) -> [Option<f32>; WIDTH] {
+        let mut enter = [0.0f32; WIDTH];
+        let mut exit = [t_end; WIDTH];
+        for a in 0..3 {
+            for s in 0..WIDTH {
+                let t0 = (self.lo[a][s] - origin[a]) * inverse[a];
+                let t1 = (self.hi[a][s] - origin[a]) * inverse[a];
+                enter[s] = enter[s].max(t0.min(t1));
+                exit[s] = exit[s].min(t0.max(t1));
+            }
+        }
+        std::array::from_fn(|s| (enter[s] <= exit[s]).then_some(enter[s]))
+    }
+}
+
+/// Appends the wide node for binary node `index` (and, after it, its subtrees); returns its
+/// index. Children always come after their parent.
+fn collapse(binary: &[Node], index: usize, pad: f64, wide: &mut Vec<WideNode>) -> u32 {
+    let mut slots = vec![index];
+    while slots.len() < WIDTH {
+        let widest = slots
+            .iter()
+            .enumerate()
+            .filter(|(_, &n)| binary[n].count == 0)
+            .max_by(|a, b| binary[*a.1].bounds.half_area().total_cmp(&binary[*b.1].bounds.half_area()));
+        let Some((at, &n)) = widest else { break };
+        let first = binary[n].first as usize;
+        slots[at] = first;
+        slots.push(first + 1);
+    }
+    let me = wide.len();
+    wide.push(WideNode { lo: [[0.0; WIDTH]; 3], hi: [[0.0; WIDTH]; 3], first: [0; WIDTH], count: [0; WIDTH], used: slots.len() as u8 });
+    for (s, &n) in slots.iter().enumerate() {
+        let node = &binary[n];
+        for a in 0..3 {
+            wide[me].lo[a][s] = round_down(node.bounds.lo[a] - pad);
+            wide[me].hi[a][s] = round_up(node.bounds.hi[a] + pad);
+        }
+        if node.count > 0 {
+            wide[me].first[s] = node.first;
+            wide[me].count[s] = node.count;
+        } else {
+            wide[me].first[s] = collapse(binary, n, pad, wide);
+        }
+    }
+    me as u32
+}
+
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x { f.next_down() } else { f }
+}
+
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x { f.next_up() } else { f }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::bvh::sub;
+    use rand::{Rng, SeedableRng};
+
+    /// Random small triangles, random segments and rays: the wide hierarchy, built and
+    /// refitted to moved corners, agrees with testing every triangle and with the binary one.
+    #[test]
+    fn agrees_with_brute_force_and_the_binary_tree() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for (size, offset) in [(1usize, 0.0), (7, 0.0), (300, 0.0), (300, 1000.0)] {
+            let points: Vec<[f64; 3]> = (0..size)
+                .flat_map(|_| {
+                    let centre: [f64; 3] = std::array::from_fn(|_| offset + rng.random::<f64>());
+                    let corners: Vec<[f64; 3]> =
+                        (0..3).map(|_| std::array::from_fn(|a| centre[a] + 0.15 * (rng.random::<f64>() - 0.5))).collect();
+                    corners
+                })
+                .collect();
+            let triangles: Vec<[u32; 3]> = (0..size as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+            let binary = TriangleBvh::build(&points, &triangles);
+            let moved: Vec<[f64; 3]> = points.iter().map(|p| [p[0] + 0.2 * (p[1] - offset).powi(2), p[1], p[2] - 0.1 * (p[0] - offset)]).collect();
+            let refitted = binary.refitted(&moved, &triangles);
+            for (corners, binary) in [(&points, &binary), (&moved, &refitted)] {
+                let wide = OcclusionBvh::new(binary);
+                let mut hits = 0;
+                for _ in 0..4000 {
+                    let origin: [f64; 3] = std::array::from_fn(|_| offset + rng.random_range(-0.2..1.2));
+                    let mut direction: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+                    // Some axis-parallel rays, for the slab test's infinities.
+                    if rng.random_bool(0.1) {
+                        direction[rng.random_range(0..3)] = 0.0;
+                    }
+                    let t_max = if rng.random_bool(0.5) { f64::INFINITY } else { rng.random_range(0.1..2.0) };
+                    let brute = triangles.iter().any(|t| {
+                        let [a, b, c] = t.map(|v| corners[v as usize]);
+                        ray_meets(&PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) }, &origin, &direction, t_max)
+                    });
+                    assert_eq!(wide.any_hit(&origin, &direction, t_max), brute, "{size} triangles at {offset}");
+                    assert_eq!(binary.any_hit(&origin, &direction, t_max), brute);
+                    hits += brute as usize;
+                }
+                if size == 300 {
+                    assert!(hits > 200 && hits < 3800, "the test needs hits and misses, saw {hits}");
+                }
+            }
+        }
+        assert!(!OcclusionBvh::new(&TriangleBvh::build(&[], &[])).any_hit(&[0.0; 3], &[1.0, 0.0, 0.0], 1.0));
+    }
+}
