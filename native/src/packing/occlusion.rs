@@ -75,51 +75,145 @@ pub(super) fn hides(c: &[Vec3; 3], q: Vec3, epsilon: f64) -> bool {
     la >= 0.0 && lb >= 0.0 && lc >= 0.0 && la * a[2] + lb * b[2] + lc * c[2] > q[2] + epsilon
 }
 
-/// What every visibility count shares: the mesh at rest in view coordinates.
+/// What every visibility test shares: the mesh at rest in view coordinates.
 struct Scene<'a> {
     rig: &'a RigView<'a>,
+    regions: &'a [MovingRegion],
     frame: ViewFrame,
     rest: Vec<Vec3>,
     rest_bvh: TriangleBvh,
     epsilon: f64,
 }
 
+/// A front-view box (x, y); empty when `lo > hi`.
+#[derive(Clone, Copy)]
+struct Box2 {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Box2 {
+    const EMPTY: Box2 = Box2 { lo: [f64::INFINITY; 2], hi: [f64::NEG_INFINITY; 2] };
+
+    fn of(points: impl IntoIterator<Item = Vec3>) -> Self {
+        let mut b = Self::EMPTY;
+        points.into_iter().for_each(|p| b.grow(p));
+        b
+    }
+
+    fn grow(&mut self, p: Vec3) {
+        for a in 0..2 {
+            self.lo[a] = self.lo[a].min(p[a]);
+            self.hi[a] = self.hi[a].max(p[a]);
+        }
+    }
+
+    fn grown(self, margin: f64) -> Self {
+        Self { lo: self.lo.map(|x| x - margin), hi: self.hi.map(|x| x + margin) }
+    }
+
+    fn meets(&self, other: &Box2) -> bool {
+        (0..2).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
+    }
+}
+
+/// Shape h posed alone: where its active vertices are seen from, and what hides each.
+struct Alone {
+    /// h's moved triangles that can lie over any of its active vertices in any tested mix,
+    /// posed by h, in view coordinates.
+    posed: PosedTriangles,
+    /// Per active vertex, the triangles that hide it in pose h.
+    hiders: Vec<Vec<u32>>,
+}
+
 impl Scene<'_> {
-    /// How many of `vertices` are seen in `pose`, whose moved triangles are `moved`.
-    fn seen(&self, pose: &Pose, vertices: &[u32], moved: &[u32], is_moved: impl Fn(u32) -> bool) -> usize {
+    fn view(&self, pose: &Pose, v: u32) -> Vec3 {
+        self.frame.map(pose.at(v))
+    }
+
+    /// Adds to `found` the static triangles (at rest; those `skip` names are not) that hide
+    /// the view point `q` of vertex `v`.
+    fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
         let triangles = self.rig.triangles;
-        let posed = PosedTriangles::new(moved.to_vec(), triangles, pose, |p| self.frame.map(p));
-        vertices
+        let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
+        self.rest_bvh.for_each_overlap(&ray, |t| {
+            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&triangles[t as usize].map(|u| self.rest[u as usize]), q, self.epsilon) {
+                found.push(t);
+            }
+        });
+    }
+
+    /// Adds to `found` the triangles of `set` (but those `skip` names) that hide `q`.
+    fn posed_hiders(&self, set: &PosedTriangles, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
+        let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
+        set.for_each_overlap(&ray, |j| {
+            let t = set.triangles[j as usize];
+            if !skip(t) && !self.rig.triangles[t as usize].contains(&v) && hides(&set.corners[j as usize], q, self.epsilon) {
+                found.push(t);
+            }
+        });
+    }
+
+    /// Pose h alone; `reach` covers h's active vertices in every mix to be tested.
+    fn alone(&self, h: usize, active: &[u32], reach: Box2) -> Alone {
+        let (rig, region) = (self.rig, &self.regions[h]);
+        let pose = Pose::of(rig, &[h]);
+        let near: Vec<u32> = region
+            .triangles
             .iter()
-            .filter(|&&v| {
-                let q = self.frame.map(pose.at(v));
-                let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
-                let own = |t: u32| triangles[t as usize].contains(&v);
-                let mut hidden = false;
-                self.rest_bvh.for_each_overlap(&ray, |t| {
-                    hidden = hidden
-                        || (!is_moved(t) && !own(t) && hides(&triangles[t as usize].map(|u| self.rest[u as usize]), q, self.epsilon));
-                });
-                posed.for_each_overlap(&ray, |j| {
-                    hidden = hidden || (!own(posed.triangles[j as usize]) && hides(&posed.corners[j as usize], q, self.epsilon));
-                });
-                !hidden
+            .copied()
+            .filter(|&t| Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&reach))
+            .collect();
+        let posed = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        let hiders = active
+            .iter()
+            .map(|&v| {
+                let (q, mut found) = (self.view(&pose, v), Vec::new());
+                self.static_hiders(v, q, |t| region.contains(t), &mut found);
+                self.posed_hiders(&posed, v, q, |_| false, &mut found);
+                found
+            })
+            .collect();
+        Alone { posed, hiders }
+    }
+
+    /// How many of h's active vertices are seen with `by` posed too. A vertex `by` does not
+    /// move keeps its place: it is hidden by its hiders in pose h that `by` does not move, or
+    /// by a triangle `by` moves. One that `by` moves is traced afresh.
+    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, by_boxes: &[Box2]) -> usize {
+        let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
+        let pose = Pose::of(rig, &[h, by]);
+        let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
+        let spot = Box2::of(points.iter().copied());
+        let near: Vec<u32> = rb
+            .triangles
+            .iter()
+            .zip(by_boxes)
+            .filter(|&(&t, b)| {
+                if rh.contains(t) {
+                    Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&spot)
+                } else {
+                    b.meets(&spot)
+                }
+            })
+            .map(|p| *p.0)
+            .collect();
+        let moving = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        let delta = rig.delta(by);
+        (0..active.len())
+            .filter(|&i| {
+                let (v, q, mut found) = (active[i], points[i], Vec::new());
+                if delta[v as usize] != [0.0; 3] {
+                    self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
+                    self.posed_hiders(&alone.posed, v, q, |t| rb.contains(t), &mut found);
+                } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
+                    return false;
+                }
+                self.posed_hiders(&moving, v, q, |_| false, &mut found);
+                found.is_empty()
             })
             .count()
     }
-}
-
-/// Front-view box (x, y) of some points, grown by `margin`.
-fn view_box(points: impl Iterator<Item = Vec3>, margin: f64) -> [f64; 4] {
-    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-    for p in points {
-        b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
-    }
-    [b[0] - margin, b[1] - margin, b[2] + margin, b[3] + margin]
-}
-
-fn boxes_meet(a: &[f64; 4], b: &[f64; 4]) -> bool {
-    a[0] <= b[2] && b[0] <= a[2] && a[1] <= b[3] && b[1] <= a[3]
 }
 
 /// The candidate pairs, in both directions, where one shape hides the other's motion:
@@ -138,52 +232,67 @@ pub fn find_occlusions(
     let frame = ViewFrame::new(toward)?;
     let diagonal = rig.bbox_diagonal();
     let margin = margin * diagonal;
-    let mut involved: Vec<usize> = candidates.iter().flat_map(|&(a, b)| [a, b]).collect();
-    involved.sort_unstable();
-    involved.dedup();
-    let mut active_box = vec![[0.0; 4]; rig.n_shapes()];
-    let mut region_box = vec![[0.0; 4]; rig.n_shapes()];
-    for &k in &involved {
-        let pose = Pose::of(rig, &[k]);
-        active_box[k] = view_box(active[k].iter().map(|&v| frame.map(pose.at(v))), margin);
-        let corners = regions[k].triangles.iter().flat_map(|&t| rig.triangles[t as usize]);
-        let rest = |v: u32| rig.neutral[v as usize].map(f64::from);
-        region_box[k] = view_box(corners.flat_map(|v| [frame.map(rest(v)), frame.map(pose.at(v))]), 0.0);
-    }
-    let interacts = |hidden: usize, by: usize| {
-        regions[hidden].meets(&regions[by], margin) || boxes_meet(&active_box[hidden], &region_box[by])
-    };
+    let k_count = rig.n_shapes();
+    let mut involved = vec![false; k_count];
+    candidates.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
+    let rest_of = |v: u32| frame.map(rig.neutral[v as usize].map(f64::from));
+    // Front-view boxes: of each shape's active vertices in its pose, and of each moved
+    // triangle at rest and posed.
+    let boxes: Vec<(Box2, Box2, Vec<Box2>)> = (0..k_count)
+        .into_par_iter()
+        .map(|k| {
+            if !involved[k] {
+                return (Box2::EMPTY, Box2::EMPTY, Vec::new());
+            }
+            let pose = Pose::of(rig, &[k]);
+            let active_box = Box2::of(active[k].iter().map(|&v| frame.map(pose.at(v)))).grown(margin);
+            let posed: Vec<Box2> =
+                regions[k].triangles.iter().map(|&t| Box2::of(rig.triangles[t as usize].map(|v| frame.map(pose.at(v))))).collect();
+            let mut region_box = Box2::EMPTY;
+            for (&t, b) in regions[k].triangles.iter().zip(&posed) {
+                region_box.grow([b.lo[0], b.lo[1], 0.0]);
+                region_box.grow([b.hi[0], b.hi[1], 0.0]);
+                rig.triangles[t as usize].iter().for_each(|&v| region_box.grow(rest_of(v)));
+            }
+            (active_box, region_box, posed)
+        })
+        .collect();
+    let interacts = |h: usize, by: usize| regions[h].meets(&regions[by], margin) || boxes[h].0.meets(&boxes[by].1);
     let tested: Vec<(usize, usize)> =
         candidates.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).filter(|&(h, b)| interacts(h, b)).collect();
     if tested.is_empty() {
         return Some((Vec::new(), 0));
     }
-    let rest: Vec<Vec3> = rig.neutral.iter().map(|p| frame.map(p.map(f64::from))).collect();
-    let scene = Scene { rig, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal };
+    let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
+    let scene = Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
     hidden_shapes.dedup();
-    let alone: Vec<usize> = hidden_shapes
+    let occlusions: Vec<Vec<Occlusion>> = hidden_shapes
         .par_iter()
-        .map(|&k| scene.seen(&Pose::of(rig, &[k]), &active[k], &regions[k].triangles, |t| regions[k].contains(t)))
-        .collect();
-    let mut slot = vec![usize::MAX; rig.n_shapes()];
-    hidden_shapes.iter().enumerate().for_each(|(i, &k)| slot[k] = i);
-    let occlusions = tested
-        .par_iter()
-        .filter_map(|&(h, by)| {
-            let seen_alone = alone[slot[h]];
-            if seen_alone == 0 {
-                return None;
+        .map(|&h| {
+            let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
+            let mut reach = Box2::EMPTY;
+            for shapes in std::iter::once(vec![h]).chain(partners.iter().map(|&b| vec![h, b])) {
+                let pose = Pose::of(rig, &shapes);
+                active[h].iter().for_each(|&v| reach.grow(scene.view(&pose, v)));
             }
-            let (rh, rb) = (&regions[h], &regions[by]);
-            let mut moved: Vec<u32> = rh.triangles.iter().chain(&rb.triangles).copied().collect();
-            moved.sort_unstable();
-            moved.dedup();
-            let seen = scene.seen(&Pose::of(rig, &[h, by]), &active[h], &moved, |t| rh.contains(t) || rb.contains(t));
-            let kept = seen as f64 / seen_alone as f64;
-            (kept < keep).then_some(Occlusion { hidden: h, by, kept })
+            let alone = scene.alone(h, &active[h], reach.grown(margin));
+            let seen_alone = alone.hiders.iter().filter(|h| h.is_empty()).count();
+            if seen_alone == 0 {
+                return Vec::new();
+            }
+            partners
+                .iter()
+                .filter_map(|&by| {
+                    let kept = scene.seen_with(h, by, &active[h], &alone, &boxes[by].2) as f64 / seen_alone as f64;
+                    (kept < keep).then_some(Occlusion { hidden: h, by, kept })
+                })
+                .collect()
         })
         .collect();
+    let mut occlusions: Vec<Occlusion> = occlusions.into_iter().flatten().collect();
+    let order = |o: &Occlusion| tested.iter().position(|&p| p == (o.hidden, o.by));
+    occlusions.sort_by_key(order);
     Some((occlusions, tested.len()))
 }
