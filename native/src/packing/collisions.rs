@@ -38,22 +38,16 @@ pub struct Collision {
     pub between_pieces: f64,
 }
 
-/// The triangles that can take part in a crossing that touches both A and B (each list
-/// ascending): `shared` (moved by both), `a_near_b` (moved by A only, whose box over rest and
-/// pose A meets B's region) and `b_near_a`, and, around the shared ones, `near_shared` (moved
-/// by one shape only, whose swept box meets the shared triangles' box over the four poses).
-struct PairTriangles {
-    shared: Vec<u32>,
-    a_near_b: Vec<u32>,
-    b_near_a: Vec<u32>,
-    near_shared: Vec<u32>,
+/// Each involved shape's moved triangles posed by it alone: in any mix, a triangle that only
+/// A moves sits where A alone puts it.
+struct Posed {
+    by_shape: Vec<Option<PosedTriangles>>,
 }
 
-/// The box of a triangle's corners at rest and posed by one shape.
-fn swept_box(rig: &RigView, k: usize, t: u32) -> Aabb {
+/// The box of a triangle's corners at rest and posed by shape k.
+fn swept_box(rig: &RigView, regions: &[MovingRegion], k: usize, t: u32) -> Aabb {
     let corners = rig.triangles[t as usize];
-    let rest = Pose::of(rig, &[]);
-    let posed = Pose::of(rig, &[k]);
+    let (rest, posed) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
     Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { posed.at(corners[i - 3]) }))
 }
 
@@ -61,83 +55,114 @@ fn grown(region: &MovingRegion, margin: f64) -> Aabb {
     Aabb::of_points(&[region.lo.map(|x| x - margin), region.hi.map(|x| x + margin)])
 }
 
-impl PairTriangles {
-    fn new(rig: &RigView, regions: &[MovingRegion], swept: &[Vec<Aabb>], (a, b): (usize, usize), margin: f64) -> Self {
-        let (ra, rb) = (&regions[a], &regions[b]);
-        let shared: Vec<u32> = ra.triangles.iter().copied().filter(|&t| rb.contains(t)).collect();
-        let only = |k: usize, other: &MovingRegion, near: &Aabb| -> Vec<u32> {
-            let region = &regions[k];
-            region.triangles.iter().zip(&swept[k]).filter(|(t, b)| !other.contains(**t) && b.overlaps(near)).map(|p| *p.0).collect()
-        };
-        let (a_near_b, b_near_a) = (only(a, rb, &grown(rb, margin)), only(b, ra, &grown(ra, margin)));
-        let near_shared = if shared.is_empty() {
-            Vec::new()
-        } else {
-            let poses = [Pose::of(rig, &[]), Pose::of(rig, &[a]), Pose::of(rig, &[b]), Pose::of(rig, &[a, b])];
-            let corners: Vec<Vec3> = shared
-                .iter()
-                .flat_map(|&t| rig.triangles[t as usize])
-                .flat_map(|v| poses.iter().map(move |p| p.at(v)).collect::<Vec<_>>())
-                .collect();
-            let lo: Vec3 = std::array::from_fn(|a| corners.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min) - margin);
-            let hi: Vec3 = std::array::from_fn(|a| corners.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max) + margin);
-            let near = Aabb::of_points(&[lo, hi]);
-            let mut list = only(a, rb, &near);
-            list.extend(only(b, ra, &near));
-            list.sort_unstable();
-            list
-        };
-        Self { shared, a_near_b, b_near_a, near_shared }
-    }
+/// What the four poses of one pair share: the mesh at rest, the per-shape posed triangles,
+/// the pieces.
+struct Scene<'a> {
+    rig: &'a RigView<'a>,
+    regions: &'a [MovingRegion],
+    rest: Vec<Vec3>,
+    rest_bvh: TriangleBvh,
+    posed: Posed,
+    piece: Vec<u32>,
+}
 
-    /// The crossings in `pose` that touch both shapes, as (total length, length between
-    /// pieces), summed in a fixed order. Every other triangle is at rest (`rest`,
-    /// `rest_bvh`); `moved` tells the triangles either shape moves.
-    fn crossing_length(&self, rig: &RigView, pose: &Pose, rest: &[Vec3], rest_bvh: &TriangleBvh, moved: impl Fn(u32) -> bool, piece: &[u32]) -> [f64; 2] {
-        let triangles = rig.triangles;
+impl Scene<'_> {
+    /// E(A, B) and its part between pieces, in mesh units: the four poses' crossings that
+    /// touch a triangle A moves and one B moves. Those are a triangle only A moves (and whose
+    /// swept box meets B's region) against one only B moves, and a triangle both move
+    /// against any other.
+    fn added(&self, a: usize, b: usize, swept: &[Vec<Aabb>], margin: f64) -> [f64; 2] {
+        let (rig, triangles) = (self.rig, self.rig.triangles);
+        let (ra, rb) = (&self.regions[a], &self.regions[b]);
+        let shared: Vec<u32> = ra.triangles.iter().copied().filter(|&t| rb.contains(t)).collect();
+        let near_b = grown(rb, margin);
+        let a_near_b: Vec<u32> = ra
+            .triangles
+            .iter()
+            .zip(&swept[a])
+            .filter(|(t, bounds)| !rb.contains(**t) && bounds.overlaps(&near_b))
+            .map(|p| *p.0)
+            .collect();
+        let only_a = |t: u32| ra.contains(t) && !rb.contains(t);
+        let only_b = |t: u32| rb.contains(t) && !ra.contains(t);
+        let is_shared = |t: u32| ra.contains(t) && rb.contains(t);
         let shares_corner = |s: u32, t: u32| triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v));
-        let mut sum = [0.0; 2];
-        let mut add = |s: u32, t: u32, len: f64| {
-            sum[0] += len;
-            if piece[s as usize] != piece[t as usize] {
-                sum[1] += len;
-            }
-        };
-        if !self.a_near_b.is_empty() && !self.b_near_a.is_empty() {
-            let others = PosedTriangles::new(self.b_near_a.clone(), triangles, pose, |p| p);
-            for &s in &self.a_near_b {
+        let (posed_a, posed_b) = (self.posed.by_shape[a].as_ref(), self.posed.by_shape[b].as_ref());
+        let mut total = [0.0; 2];
+        for (sign, with_a, with_b) in [(1.0, true, true), (-1.0, true, false), (-1.0, false, true), (1.0, false, false)] {
+            let shapes: Vec<usize> = [(a, with_a), (b, with_b)].iter().filter(|p| p.1).map(|p| p.0).collect();
+            let pose = Pose::of(rig, self.regions, &shapes);
+            let mut add = |s: u32, t: u32, corners: [Vec3; 3], other: [Vec3; 3]| {
+                if !shares_corner(s, t) {
+                    if let Some(len) = intersection_length(corners, other) {
+                        total[0] += sign * len;
+                        if self.piece[s as usize] != self.piece[t as usize] {
+                            total[1] += sign * len;
+                        }
+                    }
+                }
+            };
+            let at_rest = |t: u32| triangles[t as usize].map(|v| self.rest[v as usize]);
+            // Triangles only A moves against those only B moves, wherever this pose puts them.
+            for &s in &a_near_b {
                 let corners = triangles[s as usize].map(|v| pose.at(v));
-                others.for_each_overlap(&Aabb::of_points(&corners), |j| {
-                    let t = others.triangles[j as usize];
-                    if !shares_corner(s, t) {
-                        intersection_length(corners, others.corners[j as usize]).into_iter().for_each(|len| add(s, t, len));
-                    }
-                });
-            }
-        }
-        if !self.shared.is_empty() {
-            let mut near = self.shared.clone();
-            near.extend(&self.near_shared);
-            let near = PosedTriangles::new(near, triangles, pose, |p| p);
-            for (i, &s) in self.shared.iter().enumerate() {
-                let corners = near.corners[i];
                 let query = Aabb::of_points(&corners);
-                rest_bvh.for_each_overlap(&query, |t| {
-                    if !moved(t) && !shares_corner(s, t) {
-                        let at_rest = triangles[t as usize].map(|v| rest[v as usize]);
-                        intersection_length(corners, at_rest).into_iter().for_each(|len| add(s, t, len));
+                match (with_b, posed_b) {
+                    (true, Some(set)) => set.for_each_overlap(&query, |j| {
+                        let t = set.triangles[j as usize];
+                        if only_b(t) {
+                            add(s, t, corners, set.corners[j as usize]);
+                        }
+                    }),
+                    _ => self.rest_bvh.for_each_overlap(&query, |t| {
+                        if only_b(t) {
+                            add(s, t, corners, at_rest(t));
+                        }
+                    }),
+                }
+            }
+            if shared.is_empty() {
+                continue;
+            }
+            // Triangles both move against everything else, each shared pair once.
+            let both_posed = (with_a && with_b).then(|| PosedTriangles::new(shared.clone(), triangles, &pose, |p| p));
+            for (i, &s) in shared.iter().enumerate() {
+                let corners = match &both_posed {
+                    Some(set) => set.corners[i],
+                    None => triangles[s as usize].map(|v| pose.at(v)),
+                };
+                let query = Aabb::of_points(&corners);
+                let still = |t: u32| {
+                    (!ra.contains(t) && !rb.contains(t))
+                        || (only_a(t) && !with_a)
+                        || (only_b(t) && !with_b)
+                        || (is_shared(t) && !with_a && !with_b && t > s)
+                };
+                self.rest_bvh.for_each_overlap(&query, |t| {
+                    if still(t) {
+                        add(s, t, corners, at_rest(t));
                     }
                 });
-                // Shared pairs once, from the earlier of the two in `shared`.
-                near.for_each_overlap(&query, |j| {
-                    let t = near.triangles[j as usize];
-                    if (j as usize >= self.shared.len() || j as usize > i) && !shares_corner(s, t) {
-                        intersection_length(corners, near.corners[j as usize]).into_iter().for_each(|len| add(s, t, len));
+                for (moved_by, set, only, alone) in [(with_a, posed_a, &only_a as &dyn Fn(u32) -> bool, with_a && !with_b), (with_b, posed_b, &only_b, with_b && !with_a)] {
+                    if let (true, Some(set)) = (moved_by, set) {
+                        set.for_each_overlap(&query, |j| {
+                            let t = set.triangles[j as usize];
+                            if only(t) || (alone && is_shared(t) && t > s) {
+                                add(s, t, corners, set.corners[j as usize]);
+                            }
+                        });
                     }
-                });
+                }
+                if let Some(set) = &both_posed {
+                    set.for_each_overlap(&query, |j| {
+                        if j as usize > i {
+                            add(s, set.triangles[j as usize], corners, set.corners[j as usize]);
+                        }
+                    });
+                }
             }
         }
-        sum
+        total
     }
 }
 
@@ -166,19 +191,24 @@ pub fn find_collisions(
     let piece: Vec<u32> = triangles.iter().map(|t| label[t[0] as usize]).collect();
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
-    let swept: Vec<Vec<Aabb>> = (0..rig.n_shapes())
+    let per_shape: Vec<(Vec<Aabb>, Option<PosedTriangles>)> = (0..rig.n_shapes())
         .into_par_iter()
-        .map(|k| if involved[k] { regions[k].triangles.iter().map(|&t| swept_box(rig, k, t)).collect() } else { Vec::new() })
+        .map(|k| {
+            if !involved[k] {
+                return (Vec::new(), None);
+            }
+            let swept = regions[k].triangles.iter().map(|&t| swept_box(rig, regions, k, t)).collect();
+            let posed = PosedTriangles::new(regions[k].triangles.clone(), triangles, &Pose::of(rig, regions, &[k]), |p| p);
+            (swept, Some(posed))
+        })
         .collect();
+    let (swept, by_shape): (Vec<Vec<Aabb>>, Vec<Option<PosedTriangles>>) = per_shape.into_iter().unzip();
+    let scene = Scene { rig, regions, rest, rest_bvh, posed: Posed { by_shape }, piece };
     let collisions = tested
         .par_iter()
         .filter_map(|&(a, b)| {
-            let pair = PairTriangles::new(rig, regions, &swept, (a, b), margin);
-            let moved = |t: u32| regions[a].contains(t) || regions[b].contains(t);
-            let length = |shapes: &[usize]| pair.crossing_length(rig, &Pose::of(rig, shapes), &rest, &rest_bvh, moved, &piece);
-            let [both, alone_a, alone_b, at_rest] = [length(&[a, b]), length(&[a]), length(&[b]), length(&[])];
-            let added = |i: usize| (both[i] - alone_a[i] - alone_b[i] + at_rest[i]) / diagonal;
-            (added(0) > tolerance).then(|| Collision { first: a, second: b, added: added(0), between_pieces: added(1) })
+            let [added, between] = scene.added(a, b, &swept, margin).map(|x| x / diagonal);
+            (added > tolerance).then_some(Collision { first: a, second: b, added, between_pieces: between })
         })
         .collect();
     (collisions, tested.len())

@@ -209,6 +209,9 @@ pub struct Packing {
     pub antagonists: Vec<(usize, usize)>,
     /// Every conflict edge between shapes posed apart, with its reasons.
     pub conflicts: Vec<ShapeConflict>,
+    /// Binary blendshapes $b_k$ (Eq. (2)) as sorted vertex lists (empty when inert): what
+    /// the reference sheet tints.
+    pub active: Vec<Vec<u32>>,
     pub poseability: PoseabilityReport,
     pub fewest: Option<FewestReport>,
 }
@@ -347,6 +350,7 @@ fn finish(prep: Prepared, expressions: Vec<Expression>, unplaced: Vec<usize>, fe
         pairs: prep.graph.pairs,
         antagonists: prep.antagonists,
         conflicts: prep.graph.conflicts,
+        active: prep.active,
         poseability: prep.poseability,
         fewest,
     }

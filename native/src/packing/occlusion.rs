@@ -157,7 +157,7 @@ impl Scene<'_> {
     /// Pose h alone; `reach` covers h's active vertices in every mix to be tested.
     fn alone(&self, h: usize, active: &[u32], reach: Box2) -> Alone {
         let (rig, region) = (self.rig, &self.regions[h]);
-        let pose = Pose::of(rig, &[h]);
+        let pose = Pose::of(rig, self.regions, &[h]);
         let near: Vec<u32> = region
             .triangles
             .iter()
@@ -178,11 +178,11 @@ impl Scene<'_> {
     }
 
     /// How many of h's active vertices are seen with `by` posed too. A vertex `by` does not
-    /// move keeps its place: it is hidden by its hiders in pose h that `by` does not move, or
+    /// move (see `regions`) keeps its place: it is hidden by its hiders in pose h that `by` does not move, or
     /// by a triangle `by` moves. One that `by` moves is traced afresh.
     fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, by_boxes: &[Box2]) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
-        let pose = Pose::of(rig, &[h, by]);
+        let pose = Pose::of(rig, self.regions, &[h, by]);
         let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
         let spot = Box2::of(points.iter().copied());
         let near: Vec<u32> = rb
@@ -199,11 +199,10 @@ impl Scene<'_> {
             .map(|p| *p.0)
             .collect();
         let moving = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
-        let delta = rig.delta(by);
         (0..active.len())
             .filter(|&i| {
                 let (v, q, mut found) = (active[i], points[i], Vec::new());
-                if delta[v as usize] != [0.0; 3] {
+                if rb.moves(v) {
                     self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
                     self.posed_hiders(&alone.posed, v, q, |t| rb.contains(t), &mut found);
                 } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
@@ -244,7 +243,7 @@ pub fn find_occlusions(
             if !involved[k] {
                 return (Box2::EMPTY, Box2::EMPTY, Vec::new());
             }
-            let pose = Pose::of(rig, &[k]);
+            let pose = Pose::of(rig, regions, &[k]);
             let active_box = Box2::of(active[k].iter().map(|&v| frame.map(pose.at(v)))).grown(margin);
             let posed: Vec<Box2> =
                 regions[k].triangles.iter().map(|&t| Box2::of(rig.triangles[t as usize].map(|v| frame.map(pose.at(v))))).collect();
@@ -274,7 +273,7 @@ pub fn find_occlusions(
             let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
             let mut reach = Box2::EMPTY;
             for shapes in std::iter::once(vec![h]).chain(partners.iter().map(|&b| vec![h, b])) {
-                let pose = Pose::of(rig, &shapes);
+                let pose = Pose::of(rig, regions, &shapes);
                 active[h].iter().for_each(|&v| reach.grow(scene.view(&pose, v)));
             }
             let alone = scene.alone(h, &active[h], reach.grown(margin));

@@ -133,6 +133,7 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
         })).collect::<Vec<_>>(),
         "collisions": p.poseability.collisions.iter().map(|c| json!({
             "shapes": [names[c.first].clone(), names[c.second].clone()], "added": c.added,
+            "between_pieces": c.between_pieces,
         })).collect::<Vec<_>>(),
         "occlusions": p.poseability.occlusions.iter().map(|o| json!({
             "hidden": names[o.hidden].clone(), "by": names[o.by].clone(), "kept": o.kept,
@@ -145,6 +146,8 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
                 "occlusions": p.poseability.seconds_occlusions,
             },
         },
+        "regions": p.expressions.iter().flat_map(|e| e.shapes.iter()).map(|&k| (names[k].clone(), json!(p.active[k])))
+            .collect::<serde_json::Map<String, Value>>(),
         "weights": p.weights(),
         "fewest": p.fewest,
         "params": params,
@@ -163,7 +166,8 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 /// names. Returns a dict: expressions, importance, inert, excluded, unplaced, pairs,
 /// antagonists, conflicts (each edge's shapes and reasons: user, antagonist, overlap,
 /// collision, occlusion), collisions (added curve / diagonal), occlusions (kept share),
-/// poseability (pairs tested, seconds), weights (J x K 0/1 in the order of `names`),
+/// poseability (pairs tested, seconds), regions (each placed shape's strongly moving
+/// vertices, for the reference sheet), weights (J x K 0/1 in the order of `names`),
 /// fewest, params.
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
