@@ -176,9 +176,9 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
     )
     collision_tolerance: bpy.props.FloatProperty(
         name="Collision Tolerance",
-        description="Intersection curve a mix may add beyond its shapes alone, as a fraction of the head's "
-        "bounding-box diagonal",
-        default=0.1,
+        description="Intersection curve between separate pieces (tongue and lips, eyeball and lids) a mix may "
+        "add beyond its shapes alone, as a fraction of the head's bounding-box diagonal",
+        default=0.11,
         min=1e-6,
         soft_max=0.5,
         precision=3,

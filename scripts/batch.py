@@ -179,7 +179,8 @@ def add_pack_args(parser):
     parser.add_argument("--no-collision-conflicts", action="store_true",
                         help="allow shapes that pass through each other when mixed in one expression")
     parser.add_argument("--collision-tolerance", type=float,
-                        help="intersection curve a mix may add, as a fraction of the head's diagonal (default 0.1)")
+                        help="intersection curve between pieces a mix may add, as a fraction of the head's diagonal "
+                        "(default 0.11)")
     parser.add_argument("--no-occlusion-conflicts", action="store_true",
                         help="allow a shape with one that hides its motion from the front camera")
     parser.add_argument("--occlusion-keep", type=float,

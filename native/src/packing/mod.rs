@@ -103,8 +103,8 @@ pub struct PackingParams {
     pub time_limit: Option<f64>,
     /// Shapes that pass through each other when posed together conflict ([`collisions`]).
     pub collision_conflicts: bool,
-    /// Intersection curve a mix may add beyond its shapes alone, as a fraction of the
-    /// bounding-box diagonal, before the two conflict.
+    /// Intersection curve between pieces a mix may add beyond its shapes alone, as a
+    /// fraction of the bounding-box diagonal, before the two conflict.
     pub collision_tolerance: f64,
     /// A shape whose motion the other hides from the camera conflicts ([`occlusion`]).
     pub occlusion_conflicts: bool,
@@ -150,12 +150,12 @@ impl Default for PackingParams {
 
 /// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
 /// docs/pack.md).
-pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.02;
+pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
 
 /// What the poseability tests found, and what they cost.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct PoseabilityReport {
-    /// Pairs whose mix adds more than the tolerance of intersection curve.
+    /// Pairs whose mix adds more than the tolerance of intersection curve between pieces.
     pub collisions: Vec<Collision>,
     /// Directions (hidden, by) where the first keeps less than `occlusion_keep` of its
     /// visibility.

@@ -29,15 +29,19 @@ fn posed(rig: &RigView, shapes: &[usize]) -> Vec<Vec3> {
         .collect()
 }
 
-/// The penetration metric's length over the whole posed mesh.
-fn curve_length(rig: &RigView, shapes: &[usize]) -> f64 {
+/// The penetration metric's length over the whole posed mesh, and its part between pieces.
+fn curve_length(rig: &RigView, shapes: &[usize]) -> [f64; 2] {
     let points = posed(rig, shapes);
-    crossings(&points, rig.triangles, &TriangleBvh::build(&points, rig.triangles), None).iter().map(|c| c.2).sum()
+    let (label, _) = crate::geometry::topology::connected_components(rig.n_vertices(), rig.triangles);
+    let piece = |t: u32| label[rig.triangles[t as usize][0] as usize];
+    let all = crossings(&points, rig.triangles, &TriangleBvh::build(&points, rig.triangles), None);
+    [all.iter().map(|c| c.2).sum(), all.iter().filter(|c| piece(c.0) != piece(c.1)).map(|c| c.2).sum()]
 }
 
-/// E(A, B) of SPEC section 1 from four full sweeps.
-fn added_curve(rig: &RigView, a: usize, b: usize) -> f64 {
-    curve_length(rig, &[a, b]) - curve_length(rig, &[a]) - curve_length(rig, &[b]) + curve_length(rig, &[])
+/// E(A, B) of SPEC section 1 from four full sweeps: (total, between pieces).
+fn added_curve(rig: &RigView, a: usize, b: usize) -> [f64; 2] {
+    let [ab, ao, bo, rest] = [curve_length(rig, &[a, b]), curve_length(rig, &[a]), curve_length(rig, &[b]), curve_length(rig, &[])];
+    [0, 1].map(|i| ab[i] - ao[i] - bo[i] + rest[i])
 }
 
 /// How many of shape `hidden`'s active vertices the camera along `toward` sees in the pose
@@ -63,7 +67,7 @@ fn seen(rig: &RigView, shapes: &[usize], active: &[u32], toward: Vec3) -> usize 
 fn brute_force_edges(rig: &RigView, params: &PackingParams, active: &[Vec<u32>], candidates: &[(usize, usize)]) -> (Vec<(usize, usize)>, Vec<(usize, usize)>) {
     let diagonal = rig.bbox_diagonal();
     let collisions: Vec<(usize, usize)> = if params.collision_conflicts {
-        candidates.iter().copied().filter(|&(a, b)| added_curve(rig, a, b) > params.collision_tolerance * diagonal).collect()
+        candidates.iter().copied().filter(|&(a, b)| added_curve(rig, a, b)[1] > params.collision_tolerance * diagonal).collect()
     } else {
         Vec::new()
     };
@@ -180,6 +184,7 @@ fn tongue_out_collides_with_closed_lips_but_not_with_an_open_jaw() {
     let collision = packing.poseability.collisions[0];
     let expected = 2.0 * 0.8 / inst.rig().bbox_diagonal();
     assert!((collision.added - expected).abs() < 1e-5, "{} vs {expected}", collision.added);
+    assert!((collision.between_pieces - expected).abs() < 1e-5, "the tongue is a piece of its own");
     assert!(packing.poseability.collisions.iter().all(|c| (c.first, c.second) == (tongue, close)));
 
     // Switched off, the edge is gone and only the overlap keeps the lips from the jaw.
@@ -285,10 +290,11 @@ fn pruned_tests_equal_testing_every_pair_and_packings_stay_optimal() {
         let (found, n_tested) = find_collisions(&rig, &regions, &all, params.collision_tolerance, INTERACTION_MARGIN);
         let diagonal = rig.bbox_diagonal();
         let expected: Vec<(usize, usize)> =
-            all.iter().copied().filter(|&(a, b)| added_curve(&rig, a, b) > params.collision_tolerance * diagonal).collect();
+            all.iter().copied().filter(|&(a, b)| added_curve(&rig, a, b)[1] > params.collision_tolerance * diagonal).collect();
         assert_eq!(found.iter().map(|c| (c.first, c.second)).collect::<Vec<_>>(), expected, "trial {trial}");
         for c in &found {
-            assert!((c.added * diagonal - added_curve(&rig, c.first, c.second)).abs() < 1e-9);
+            let [added, between] = added_curve(&rig, c.first, c.second);
+            assert!((c.added * diagonal - added).abs() < 1e-9 && (c.between_pieces * diagonal - between).abs() < 1e-9);
         }
         let (hidden, n_directions) =
             find_occlusions(&rig, &regions, &active, &all, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction).unwrap();
@@ -308,4 +314,20 @@ fn pruned_tests_equal_testing_every_pair_and_packings_stay_optimal() {
     }
     assert!(collided > 10 && hid > 10 && packed_edges > 10, "too few to tell: {collided} collisions, {hid} occlusions, {packed_edges} edges");
     assert!(tested < pairs, "the pruning tested {tested} of {pairs}");
+}
+
+#[test]
+fn unusable_poseability_settings_are_rejected_with_a_reason() {
+    let inst = eye();
+    for (params, message) in [
+        (PackingParams { collision_tolerance: 0.0, ..PackingParams::default() }, "collision_tolerance"),
+        (PackingParams { occlusion_keep: 1.5, ..PackingParams::default() }, "occlusion_keep"),
+        (PackingParams { camera_direction: [0.0, 0.0, 0.0], ..PackingParams::default() }, "camera direction"),
+        (PackingParams { camera_direction: [f64::NAN, 1.0, 0.0], ..PackingParams::default() }, "camera direction"),
+    ] {
+        match pack_expressions(&inst.rig(), None, &params, &NoProgress) {
+            Err(crate::error::ShapesmithError::InvalidInput(m)) => assert!(m.contains(message), "{m}"),
+            other => panic!("{message}: {other:?}"),
+        }
+    }
 }

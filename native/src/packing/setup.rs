@@ -223,6 +223,11 @@ fn validate_params(p: &PackingParams, rig: &RigView) -> ShapesmithResult<()> {
         p.occlusion_keep > 0.0 && p.occlusion_keep <= 1.0,
         format!("occlusion_keep must be in (0, 1] (the share of visibility a shape must keep), got {}", p.occlusion_keep),
     )?;
+    let direction = p.camera_direction;
+    check(
+        direction.iter().all(|x| x.is_finite()) && direction.iter().any(|&x| x != 0.0),
+        format!("the camera direction must be a finite, non-zero vector, got {direction:?}"),
+    )?;
     if let Some(limit) = p.time_limit {
         check(limit > 0.0 && limit.is_finite(), format!("time_limit must be a positive number of seconds, got {limit}"))?;
     }

@@ -158,7 +158,7 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 ///     beta=0.0, max_expressions=None, symmetric=True, antagonist_cosine=-0.5,
 ///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
 ///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3,
-///     collision_conflicts=True, collision_tolerance=0.02, occlusion_conflicts=True,
+///     collision_conflicts=True, collision_tolerance=0.11, occlusion_conflicts=True,
 ///     occlusion_keep=0.5, camera_direction=(0, -1, 0)) -> dict
 ///
 /// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
