@@ -18,10 +18,11 @@
 //! Only triangle pairs that touch a triangle A moves *and* one B moves can contribute to E:
 //! a pair that neither shape moves crosses alike in all four poses, and a pair only A moves
 //! is posed the same in A + B as in A, and in B as at rest, so its four terms cancel. E is
-//! therefore summed over those pairs only: a triangle only A moves against one only B moves
-//! (only those whose box over their two poses meets the other shape's region can meet), and
-//! a triangle both move against the rest of the mesh (static triangles through the rest
-//! hierarchy, moved ones near it posed). Pairs whose [`MovingRegion`] boxes are apart are
+//! therefore summed over those pairs only. L(0) and each shape's L(A) over the triangles it
+//! moves are found once (and filtered per pair); L(A + B) per pair from a triangle only A
+//! moves against one only B moves (only those whose box over their two poses meets the
+//! other shape's region can meet; both sit where their own shape alone puts them) and a
+//! triangle both move against any other. Pairs whose [`MovingRegion`] boxes are apart are
 //! not tested at all (E = 0 exactly, see `regions`).
 
 use rayon::prelude::*;
@@ -29,7 +30,7 @@ use rayon::prelude::*;
 use super::regions::{MovingRegion, Pose, PosedTriangles};
 use crate::geometry::bvh::{Aabb, TriangleBvh};
 use crate::geometry::mat3::Vec3;
-use crate::geometry::penetration::intersection_length;
+use crate::geometry::penetration::{crossings, intersection_length};
 use crate::geometry::topology::connected_components;
 use crate::rig::RigView;
 
@@ -73,101 +74,99 @@ struct Scene<'a> {
     piece: Vec<u32>,
 }
 
+/// Crossing pairs `(s, t, length)`, `s < t`, in some order.
+type Crossings = Vec<(u32, u32, f64)>;
+
 impl Scene<'_> {
-    /// E(A, B) and its part between pieces, in mesh units: the four poses' crossings that
-    /// touch a triangle A moves and one B moves. Those are a triangle only A moves (and whose
-    /// swept box meets B's region) against one only B moves, and a triangle both move
-    /// against any other.
-    fn added(&self, a: usize, b: usize, swept: &[Vec<Aabb>], margin: f64) -> [f64; 2] {
+    fn shares_corner(&self, s: u32, t: u32) -> bool {
+        let triangles = self.rig.triangles;
+        triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v))
+    }
+
+    fn at_rest(&self, t: u32) -> [Vec3; 3] {
+        self.rig.triangles[t as usize].map(|v| self.rest[v as usize])
+    }
+
+    /// The crossings of shape k posed alone that involve a triangle it moves.
+    fn alone(&self, k: usize) -> Crossings {
+        let (region, mut found) = (&self.regions[k], Vec::new());
+        let Some(posed) = &self.posed.by_shape[k] else { return found };
+        for (i, &s) in posed.triangles.iter().enumerate() {
+            let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
+            self.rest_bvh.for_each_overlap(&query, |t| {
+                if !region.contains(t) && !self.shares_corner(s, t) {
+                    found.extend(intersection_length(corners, self.at_rest(t)).map(|len| (s.min(t), s.max(t), len)));
+                }
+            });
+            posed.for_each_overlap(&query, |j| {
+                let t = posed.triangles[j as usize];
+                if t > s && !self.shares_corner(s, t) {
+                    found.extend(intersection_length(corners, posed.corners[j as usize]).map(|len| (s, t, len)));
+                }
+            });
+        }
+        found
+    }
+
+    /// The length of the crossings of A + B that touch a triangle A moves and one B moves, and
+    /// its part between pieces: a triangle only A moves (whose swept box meets B's region)
+    /// against one only B moves, and a triangle both move against any other.
+    fn mixed(&self, a: usize, b: usize, swept: &[Vec<Aabb>], margin: f64) -> [f64; 2] {
         let (rig, triangles) = (self.rig, self.rig.triangles);
         let (ra, rb) = (&self.regions[a], &self.regions[b]);
-        let shared: Vec<u32> = ra.triangles.iter().copied().filter(|&t| rb.contains(t)).collect();
-        let near_b = grown(rb, margin);
-        let a_near_b: Vec<u32> = ra
-            .triangles
-            .iter()
-            .zip(&swept[a])
-            .filter(|(t, bounds)| !rb.contains(**t) && bounds.overlaps(&near_b))
-            .map(|p| *p.0)
-            .collect();
+        let (Some(posed_a), Some(posed_b)) = (&self.posed.by_shape[a], &self.posed.by_shape[b]) else { return [0.0; 2] };
         let only_a = |t: u32| ra.contains(t) && !rb.contains(t);
         let only_b = |t: u32| rb.contains(t) && !ra.contains(t);
-        let is_shared = |t: u32| ra.contains(t) && rb.contains(t);
-        let shares_corner = |s: u32, t: u32| triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v));
-        let (posed_a, posed_b) = (self.posed.by_shape[a].as_ref(), self.posed.by_shape[b].as_ref());
         let mut total = [0.0; 2];
-        for (sign, with_a, with_b) in [(1.0, true, true), (-1.0, true, false), (-1.0, false, true), (1.0, false, false)] {
-            let shapes: Vec<usize> = [(a, with_a), (b, with_b)].iter().filter(|p| p.1).map(|p| p.0).collect();
-            let pose = Pose::of(rig, self.regions, &shapes);
-            let mut add = |s: u32, t: u32, corners: [Vec3; 3], other: [Vec3; 3]| {
-                if !shares_corner(s, t) {
-                    if let Some(len) = intersection_length(corners, other) {
-                        total[0] += sign * len;
-                        if self.piece[s as usize] != self.piece[t as usize] {
-                            total[1] += sign * len;
-                        }
+        let mut add = |s: u32, t: u32, corners: [Vec3; 3], other: [Vec3; 3]| {
+            if !self.shares_corner(s, t) {
+                if let Some(len) = intersection_length(corners, other) {
+                    total[0] += len;
+                    if self.piece[s as usize] != self.piece[t as usize] {
+                        total[1] += len;
                     }
                 }
-            };
-            let at_rest = |t: u32| triangles[t as usize].map(|v| self.rest[v as usize]);
-            // Triangles only A moves against those only B moves, wherever this pose puts them.
-            for &s in &a_near_b {
-                let corners = triangles[s as usize].map(|v| pose.at(v));
-                let query = Aabb::of_points(&corners);
-                match (with_b, posed_b) {
-                    (true, Some(set)) => set.for_each_overlap(&query, |j| {
-                        let t = set.triangles[j as usize];
-                        if only_b(t) {
-                            add(s, t, corners, set.corners[j as usize]);
-                        }
-                    }),
-                    _ => self.rest_bvh.for_each_overlap(&query, |t| {
-                        if only_b(t) {
-                            add(s, t, corners, at_rest(t));
-                        }
-                    }),
-                }
             }
-            if shared.is_empty() {
-                continue;
-            }
-            // Triangles both move against everything else, each shared pair once.
-            let both_posed = (with_a && with_b).then(|| PosedTriangles::new(shared.clone(), triangles, &pose, |p| p));
-            for (i, &s) in shared.iter().enumerate() {
-                let corners = match &both_posed {
-                    Some(set) => set.corners[i],
-                    None => triangles[s as usize].map(|v| pose.at(v)),
-                };
-                let query = Aabb::of_points(&corners);
-                let still = |t: u32| {
-                    (!ra.contains(t) && !rb.contains(t))
-                        || (only_a(t) && !with_a)
-                        || (only_b(t) && !with_b)
-                        || (is_shared(t) && !with_a && !with_b && t > s)
-                };
-                self.rest_bvh.for_each_overlap(&query, |t| {
-                    if still(t) {
-                        add(s, t, corners, at_rest(t));
+        };
+        // Triangles only A moves sit where A alone puts them, those only B moves likewise.
+        let near_b = grown(rb, margin);
+        for (i, &s) in posed_a.triangles.iter().enumerate() {
+            if only_a(s) && swept[a][i].overlaps(&near_b) {
+                let corners = posed_a.corners[i];
+                posed_b.for_each_overlap(&Aabb::of_points(&corners), |j| {
+                    let t = posed_b.triangles[j as usize];
+                    if only_b(t) {
+                        add(s, t, corners, posed_b.corners[j as usize]);
                     }
                 });
-                for (moved_by, set, only, alone) in [(with_a, posed_a, &only_a as &dyn Fn(u32) -> bool, with_a && !with_b), (with_b, posed_b, &only_b, with_b && !with_a)] {
-                    if let (true, Some(set)) = (moved_by, set) {
-                        set.for_each_overlap(&query, |j| {
-                            let t = set.triangles[j as usize];
-                            if only(t) || (alone && is_shared(t) && t > s) {
-                                add(s, t, corners, set.corners[j as usize]);
-                            }
-                        });
-                    }
-                }
-                if let Some(set) = &both_posed {
-                    set.for_each_overlap(&query, |j| {
-                        if j as usize > i {
-                            add(s, set.triangles[j as usize], corners, set.corners[j as usize]);
-                        }
-                    });
-                }
             }
+        }
+        let shared: Vec<u32> = ra.triangles.iter().copied().filter(|&t| rb.contains(t)).collect();
+        if shared.is_empty() {
+            return total;
+        }
+        let both = PosedTriangles::new(shared, triangles, &Pose::of(rig, self.regions, &[a, b]), |p| p);
+        for (i, &s) in both.triangles.iter().enumerate() {
+            let (corners, query) = (both.corners[i], Aabb::of_points(&both.corners[i]));
+            self.rest_bvh.for_each_overlap(&query, |t| {
+                if !ra.contains(t) && !rb.contains(t) {
+                    add(s, t, corners, self.at_rest(t));
+                }
+            });
+            for (set, only) in [(posed_a, &only_a as &dyn Fn(u32) -> bool), (posed_b, &only_b)] {
+                set.for_each_overlap(&query, |j| {
+                    let t = set.triangles[j as usize];
+                    if only(t) {
+                        add(s, t, corners, set.corners[j as usize]);
+                    }
+                });
+            }
+            // Each shared pair once.
+            both.for_each_overlap(&query, |j| {
+                if j as usize > i {
+                    add(s, both.triangles[j as usize], corners, both.corners[j as usize]);
+                }
+            });
         }
         total
     }
@@ -210,11 +209,28 @@ pub fn find_collisions(
         })
         .collect();
     let (swept, by_shape): (Vec<Vec<Aabb>>, Vec<Option<PosedTriangles>>) = per_shape.into_iter().unzip();
+    let union: Vec<bool> = (0..triangles.len() as u32).map(|t| regions.iter().any(|r| !r.triangles.is_empty() && r.contains(t))).collect();
+    let at_rest = crossings(&rest, triangles, &rest_bvh, Some(&union));
     let scene = Scene { rig, regions, rest, rest_bvh, posed: Posed { by_shape }, piece };
+    let alone: Vec<Crossings> = (0..rig.n_shapes()).into_par_iter().map(|k| if involved[k] { scene.alone(k) } else { Vec::new() }).collect();
     let collisions = tested
         .par_iter()
         .filter_map(|&(a, b)| {
-            let [added, between] = scene.added(a, b, &swept, margin).map(|x| x / diagonal);
+            let (ra, rb) = (&regions[a], &regions[b]);
+            let touches_both = |&&(s, t, _): &&(u32, u32, f64)| (ra.contains(s) || ra.contains(t)) && (rb.contains(s) || rb.contains(t));
+            let sum = |list: &Crossings| {
+                let mut total = [0.0; 2];
+                for &(s, t, len) in list.iter().filter(touches_both) {
+                    total[0] += len;
+                    if scene.piece[s as usize] != scene.piece[t as usize] {
+                        total[1] += len;
+                    }
+                }
+                total
+            };
+            let mixed = scene.mixed(a, b, &swept, margin);
+            let (alone_a, alone_b, rest) = (sum(&alone[a]), sum(&alone[b]), sum(&at_rest));
+            let [added, between] = [0, 1].map(|i| (mixed[i] - alone_a[i] - alone_b[i] + rest[i]) / diagonal);
             (between > tolerance).then_some(Collision { first: a, second: b, added, between_pieces: between })
         })
         .collect();
