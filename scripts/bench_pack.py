@@ -44,6 +44,7 @@ def denser_copy(obj, label, cuts, extra_vertices=0):
         moved = {v: max((v[layer] - v[basis]).length for layer in layers) for v in bm.verts}
         edges = sorted(bm.edges, key=lambda e: -(moved[e.verts[0]] + moved[e.verts[1]]))[:extra_vertices]
         bmesh.ops.subdivide_edges(bm, edges=edges, cuts=1, use_grid_fill=False)
+        bmesh.ops.triangulate(bm, faces=[f for f in bm.faces if len(f.verts) > 4])  # cut quads become n-gons
     bm.to_mesh(dense.data)
     bm.free()
     if len(dense.data.vertices) < (cuts + 1) ** 2 * 0.9 * len(obj.data.vertices):
