@@ -95,8 +95,17 @@ class SHAPESMITH_PG_expression(bpy.types.PropertyGroup):
     status: bpy.props.StringProperty(name="Solver Status")
 
 
+class SHAPESMITH_PG_conflict(bpy.types.PropertyGroup):
+    """Two shapes the packing kept apart, and why (overlap, antagonist, collision, occlusion, user)."""
+
+    first: bpy.props.StringProperty(name="First")
+    second: bpy.props.StringProperty(name="Second")
+    reasons: bpy.props.StringProperty(name="Reasons", description="Space-separated reasons")
+
+
 class SHAPESMITH_PG_pack_result(bpy.types.PropertyGroup):
     done: bpy.props.BoolProperty(default=False)
+    conflicts: bpy.props.CollectionProperty(type=SHAPESMITH_PG_conflict)
     expressions: bpy.props.CollectionProperty(type=SHAPESMITH_PG_expression)
     shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_packed_shape)
     inert: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_name)
@@ -107,6 +116,8 @@ class SHAPESMITH_PG_pack_result(bpy.types.PropertyGroup):
     fewest: bpy.props.IntProperty(name="Fewest Possible", description="0: not asked for")
     fewest_optimal: bpy.props.BoolProperty()
     params_json: bpy.props.StringProperty(description="The parameters of the native call, as JSON")
+    regions_json: bpy.props.StringProperty(
+        description="Each placed shape's strongly moving vertices, as JSON (the reference sheet tints them)")
 
 
 class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
@@ -155,6 +166,40 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
     fewest: bpy.props.BoolProperty(
         name="Fewest Possible",
         description="Also prove the fewest expressions the conflicts allow (shown beside J)",
+        default=False,
+    )
+    collision_conflicts: bpy.props.BoolProperty(
+        name="Collisions",
+        description="Never pose together two shapes that pass through each other when mixed (tongue out through "
+        "closed lips)",
+        default=True,
+    )
+    collision_tolerance: bpy.props.FloatProperty(
+        name="Collision Tolerance",
+        description="Intersection curve between separate pieces (tongue and lips, eyeball and lids) a mix may "
+        "add beyond its shapes alone, as a fraction of the head's bounding-box diagonal",
+        default=0.11,
+        min=1e-6,
+        soft_max=0.5,
+        precision=3,
+    )
+    occlusion_conflicts: bpy.props.BoolProperty(
+        name="Occlusions",
+        description="Never pose a shape with one that hides its motion from the front camera (an eye turning "
+        "under a closed lid)",
+        default=True,
+    )
+    occlusion_keep: bpy.props.FloatProperty(
+        name="Keep Visible",
+        description="Share of a shape's visible moving vertices that must stay in sight of the front camera when "
+        "posed with another",
+        default=0.5,
+        min=0.01,
+        max=1.0,
+    )
+    explain: bpy.props.BoolProperty(
+        name="Explain in Shot List",
+        description="Add to the CSV shot list every pair of shapes kept apart and why",
         default=False,
     )
     pin_together: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
@@ -395,6 +440,7 @@ _CLASSES = (
     SHAPESMITH_PG_shape_name,
     SHAPESMITH_PG_packed_shape,
     SHAPESMITH_PG_expression,
+    SHAPESMITH_PG_conflict,
     SHAPESMITH_PG_pack_result,
     SHAPESMITH_PG_pack,
     SHAPESMITH_PG_transfer_settings,

@@ -92,6 +92,32 @@ def test_template_expressions_are_poseable_optimal_and_complete(sample, analyzed
     assert importance[0] == max(importance)
 
 
+def together(groups, first, second):
+    return any(first in g and second in g for g in groups)
+
+
+def test_template_expressions_can_be_posed_and_seen(sample):
+    """Collision and occlusion conflicts (SPEC section 1, poseable and observable): the tongue
+    never goes out through closed lips, an eye never turns under its own closed lid; with
+    both switched off the first expression asks for exactly that."""
+    template = bpy.data.objects["Template"]
+    result = pack(template)
+    groups = members(result)
+    assert not together(groups, "tongueOut", "mouthClose")
+    for side in ("Left", "Right"):
+        for look in ("In", "Out", "Up", "Down"):
+            assert not together(groups, f"eyeLook{look}{side}", f"eyeBlink{side}"), f"eyeLook{look}{side}"
+    reasons = {frozenset((c.first, c.second)): set(c.reasons.split()) for c in result.conflicts}
+    assert "collision" in reasons[frozenset(("tongueOut", "mouthClose"))]
+    assert "occlusion" in reasons[frozenset(("eyeLookInLeft", "eyeBlinkLeft"))]
+    assert set().union(*reasons.values()) <= {"overlap", "antagonist", "collision", "occlusion", "user"}
+    assert all(e.optimal for e in result.expressions)
+
+    off = members(pack(template, collision_conflicts=False, occlusion_conflicts=False))
+    assert {"tongueOut", "mouthClose", "eyeLookInLeft", "eyeBlinkLeft"} <= set(off[0])
+    assert not any("collision" in c.reasons or "occlusion" in c.reasons for c in template.shapesmith.pack.result.conflicts)
+
+
 def test_stored_weights_match_the_members_and_survive_save_and_reload(sample, shapesmith, tmp_path):
     template = bpy.data.objects["Template"]
     result = pack(template, fewest=True)
@@ -124,6 +150,31 @@ def test_export_shot_list_writes_json_and_csv_from_the_stored_result(sample, tmp
     rows = list(csv.DictReader(open(tmp_path / "shots.csv")))
     assert [r["label"] for r in rows] == [f"REF_{j + 1:02d}" for j in range(len(groups))]
     assert [r["shapes"].split() for r in rows] == groups
+    assert {frozenset(c["shapes"]): c["reasons"] for c in report["conflicts"]}[frozenset(("tongueOut", "mouthClose"))]
+
+    bpy.context.active_object.shapesmith.pack.explain = True
+    assert bpy.ops.shapesmith.export_shot_list(filepath=str(path)) == {"FINISHED"}
+    expressions, kept_apart = read_shot_list(tmp_path / "shots.csv")
+    assert [r["shapes"].split() for r in expressions] == groups
+    check_kept_apart(kept_apart, groups)
+
+
+def read_shot_list(path):
+    """(expression rows, kept-apart rows) of a CSV shot list, the second empty without Explain."""
+    lines = open(path, newline="").read().splitlines()
+    blank = lines.index("") if "" in lines else len(lines)
+    return list(csv.DictReader(lines[:blank])), list(csv.DictReader(lines[blank + 1 :]))
+
+
+def check_kept_apart(rows, groups):
+    """Every pair the Explain rows list is posed in different expressions, with its reasons."""
+    assert rows
+    where = {name: j + 1 for j, g in enumerate(groups) for name in g}
+    for row in rows:
+        assert row["reasons"].split() and set(row["reasons"].split()) <= {"overlap", "antagonist", "collision", "occlusion", "user"}
+        assert int(row["first in"]) == where[row["kept apart"]] != where[row["second"]] == int(row["second in"])
+    by_pair = {frozenset((r["kept apart"], r["second"])): r["reasons"] for r in rows}
+    assert "collision" in by_pair[frozenset(("tongueOut", "mouthClose"))]
 
 
 def test_export_to_an_unwritable_place_is_reported(sample, tmp_path):
@@ -225,19 +276,27 @@ def test_reference_sheet_has_one_labelled_tile_per_expression(sample, tmp_path):
     groups = members(pack(template))
     template.data.shape_keys.key_blocks["jawOpen"].value = 0.4
     scenes, objects = len(bpy.data.scenes), len(bpy.data.objects)
+    counts = {kind: len(getattr(bpy.data, kind)) for kind in ("meshes", "materials", "curves", "cameras", "shape_keys")}
+    materials = list(template.data.materials)
     path = str(tmp_path / "sheet.png")
     assert bpy.ops.shapesmith.render_reference_sheet(filepath=path, tile_width=96, tile_height=120) == {"FINISHED"}
     image = bpy.data.images.load(path)
     columns = math.ceil(math.sqrt(len(groups)))
-    assert tuple(image.size) == (96 * columns, 120 * math.ceil(len(groups) / columns))
+    assert tuple(image.size) == (2 * 96 * columns, 120 * math.ceil(len(groups) / columns))
     pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
     image.pixels.foreach_get(pixels)
     tiles = pixels.reshape(image.size[1], image.size[0], 4)[:, :, :3]
-    top_left = tiles[-120:, :96]
-    assert top_left.min() < 0.4 and top_left.max() > 0.9  # dark label and head shading on white
-    assert not np.allclose(tiles[-120:, :96], tiles[-120:, 96:192])  # expressions differ
+    front, side = tiles[-120:, :96], tiles[-120:, 96:192]
+    assert front.min() < 0.4 and front.max() > 0.9  # dark label and head shading on white
+    assert not np.allclose(front, side)  # the three-quarter view beside the front one
+    assert not np.allclose(tiles[-120:, :192], tiles[-120:, 192:384])  # expressions differ
+    # Members' regions are tinted: strongly coloured pixels in both views (the rig is grey).
+    for view in (front, side):
+        assert (view.max(axis=2) - view.min(axis=2)).max() > 0.3
     assert len(bpy.data.scenes) == scenes and len(bpy.data.objects) == objects
+    assert {kind: len(getattr(bpy.data, kind)) for kind in counts} == counts
     assert template.data.shape_keys.key_blocks["jawOpen"].value == pytest.approx(0.4)
+    assert list(template.data.materials) == materials  # tinted through a copy, never the rig
 
 
 # --- bad input: a clear error and nothing changed ------------------------------------------
@@ -314,7 +373,7 @@ def test_batch_pack_writes_json_csv_sheet_and_a_packed_copy(sample_path, tmp_pat
     digest = file_digest(sample_path)
     proc = run_batch(
         "pack", "--input", sample_path, "--object", "Template", "--fewest", "--bake", "--json", out["pack.json"],
-        "--csv", out["pack.csv"], "--sheet", out["sheet.png"], "--output", out["packed.blend"], check=True,
+        "--csv", out["pack.csv"], "--explain", "--sheet", out["sheet.png"], "--output", out["packed.blend"], check=True,
     )
     assert file_digest(sample_path) == digest
     report = json.loads(open(out["pack.json"]).read())
@@ -326,8 +385,10 @@ def test_batch_pack_writes_json_csv_sheet_and_a_packed_copy(sample_path, tmp_pat
     assert all(e["optimal"] for e in report["expressions"])
     assert report["fewest"]["count"] <= len(groups)
     assert f"1. {', '.join(groups[0])}" in proc.stdout
-    rows = list(csv.DictReader(open(out["pack.csv"])))
+    rows, kept_apart = read_shot_list(out["pack.csv"])
     assert [r["shapes"].split() for r in rows] == groups
+    check_kept_apart(kept_apart, groups)
+    assert "collisions kept apart:" in proc.stdout and "tongueOut" in proc.stdout.split("collisions kept apart:")[1]
 
     bpy.ops.wm.open_mainfile(filepath=out["packed.blend"])
     template = bpy.data.objects["Template"]
@@ -347,6 +408,19 @@ def test_batch_pack_flags_change_the_result(sample_path, tmp_path):
     report = json.loads(open(out).read())
     assert report["pairs"] == [] and len(report["expressions"]) == 3 and report["unplaced"]
     assert report["params"]["mu"] == pytest.approx(0.4) and report["params"]["max_expressions"] == 3
+    assert report["collisions"] and report["occlusions"]
+
+    run_batch("pack", "--input", sample_path, "--object", "Template", "--no-collision-conflicts",
+              "--no-occlusion-conflicts", "--json", out, check=True)
+    report = json.loads(open(out).read())
+    assert report["params"]["collision_conflicts"] is False and report["params"]["occlusion_conflicts"] is False
+    assert report["collisions"] == [] and report["occlusions"] == []
+    assert together([e["shapes"] for e in report["expressions"]], "tongueOut", "mouthClose")
+    run_batch("pack", "--input", sample_path, "--object", "Template", "--collision-tolerance", "0.5",
+              "--occlusion-keep", "0.2", "--json", out, check=True)
+    report = json.loads(open(out).read())
+    assert report["params"]["collision_tolerance"] == pytest.approx(0.5) and report["params"]["occlusion_keep"] == pytest.approx(0.2)
+    assert all(c["between_pieces"] > 0.5 for c in report["collisions"]) and all(o["kept"] < 0.2 for o in report["occlusions"])
 
 
 @pytest.mark.parametrize(
@@ -356,6 +430,9 @@ def test_batch_pack_flags_change_the_result(sample_path, tmp_path):
         (["--object", "Template", "--max-expressions", "0"], "at least 1"),
         (["--object", "Template", "--target", "Nobody"], "no object named 'Nobody'"),
         (["--object", "Template", "--target", "Camera"], "not a mesh"),
+        (["--object", "Template", "--explain"], "give --csv too"),
+        (["--object", "Template", "--collision-tolerance", "0"], "collision_tolerance must be a positive number"),
+        (["--object", "Template", "--occlusion-keep", "1.5"], "occlusion_keep must be in (0, 1]"),
     ],
 )
 def test_batch_pack_bad_input_exits_with_one_line(sample_path, tmp_path, args, message):

@@ -176,8 +176,20 @@ def add_pack_args(parser):
     parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
     parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
     parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
-    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, params, seconds) here")
+    parser.add_argument("--no-collision-conflicts", action="store_true",
+                        help="allow shapes that pass through each other when mixed in one expression")
+    parser.add_argument("--collision-tolerance", type=float,
+                        help="intersection curve between pieces a mix may add, as a fraction of the head's diagonal "
+                        "(default 0.11)")
+    parser.add_argument("--no-occlusion-conflicts", action="store_true",
+                        help="allow a shape with one that hides its motion from the front camera")
+    parser.add_argument("--occlusion-keep", type=float,
+                        help="share of a shape's visible moving vertices that must stay in sight (default 0.5)")
+    parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, conflicts with their "
+                        "reasons, params, seconds) here")
     parser.add_argument("--csv", help="write the shot list here")
+    parser.add_argument("--explain", action="store_true",
+                        help="add to the CSV every pair of shapes kept apart and why")
     parser.add_argument("--sheet", help="render the reference sheet (PNG) here")
     parser.add_argument("--tile-width", type=int, default=320, help="sheet tile width in pixels (default 320)")
     parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
@@ -190,15 +202,21 @@ def run_pack(args):
     import time
     from importlib import import_module
 
+    if args.explain and not args.csv:
+        raise BatchError("--explain adds the reasons to the CSV shot list: give --csv too")
+
     shapesmith = load_shapesmith()
     open_blend(args.input)
     packing = import_module(shapesmith.__name__ + ".blender.packing")
     obj = find_object(args.object)
     options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
-    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions}
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions,
+                 "collision_tolerance": args.collision_tolerance, "occlusion_keep": args.occlusion_keep}
     options.update({key: value for key, value in overrides.items() if value is not None})
     options["fewest"] = args.fewest or options.get("fewest", False)
     options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
+    options["collision_conflicts"] = not args.no_collision_conflicts and options["collision_conflicts"]
+    options["occlusion_conflicts"] = not args.no_occlusion_conflicts and options["occlusion_conflicts"]
     if args.target:
         options["target"] = find_object(args.target)
     report = packing.pack_object(obj, **options)
@@ -213,7 +231,7 @@ def run_pack(args):
         reference_sheet.render_reference_sheet(obj, args.sheet, args.tile_width, args.tile_height)
         print(f"wrote {args.sheet}")
     if args.csv:
-        packing.write_shot_list_csv(args.csv, report)
+        packing.write_shot_list_csv(args.csv, report, explain=args.explain)
     if args.output:
         save_copy(args.output)
     report.update(input=os.path.abspath(args.input), object=args.object)

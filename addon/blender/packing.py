@@ -31,10 +31,23 @@ def packing_options(obj, axis=0, time_limit=None):
         axis=axis,
         time_limit=time_limit,
         pairs=None,
+        collision_conflicts=settings.collision_conflicts,
+        collision_tolerance=settings.collision_tolerance,
+        occlusion_conflicts=settings.occlusion_conflicts,
+        occlusion_keep=settings.occlusion_keep,
+        camera_direction=front_camera_direction(obj),
     )
     if obj.shapesmith.analysis.done:
         options["pairs"] = [(p.first, p.second) for p in obj.shapesmith.pairs]
     return options
+
+
+def front_camera_direction(obj):
+    """From the face towards the reference sheet's front camera (world -Y), in the mesh's own
+    coordinates, where the native occlusion test works."""
+    linear = np.array(obj.matrix_world.to_3x3())
+    local = np.linalg.solve(linear, np.array([0.0, -1.0, 0.0])) if abs(np.linalg.det(linear)) > 1e-12 else [0.0, -1.0, 0.0]
+    return [float(x) for x in local]
 
 
 def _check_named_pairs(pairs, what):
@@ -48,7 +61,8 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
     returns its report with timings and shape-key warnings added. Writes nothing.
 
     `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
-    antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis). Raises MeshDataError
+    antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
+    collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction). Raises MeshDataError
     (or the core's InvalidInputError) for anything the user has to fix."""
     started = time.perf_counter()
     if max_expressions is not None and max_expressions < 1:
@@ -104,7 +118,7 @@ def store_packing(obj, report):
     result = obj.shapesmith.pack.result
     result.expressions.clear()
     result.shapes.clear()
-    for collection in (result.inert, result.excluded, result.unplaced, result.pairs, result.antagonists):
+    for collection in (result.inert, result.excluded, result.unplaced, result.pairs, result.antagonists, result.conflicts):
         collection.clear()
     member_of = {}
     for j, expression in enumerate(report["expressions"]):
@@ -130,10 +144,14 @@ def store_packing(obj, report):
             pair = getattr(result, key).add()
             pair.first, pair.second = first, second
             pair.source = "GEOMETRY"
+    for conflict in report["conflicts"]:
+        item = result.conflicts.add()
+        (item.first, item.second), item.reasons = conflict["shapes"], " ".join(conflict["reasons"])
     fewest = report.get("fewest")
     result.fewest = fewest["count"] if fewest else 0
     result.fewest_optimal = bool(fewest and fewest["optimal"])
     result.params_json = json.dumps(dict(report["params"], target=report.get("target")))
+    result.regions_json = json.dumps(report["regions"], separators=(",", ":"))
     result.done = True
     obj.shapesmith.pack.active_expression = 0
 
@@ -176,6 +194,7 @@ def stored_report(obj):
         "unplaced": [s.name for s in result.unplaced],
         "pairs": [[p.first, p.second] for p in result.pairs],
         "antagonists": [[p.first, p.second] for p in result.antagonists],
+        "conflicts": [{"shapes": [c.first, c.second], "reasons": c.reasons.split()} for c in result.conflicts],
         "names": names,
         "weights": weights.tolist(),
         "fewest": fewest,
@@ -188,8 +207,10 @@ def write_shot_list_json(path, report):
         json.dump(report, f, indent=2)
 
 
-def write_shot_list_csv(path, report):
-    """One row per expression, for a capture session's shot list."""
+def write_shot_list_csv(path, report, explain=False):
+    """One row per expression, for a capture session's shot list; with `explain`, then a blank
+    row and one row per pair of shapes kept apart, with the reasons (overlap, antagonist,
+    collision, occlusion, user) and the expressions that pose each."""
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["expression", "label", "shapes", "importance", "vertices", "optimal"])
@@ -204,6 +225,13 @@ def write_shot_list_csv(path, report):
                     "yes" if expression["optimal"] else "no",
                 ]
             )
+        if explain:
+            posed_in = {name: j + 1 for j, e in enumerate(report["expressions"]) for name in e["shapes"]}
+            writer.writerow([])
+            writer.writerow(["kept apart", "second", "reasons", "first in", "second in"])
+            for conflict in report["conflicts"]:
+                first, second = conflict["shapes"]
+                writer.writerow([first, second, " ".join(conflict["reasons"]), posed_in.get(first, ""), posed_in.get(second, "")])
 
 
 def _shape_keys(obj):
@@ -308,4 +336,7 @@ def summary_lines(report):
         if report[key]:
             lines.append(f"{key}: {', '.join(report[key])}")
     lines.append("antagonists kept apart: " + (", ".join(f"{a}/{b}" for a, b in report["antagonists"]) or "none"))
+    lines.append("collisions kept apart: " + (", ".join("/".join(c["shapes"]) for c in report["collisions"]) or "none"))
+    occlusions = [f"{o['hidden']} hidden by {o['by']}" for o in report["occlusions"]]
+    lines.append("occlusions kept apart: " + (", ".join(occlusions) or "none"))
     return lines + [f"warning: {w}" for w in report.get("warnings", ())]

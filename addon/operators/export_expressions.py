@@ -14,7 +14,10 @@ from .base import expected_errors, poll_packed
 class SHAPESMITH_OT_export_shot_list(bpy.types.Operator, ExportHelper):
     bl_idname = "shapesmith.export_shot_list"
     bl_label = "Export Shot List"
-    bl_description = "Write the packed expressions as JSON and, beside it, as a CSV shot list"
+    bl_description = (
+        "Write the packed expressions as JSON and, beside it, as a CSV shot list (with Explain, also every pair "
+        "of shapes kept apart and why)"
+    )
     bl_options = {"REGISTER"}
 
     filename_ext = ".json"
@@ -29,7 +32,7 @@ class SHAPESMITH_OT_export_shot_list(bpy.types.Operator, ExportHelper):
         try:
             report = stored_report(context.active_object)
             write_shot_list_json(self.filepath, report)
-            write_shot_list_csv(csv_path, report)
+            write_shot_list_csv(csv_path, report, explain=context.active_object.shapesmith.pack.explain)
         except (OSError, *expected_errors()) as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

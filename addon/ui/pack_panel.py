@@ -33,6 +33,23 @@ def _refinement_list(layout, settings, title, kind, collection, index, list_type
     col.operator("shapesmith.remove_pack_refinement", icon="REMOVE", text="").kind = kind
 
 
+# Reasons that are not plain overlap: the ones a rigger may not expect.
+_SURPRISING = {"antagonist", "collision", "occlusion", "user"}
+
+
+def _kept_apart(layout, result, members):
+    """The conflicts between this expression's members and other shapes, beyond overlap."""
+    rows = [
+        (c.first if c.first in members else c.second, c.second if c.first in members else c.first, c.reasons)
+        for c in result.conflicts
+        if (c.first in members) != (c.second in members) and _SURPRISING & set(c.reasons.split())
+    ]
+    if rows:
+        layout.label(text="Kept apart (besides overlap):")
+        for member, other, reasons in rows:
+            layout.label(text=f"{member} / {other}: {reasons.replace(' ', ', ')}", icon="UNLINKED")
+
+
 class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Pack Expressions"
     bl_order = 1
@@ -61,6 +78,17 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
             source = f"{len(pairs)} pairs from Analyze Rig" if obj.shapesmith.analysis.done else "pairs found when packing"
             layout.label(text=source, icon="MOD_MIRROR")
         layout.prop(settings, "antagonist_cosine")
+        col = layout.column(align=True)
+        row = col.row(align=True)
+        row.prop(settings, "collision_conflicts")
+        sub = row.row(align=True)
+        sub.active = settings.collision_conflicts
+        sub.prop(settings, "collision_tolerance", text="Tolerance")
+        row = col.row(align=True)
+        row.prop(settings, "occlusion_conflicts")
+        sub = row.row(align=True)
+        sub.active = settings.occlusion_conflicts
+        sub.prop(settings, "occlusion_keep", text="Keep")
         layout.prop(settings, "fewest")
         box = layout.box()
         _refinement_list(box, settings, "Pin Together", "PIN", "pin_together", "active_pin", "SHAPESMITH_UL_pairs")
@@ -81,6 +109,7 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
             box.label(text=f"{expression.name}: {expression.vertices} vertices, importance {expression.importance:.3f}")
             for member in expression.members:
                 box.label(text=member.name, icon="SHAPEKEY_DATA")
+            _kept_apart(box, result, {m.name for m in expression.members})
         for title, names in (("Inert", result.inert), ("Excluded", result.excluded), ("Left over", result.unplaced)):
             if names:
                 layout.label(text=f"{title}: {', '.join(n.name for n in names)}")
@@ -89,6 +118,7 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
         row.operator("shapesmith.animate_expressions", icon="KEYFRAME")
         row.operator("shapesmith.bake_expressions", icon="SHAPEKEY_DATA")
         row = layout.row(align=True)
+        row.prop(settings, "explain", text="Explain")
         row.operator("shapesmith.export_shot_list", icon="EXPORT", text="Shot List")
         row.operator("shapesmith.render_reference_sheet", icon="RENDER_STILL", text="Reference Sheet")
 

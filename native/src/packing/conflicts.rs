@@ -4,27 +4,76 @@
 //! The vertex rows $\sum_k b_{k,n} w_k \le 1$ say that no two shapes active at one vertex are
 //! both posed, so they are equivalent to one edge per pair of intersecting active sets. The
 //! symmetry rows $w_x = w_p$ (Eq. (3d)) and the user's pins merge shapes into one *node*, and
-//! a partner's overlap with its own partner is no conflict (paper fig. 2). Antagonists and
-//! the user's `keep_apart` add edges. The program then needs one row per clique of a cover
-//! of the node graph's edges: the number of vertices N drops out.
+//! a partner's overlap with its own partner is no conflict (paper fig. 2). Antagonists,
+//! collisions, occlusions (SPEC section 1, poseable and observable) and the user's
+//! `keep_apart` add edges, and each edge keeps its reasons for the report. The program then
+//! needs one row per clique of a cover of the node graph's edges: the number of vertices N
+//! drops out.
 
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::invalid;
 
 /// What the graph is built from, all as shape indices.
 pub struct ShapeRelations<'a> {
-    /// Binary blendshapes $b_k$ (Eq. (2)) as sorted vertex lists.
-    pub active: &'a [Vec<u32>],
+    /// `overlap[i][j]`: the binary blendshapes (Eq. (2)) of placeable shapes i and j share a
+    /// vertex ([`overlapping`]).
+    pub overlap: &'a [Vec<bool>],
     /// Shapes that take part in the packing (not inert, not excluded).
     pub placeable: &'a [bool],
     /// Symmetric pairs proposed to be posed together (Eq. (3d)).
     pub pairs: &'a [(usize, usize)],
     /// Shapes that can never be posed together (mirror and cosine antagonists).
     pub antagonists: &'a [(usize, usize)],
+    /// Shapes whose mix adds intersection curve ([`super::collisions`]).
+    pub collisions: &'a [(usize, usize)],
+    /// Shapes one of which hides the other's motion ([`super::occlusion`]).
+    pub occlusions: &'a [(usize, usize)],
     pub pin_together: &'a [(usize, usize)],
     pub keep_apart: &'a [(usize, usize)],
     pub names: &'a [String],
-    pub n_vertices: usize,
+}
+
+/// Why two shapes may not share an expression, most binding first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ConflictReason {
+    /// The user's `keep_apart`.
+    User,
+    /// Their motions oppose each other (mirror or cosine antagonists).
+    Antagonist,
+    /// Their strongly moving regions share a vertex (Eq. (3b)).
+    Overlap,
+    /// Posed together they pass through each other.
+    Collision,
+    /// Posed together one hides the other's motion from the camera.
+    Occlusion,
+}
+
+impl ConflictReason {
+    pub const ALL: [ConflictReason; 5] = [Self::User, Self::Antagonist, Self::Overlap, Self::Collision, Self::Occlusion];
+
+    fn bit(self) -> u8 {
+        1 << self as u8
+    }
+
+    /// Why a pinned pair cannot be posed, for the error message.
+    fn because(self) -> &'static str {
+        match self {
+            Self::User => "you asked to keep them apart",
+            Self::Antagonist => "they are antagonists (their motions oppose each other)",
+            Self::Overlap => "their active regions overlap",
+            Self::Collision => "posed together they pass through each other",
+            Self::Occlusion => "posed together one hides the other from the camera",
+        }
+    }
+}
+
+/// A conflict edge between two shapes of different nodes, with every reason it has.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ShapeConflict {
+    pub first: usize,
+    pub second: usize,
+    pub reasons: Vec<ConflictReason>,
 }
 
 /// Nodes (sets of shapes posed together) and the conflicts between them.
@@ -36,23 +85,24 @@ pub struct ConflictGraph {
     pub adjacent: Vec<Vec<bool>>,
     /// Cliques of the node graph covering every edge; each is one `<= 1` row.
     pub cliques: Vec<Vec<usize>>,
-    /// The symmetric pairs kept (both placeable, not antagonists, not kept apart).
+    /// The symmetric pairs kept (both placeable, and no reason but overlap to keep them
+    /// apart).
     pub pairs: Vec<(usize, usize)>,
+    /// Every conflict between shapes of different nodes, `first < second`, in order.
+    pub conflicts: Vec<ShapeConflict>,
 }
 
 impl ConflictGraph {
     pub fn build(rel: &ShapeRelations) -> ShapesmithResult<Self> {
         let k_count = rel.placeable.len();
-        let conflict = shape_conflicts(rel);
-        let is_listed = |list: &[(usize, usize)], i: usize, j: usize| {
-            list.iter().any(|&(a, b)| (a, b) == (i, j) || (a, b) == (j, i))
-        };
+        let reasons = shape_conflicts(rel);
+        let conflict = |i: usize, j: usize| reasons[i][j] != 0;
+        // A partner's overlap is no conflict (paper fig. 2); any other reason dissolves the pair.
         let pairs: Vec<(usize, usize)> = rel
             .pairs
             .iter()
             .copied()
-            .filter(|&(i, j)| rel.placeable[i] && rel.placeable[j])
-            .filter(|&(i, j)| !is_listed(rel.antagonists, i, j) && !is_listed(rel.keep_apart, i, j))
+            .filter(|&(i, j)| rel.placeable[i] && rel.placeable[j] && reasons[i][j] & !ConflictReason::Overlap.bit() == 0)
             .collect();
         let mut partner = vec![None; k_count];
         for &(i, j) in &pairs {
@@ -79,14 +129,9 @@ impl ConflictGraph {
         for members in &nodes {
             for (a, &i) in members.iter().enumerate() {
                 for &j in &members[a + 1..] {
-                    if conflict[i][j] && partner[i] != Some(j) {
-                        let why = if is_listed(rel.keep_apart, i, j) {
-                            "you asked to keep them apart"
-                        } else if is_listed(rel.antagonists, i, j) {
-                            "they are antagonists (their motions oppose each other)"
-                        } else {
-                            "their active regions overlap"
-                        };
+                    if conflict(i, j) && partner[i] != Some(j) {
+                        let first = ConflictReason::ALL.into_iter().find(|r| reasons[i][j] & r.bit() != 0);
+                        let why = first.map_or("", ConflictReason::because);
                         return Err(ShapesmithError::Infeasible(format!(
                             "'{}' and '{}' are pinned together (directly or through a symmetric partner) but {why}; remove that pin",
                             rel.names[i], rel.names[j]
@@ -97,17 +142,20 @@ impl ConflictGraph {
         }
 
         let mut adjacent = vec![vec![false; nodes.len()]; nodes.len()];
+        let mut conflicts = Vec::new();
         for i in 0..k_count {
             for j in i + 1..k_count {
                 let (u, v) = (node_of[i], node_of[j]);
-                if conflict[i][j] && u != v {
+                if conflict(i, j) && u != v {
                     adjacent[u][v] = true;
                     adjacent[v][u] = true;
+                    let why = ConflictReason::ALL.into_iter().filter(|r| reasons[i][j] & r.bit() != 0).collect();
+                    conflicts.push(ShapeConflict { first: i, second: j, reasons: why });
                 }
             }
         }
         let cliques = clique_cover(&adjacent);
-        Ok(Self { nodes, adjacent, cliques, pairs })
+        Ok(Self { nodes, adjacent, cliques, pairs, conflicts })
     }
 
     pub fn n_nodes(&self) -> usize {
@@ -129,33 +177,55 @@ pub fn validate_shape_pairs(list: &[(usize, usize)], k_count: usize, names: &[St
     Ok(())
 }
 
-/// `conflict[i][j]` for placeable shapes: intersecting active sets, antagonists or
-/// `keep_apart`. Overlaps are found through the shapes active at each vertex, so the cost is
-/// the sum over vertices of the squared number of shapes active there.
-fn shape_conflicts(rel: &ShapeRelations) -> Vec<Vec<bool>> {
-    let k_count = rel.placeable.len();
-    let mut conflict = vec![vec![false; k_count]; k_count];
-    let mut at_vertex: Vec<Vec<usize>> = vec![Vec::new(); rel.n_vertices];
-    for k in (0..k_count).filter(|&k| rel.placeable[k]) {
-        for &n in &rel.active[k] {
+/// `overlap[i][j]` for placeable shapes: their binary blendshapes share a vertex. Found
+/// through the shapes active at each vertex, so the cost is the sum over vertices of the
+/// squared number of shapes active there.
+pub fn overlapping(active: &[Vec<u32>], placeable: &[bool], n_vertices: usize) -> Vec<Vec<bool>> {
+    let k_count = placeable.len();
+    let mut overlap = vec![vec![false; k_count]; k_count];
+    let mut at_vertex: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    for k in (0..k_count).filter(|&k| placeable[k]) {
+        for &n in &active[k] {
             at_vertex[n as usize].push(k);
         }
     }
     for shapes in &at_vertex {
         for (a, &i) in shapes.iter().enumerate() {
             for &j in &shapes[a + 1..] {
-                conflict[i][j] = true;
-                conflict[j][i] = true;
+                overlap[i][j] = true;
+                overlap[j][i] = true;
             }
         }
     }
-    for &(i, j) in rel.antagonists.iter().chain(rel.keep_apart) {
-        if rel.placeable[i] && rel.placeable[j] {
-            conflict[i][j] = true;
-            conflict[j][i] = true;
+    overlap
+}
+
+/// For placeable shapes, the [`ConflictReason`] bits of each pair (0: no conflict).
+fn shape_conflicts(rel: &ShapeRelations) -> Vec<Vec<u8>> {
+    let k_count = rel.placeable.len();
+    let mut reasons = vec![vec![0u8; k_count]; k_count];
+    for i in 0..k_count {
+        for j in 0..k_count {
+            if rel.overlap[i][j] {
+                reasons[i][j] |= ConflictReason::Overlap.bit();
+            }
         }
     }
-    conflict
+    let lists = [
+        (rel.keep_apart, ConflictReason::User),
+        (rel.antagonists, ConflictReason::Antagonist),
+        (rel.collisions, ConflictReason::Collision),
+        (rel.occlusions, ConflictReason::Occlusion),
+    ];
+    for (list, reason) in lists {
+        for &(i, j) in list {
+            if rel.placeable[i] && rel.placeable[j] {
+                reasons[i][j] |= reason.bit();
+                reasons[j][i] |= reason.bit();
+            }
+        }
+    }
+    reasons
 }
 
 /// Greedy edge clique cover: every uncovered edge grows into a maximal clique (neighbours
@@ -258,20 +328,27 @@ mod tests {
         let active = vec![vec![0, 1], vec![1, 2], vec![2, 3], vec![7]];
         let names: Vec<String> = ["a", "b", "c", "d"].map(String::from).to_vec();
         let placeable = [true; 4];
+        let overlap = overlapping(&active, &placeable, 8);
         let rel = ShapeRelations {
-            active: &active,
+            overlap: &overlap,
             placeable: &placeable,
             pairs: &[(0, 1)],
             antagonists: &[],
+            collisions: &[],
+            occlusions: &[],
             pin_together: &[],
             keep_apart: &[(2, 3)],
             names: &names,
-            n_vertices: 8,
         };
         let g = ConflictGraph::build(&rel).unwrap();
         assert_eq!(g.nodes, vec![vec![0, 1], vec![2], vec![3]]);
         assert!(g.adjacent[0][1] && g.adjacent[1][2] && !g.adjacent[0][2]);
         assert_eq!(g.pairs, vec![(0, 1)]);
+        let reasons: Vec<_> = g.conflicts.iter().map(|c| (c.first, c.second, c.reasons.clone())).collect();
+        assert_eq!(
+            reasons,
+            vec![(1, 2, vec![ConflictReason::Overlap]), (2, 3, vec![ConflictReason::User])]
+        );
 
         // A pair that is also kept apart, or antagonist, is no pair.
         let rel = ShapeRelations { keep_apart: &[(1, 0)], ..rel };
@@ -284,5 +361,15 @@ mod tests {
         let rel = ShapeRelations { antagonists: &[], pin_together: &[(1, 2)], ..rel };
         let err = ConflictGraph::build(&rel).unwrap_err();
         assert!(matches!(&err, ShapesmithError::Infeasible(m) if m.contains("'b' and 'c'")), "{err}");
+
+        // A collision or an occlusion between partners dissolves the pair and is an edge;
+        // pinning colliding shapes names the collision.
+        let rel = ShapeRelations { pin_together: &[], collisions: &[(0, 1)], ..rel };
+        let g = ConflictGraph::build(&rel).unwrap();
+        assert!(g.pairs.is_empty() && g.adjacent[0][1]);
+        assert_eq!(g.conflicts[0].reasons, vec![ConflictReason::Overlap, ConflictReason::Collision]);
+        let rel = ShapeRelations { collisions: &[], occlusions: &[(0, 3)], pin_together: &[(0, 3)], pairs: &[], ..rel };
+        let err = ConflictGraph::build(&rel).unwrap_err();
+        assert!(matches!(&err, ShapesmithError::Infeasible(m) if m.contains("hides")), "{err}");
     }
 }

@@ -34,20 +34,32 @@
 //!   adds an edge (and dissolves a symmetric pair it names), `exclude` removes shapes.
 //! - The Dis and TD maxima (Eqs. (5), (7)) run over every moving shape, excluded ones
 //!   included, so excluding a shape does not change the others' importance.
+//! - Beyond the paper, for its goal 4 (poseable expressions): shapes that pass through each
+//!   other when posed together ([`collisions`]) or of which one hides the other's motion
+//!   from the camera ([`occlusion`]) conflict; every conflict edge carries its reasons
+//!   ([`conflicts::ConflictReason`]).
 //! - Beyond the paper: [`PackingParams::fewest`] proves the fewest expressions for the same
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
 
+pub mod collisions;
 pub mod conflicts;
 pub mod importance;
+pub mod occlusion;
 pub mod programs;
+mod regions;
 mod setup;
 
+#[cfg(test)]
+mod poseable_tests;
 #[cfg(test)]
 mod tests;
 
 use serde::Serialize;
 
 use crate::error::ShapesmithResult;
+use collisions::Collision;
+use conflicts::ShapeConflict;
+use occlusion::Occlusion;
 use crate::ilp::{IlpOptions, SolveStatus};
 use crate::progress::Progress;
 use crate::rig::RigView;
@@ -89,7 +101,24 @@ pub struct PackingParams {
     pub fewest: bool,
     /// Seconds per solve; `None` solves to proven optimality.
     pub time_limit: Option<f64>,
+    /// Shapes that pass through each other when posed together conflict ([`collisions`]).
+    pub collision_conflicts: bool,
+    /// Intersection curve between pieces a mix may add beyond its shapes alone, as a
+    /// fraction of the bounding-box diagonal, before the two conflict.
+    pub collision_tolerance: f64,
+    /// A shape whose motion the other hides from the camera conflicts ([`occlusion`]).
+    pub occlusion_conflicts: bool,
+    /// Share of its visible active vertices a shape must keep when posed with another.
+    pub occlusion_keep: f64,
+    /// From the face towards the camera, in the mesh's coordinates (the reference sheet's
+    /// front camera: -Y for a face looking down -Y).
+    pub camera_direction: [f64; 3],
 }
+
+/// Box margin, as a fraction of the diagonal, under which two moving regions count as able
+/// to interact. Any margin >= 0 gives the same conflicts (the pruning is exact, see
+/// `regions`); this one absorbs rounding.
+pub const INTERACTION_MARGIN: f64 = 1e-3;
 
 impl Default for PackingParams {
     fn default() -> Self {
@@ -110,8 +139,33 @@ impl Default for PackingParams {
             exclude: Vec::new(),
             fewest: false,
             time_limit: None,
+            collision_conflicts: true,
+            collision_tolerance: DEFAULT_COLLISION_TOLERANCE,
+            occlusion_conflicts: true,
+            occlusion_keep: 0.5,
+            camera_direction: [0.0, -1.0, 0.0],
         }
     }
+}
+
+/// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
+/// docs/pack.md).
+pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
+
+/// What the poseability tests found, and what they cost.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PoseabilityReport {
+    /// Pairs whose mix adds more than the tolerance of intersection curve between pieces.
+    pub collisions: Vec<Collision>,
+    /// Directions (hidden, by) where the first keeps less than `occlusion_keep` of its
+    /// visibility.
+    pub occlusions: Vec<Occlusion>,
+    /// Pairs whose moving regions can touch, out of those nothing else keeps apart.
+    pub collision_pairs_tested: usize,
+    pub occlusion_directions_tested: usize,
+    pub seconds_regions: f64,
+    pub seconds_collisions: f64,
+    pub seconds_occlusions: f64,
 }
 
 /// One reference expression $x_j$: the shapes posed at full weight together.
@@ -153,6 +207,12 @@ pub struct Packing {
     pub pairs: Vec<(usize, usize)>,
     /// Antagonists kept apart (mirror and cosine), `(i, j)` with i < j.
     pub antagonists: Vec<(usize, usize)>,
+    /// Every conflict edge between shapes posed apart, with its reasons.
+    pub conflicts: Vec<ShapeConflict>,
+    /// Binary blendshapes $b_k$ (Eq. (2)) as sorted vertex lists (empty when inert): what
+    /// the reference sheet tints.
+    pub active: Vec<Vec<u32>>,
+    pub poseability: PoseabilityReport,
     pub fewest: Option<FewestReport>,
 }
 
@@ -289,6 +349,9 @@ fn finish(prep: Prepared, expressions: Vec<Expression>, unplaced: Vec<usize>, fe
         unplaced,
         pairs: prep.graph.pairs,
         antagonists: prep.antagonists,
+        conflicts: prep.graph.conflicts,
+        active: prep.active,
+        poseability: prep.poseability,
         fewest,
     }
 }

@@ -1,10 +1,15 @@
 //! Everything computed once before the first expression (paper 000, Algorithm 1's header):
-//! validation, binary blendshapes, importance, symmetric pairs, antagonists and the conflict
-//! graph.
+//! validation, binary blendshapes, importance, symmetric pairs, antagonists, collisions,
+//! occlusions and the conflict graph.
 
-use super::conflicts::{validate_shape_pairs, ConflictGraph, ShapeRelations};
+use std::time::Instant;
+
+use super::collisions::find_collisions;
+use super::conflicts::{overlapping, validate_shape_pairs, ConflictGraph, ShapeRelations};
+use super::occlusion::find_occlusions;
+use super::regions::moving_regions;
 use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
-use super::PackingParams;
+use super::{PackingParams, PoseabilityReport, INTERACTION_MARGIN};
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::mirror::{find_symmetry_given, MirrorMap, SymmetryParams};
 use crate::invalid;
@@ -24,6 +29,7 @@ pub struct Prepared {
     pub excluded: Vec<usize>,
     /// Mirror and cosine antagonists among moving shapes, `(i, j)` with i < j, sorted.
     pub antagonists: Vec<(usize, usize)>,
+    pub poseability: PoseabilityReport,
 }
 
 pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams) -> ShapesmithResult<Prepared> {
@@ -108,18 +114,67 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
         (None, true) => symmetry.pairs.iter().map(|p| (p.first, p.second)).collect(),
         (None, false) => Vec::new(),
     };
+    let overlap = overlapping(&active, &placeable, rig.n_vertices());
+    let poseability = poseability(rig, params, &active, &placeable, &overlap, &antagonists)?;
     let graph = ConflictGraph::build(&ShapeRelations {
-        active: &active,
+        overlap: &overlap,
         placeable: &placeable,
         pairs: &pairs,
         antagonists: &antagonists,
+        collisions: &poseability.collisions.iter().map(|c| (c.first, c.second)).collect::<Vec<_>>(),
+        occlusions: &poseability.occlusions.iter().map(|o| (o.hidden, o.by)).collect::<Vec<_>>(),
         pin_together: &params.pin_together,
         keep_apart: &params.keep_apart,
         names: rig.names,
-        n_vertices: rig.n_vertices(),
     })?;
     let cosines = (params.beta > 0.0).then_some(cosines);
-    Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists })
+    Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists, poseability })
+}
+
+/// Collision and occlusion conflicts (SPEC section 1, poseable and observable), tested only
+/// between placeable shapes that nothing else keeps apart (no overlap, not antagonists, not
+/// kept apart by the user): any other reason already forbids the pair.
+fn poseability(
+    rig: &RigView,
+    params: &PackingParams,
+    active: &[Vec<u32>],
+    placeable: &[bool],
+    overlap: &[Vec<bool>],
+    antagonists: &[(usize, usize)],
+) -> ShapesmithResult<PoseabilityReport> {
+    let listed = |list: &[(usize, usize)], i: usize, j: usize| list.contains(&(i, j)) || list.contains(&(j, i));
+    let k_count = placeable.len();
+    let candidates: Vec<(usize, usize)> = (0..k_count)
+        .flat_map(|i| (i + 1..k_count).map(move |j| (i, j)))
+        .filter(|&(i, j)| placeable[i] && placeable[j] && !overlap[i][j])
+        .filter(|&(i, j)| !listed(antagonists, i, j) && !listed(&params.keep_apart, i, j))
+        .collect();
+    let mut report = PoseabilityReport::default();
+    if candidates.is_empty() || !(params.collision_conflicts || params.occlusion_conflicts) {
+        return Ok(report);
+    }
+    let started = Instant::now();
+    let mut wanted = vec![false; k_count];
+    candidates.iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
+    let regions = moving_regions(rig, &wanted);
+    report.seconds_regions = started.elapsed().as_secs_f64();
+    let mut rest = candidates;
+    if params.collision_conflicts {
+        let started = Instant::now();
+        let (found, tested) = find_collisions(rig, &regions, &rest, params.collision_tolerance, INTERACTION_MARGIN);
+        rest.retain(|&(i, j)| !found.iter().any(|c| (c.first, c.second) == (i, j)));
+        (report.collisions, report.collision_pairs_tested) = (found, tested);
+        report.seconds_collisions = started.elapsed().as_secs_f64();
+    }
+    if params.occlusion_conflicts {
+        let started = Instant::now();
+        let (found, tested) =
+            find_occlusions(rig, &regions, active, &rest, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction)
+                .ok_or_else(|| invalid!("the camera direction must be a finite, non-zero vector, got {:?}", params.camera_direction))?;
+        (report.occlusions, report.occlusion_directions_tested) = (found, tested);
+        report.seconds_occlusions = started.elapsed().as_secs_f64();
+    }
+    Ok(report)
 }
 
 /// The inert shapes and the binary blendshapes $b_k$ (Eq. (2)), exactly as
@@ -159,6 +214,19 @@ fn validate_params(p: &PackingParams, rig: &RigView) -> ShapesmithResult<()> {
     check(
         (-1.0..=1.0).contains(&p.antagonist_cosine),
         format!("antagonist_cosine must be in [-1, 1], got {}", p.antagonist_cosine),
+    )?;
+    check(
+        p.collision_tolerance > 0.0 && p.collision_tolerance.is_finite(),
+        format!("collision_tolerance must be a positive number (a fraction of the head's diagonal), got {}", p.collision_tolerance),
+    )?;
+    check(
+        p.occlusion_keep > 0.0 && p.occlusion_keep <= 1.0,
+        format!("occlusion_keep must be in (0, 1] (the share of visibility a shape must keep), got {}", p.occlusion_keep),
+    )?;
+    let direction = p.camera_direction;
+    check(
+        direction.iter().all(|x| x.is_finite()) && direction.iter().any(|&x| x != 0.0),
+        format!("the camera direction must be a finite, non-zero vector, got {direction:?}"),
     )?;
     if let Some(limit) = p.time_limit {
         check(limit > 0.0 && limit.is_finite(), format!("time_limit must be a positive number of seconds, got {limit}"))?;

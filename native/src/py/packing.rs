@@ -34,6 +34,11 @@ struct Options {
     time_limit: Option<f64>,
     axis: usize,
     mirror_tolerance: f64,
+    collision_conflicts: bool,
+    collision_tolerance: f64,
+    occlusion_conflicts: bool,
+    occlusion_keep: f64,
+    camera_direction: [f64; 3],
 }
 
 impl Options {
@@ -61,6 +66,11 @@ impl Options {
             exclude: self.exclude.iter().map(|n| index(n, "exclude")).collect::<ShapesmithResult<_>>()?,
             fewest: self.fewest,
             time_limit: self.time_limit,
+            collision_conflicts: self.collision_conflicts,
+            collision_tolerance: self.collision_tolerance,
+            occlusion_conflicts: self.occlusion_conflicts,
+            occlusion_keep: self.occlusion_keep,
+            camera_direction: self.camera_direction,
         })
     }
 
@@ -72,6 +82,9 @@ impl Options {
             "pairs": self.pairs, "pin_together": self.pin_together, "keep_apart": self.keep_apart,
             "exclude": self.exclude, "fewest": self.fewest, "time_limit": self.time_limit,
             "axis": self.axis, "mirror_tolerance": self.mirror_tolerance,
+            "collision_conflicts": self.collision_conflicts, "collision_tolerance": self.collision_tolerance,
+            "occlusion_conflicts": self.occlusion_conflicts, "occlusion_keep": self.occlusion_keep,
+            "camera_direction": self.camera_direction,
         })
     }
 }
@@ -115,6 +128,26 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
         "unplaced": list(&p.unplaced),
         "pairs": pairs(&p.pairs),
         "antagonists": pairs(&p.antagonists),
+        "conflicts": p.conflicts.iter().map(|c| json!({
+            "shapes": [names[c.first].clone(), names[c.second].clone()], "reasons": c.reasons,
+        })).collect::<Vec<_>>(),
+        "collisions": p.poseability.collisions.iter().map(|c| json!({
+            "shapes": [names[c.first].clone(), names[c.second].clone()], "added": c.added,
+            "between_pieces": c.between_pieces,
+        })).collect::<Vec<_>>(),
+        "occlusions": p.poseability.occlusions.iter().map(|o| json!({
+            "hidden": names[o.hidden].clone(), "by": names[o.by].clone(), "kept": o.kept,
+        })).collect::<Vec<_>>(),
+        "poseability": {
+            "collision_pairs_tested": p.poseability.collision_pairs_tested,
+            "occlusion_directions_tested": p.poseability.occlusion_directions_tested,
+            "seconds": {
+                "regions": p.poseability.seconds_regions, "collisions": p.poseability.seconds_collisions,
+                "occlusions": p.poseability.seconds_occlusions,
+            },
+        },
+        "regions": p.expressions.iter().flat_map(|e| e.shapes.iter()).map(|&k| (names[k].clone(), json!(p.active[k])))
+            .collect::<serde_json::Map<String, Value>>(),
         "weights": p.weights(),
         "fewest": p.fewest,
         "params": params,
@@ -124,17 +157,25 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 /// pack_expressions(neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5,
 ///     beta=0.0, max_expressions=None, symmetric=True, antagonist_cosine=-0.5,
 ///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
-///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3) -> dict
+///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3,
+///     collision_conflicts=True, collision_tolerance=0.11, occlusion_conflicts=True,
+///     occlusion_keep=0.5, camera_direction=(0, -1, 0)) -> dict
 ///
 /// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
 /// `pairs`, `pin_together` and `keep_apart` are lists of (name, name); `exclude` a list of
 /// names. Returns a dict: expressions, importance, inert, excluded, unplaced, pairs,
-/// antagonists, weights (J x K 0/1 in the order of `names`), fewest, params.
+/// antagonists, conflicts (each edge's shapes and reasons: user, antagonist, overlap,
+/// collision, occlusion), collisions (added curve / diagonal), occlusions (kept share),
+/// poseability (pairs tested, seconds), regions (each placed shape's strongly moving
+/// vertices, for the reference sheet), weights (J x K 0/1 in the order of `names`),
+/// fewest, params.
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
                     max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
-                    exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3))]
+                    exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3,
+                    collision_conflicts=true, collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE,
+                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0]))]
 #[allow(clippy::too_many_arguments)]
 fn pack_expressions<'py>(
     py: Python<'py>,
@@ -159,10 +200,16 @@ fn pack_expressions<'py>(
     time_limit: Option<f64>,
     axis: usize,
     mirror_tolerance: f64,
+    collision_conflicts: bool,
+    collision_tolerance: f64,
+    occlusion_conflicts: bool,
+    occlusion_keep: f64,
+    camera_direction: [f64; 3],
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest, time_limit, axis, mirror_tolerance,
+        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
     };
     run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options)
 }
@@ -174,7 +221,9 @@ fn pack_expressions<'py>(
 #[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
                     max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
-                    exclude=Vec::new(), axis=0, mirror_tolerance=1e-3))]
+                    exclude=Vec::new(), axis=0, mirror_tolerance=1e-3, collision_conflicts=true,
+                    collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE, occlusion_conflicts=true,
+                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0]))]
 #[allow(clippy::too_many_arguments)]
 fn pack_greedy<'py>(
     py: Python<'py>,
@@ -197,10 +246,16 @@ fn pack_greedy<'py>(
     exclude: Vec<String>,
     axis: usize,
     mirror_tolerance: f64,
+    collision_conflicts: bool,
+    collision_tolerance: f64,
+    occlusion_conflicts: bool,
+    occlusion_keep: f64,
+    camera_direction: [f64; 3],
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest: false, time_limit: None, axis, mirror_tolerance,
+        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
     };
     run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options)
 }

@@ -1,0 +1,297 @@
+//! Occlusion conflicts (SPEC section 1, beyond the paper, for its goal 4: observable
+//! expressions): shape A conflicts with B when, posed together, A's active vertices (its
+//! binary blendshape $b_A$, Eq. (2)) keep less than `keep` of the visibility they have with
+//! A alone,
+//!
+//! $V(A + B) < \kappa\, V(A)$, with $V(P) = \#\{n : b_A[n] = 1,\ n \text{ seen in pose } P\}$,
+//!
+//! seen from the reference sheet's front camera: orthographic, along a direction `toward`
+//! the camera. The scan of the expression could not see A's motion (eyeLookIn under
+//! eyeBlink: the eyeball turns behind a closed lid).
+//!
+//! A vertex is seen when no triangle other than its own lies over it, nearer the camera. In
+//! a frame whose third axis points at the camera, that is an axis-parallel ray, so the box
+//! query of [`TriangleBvh`] finds its candidate triangles exactly. As for collisions, only
+//! the triangles the two shapes move are posed (the rest are tested at rest) and a direction
+//! is tested only when the two can interact: A's and B's moving regions meet, or the front
+//! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
+//! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly.
+
+use rayon::prelude::*;
+
+use super::regions::{MovingRegion, Pose, PosedTriangles};
+use crate::geometry::bvh::{Aabb, TriangleBvh};
+use crate::geometry::mat3::{cross, dot, length, scale, Vec3};
+use crate::rig::RigView;
+
+/// Depth, as a fraction of the diagonal, by which a triangle must lie nearer the camera
+/// than a vertex to hide it: surfaces resting on each other do not hide each other.
+pub(super) const DEPTH_EPSILON: f64 = 1e-5;
+
+/// Shape `hidden`'s motion, posed together with `by`, is mostly out of the camera's sight.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Occlusion {
+    pub hidden: usize,
+    pub by: usize,
+    /// V(hidden + by) / V(hidden): the share of the visible active vertices still seen.
+    pub kept: f64,
+}
+
+/// Coordinates with the camera along +z: (right, up, depth towards the camera).
+struct ViewFrame {
+    axes: [Vec3; 3],
+}
+
+impl ViewFrame {
+    /// `None` when `toward` is not a finite, non-zero direction.
+    fn new(toward: Vec3) -> Option<Self> {
+        let n = length(toward);
+        if !(n.is_finite() && n > 0.0) {
+            return None;
+        }
+        let z = scale(toward, 1.0 / n);
+        let helper = if z[2].abs() < 0.9 { [0.0, 0.0, 1.0] } else { [1.0, 0.0, 0.0] };
+        let x = cross(helper, z);
+        let x = scale(x, 1.0 / length(x));
+        Some(Self { axes: [x, cross(z, x), z] })
+    }
+
+    fn map(&self, p: Vec3) -> Vec3 {
+        self.axes.map(|axis| dot(axis, p))
+    }
+}
+
+/// Whether triangle `c` (view coordinates) lies over `q` and nearer the camera by more than
+/// `epsilon`. Edge-on triangles hide nothing.
+pub(super) fn hides(c: &[Vec3; 3], q: Vec3, epsilon: f64) -> bool {
+    let [a, b, c] = *c;
+    let area = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    if area == 0.0 {
+        return false;
+    }
+    let la = ((b[0] - q[0]) * (c[1] - q[1]) - (c[0] - q[0]) * (b[1] - q[1])) / area;
+    let lb = ((c[0] - q[0]) * (a[1] - q[1]) - (a[0] - q[0]) * (c[1] - q[1])) / area;
+    let lc = 1.0 - la - lb;
+    la >= 0.0 && lb >= 0.0 && lc >= 0.0 && la * a[2] + lb * b[2] + lc * c[2] > q[2] + epsilon
+}
+
+/// What every visibility test shares: the mesh at rest in view coordinates.
+struct Scene<'a> {
+    rig: &'a RigView<'a>,
+    regions: &'a [MovingRegion],
+    frame: ViewFrame,
+    rest: Vec<Vec3>,
+    rest_bvh: TriangleBvh,
+    epsilon: f64,
+}
+
+/// A front-view box (x, y); empty when `lo > hi`.
+#[derive(Clone, Copy)]
+struct Box2 {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Box2 {
+    const EMPTY: Box2 = Box2 { lo: [f64::INFINITY; 2], hi: [f64::NEG_INFINITY; 2] };
+
+    fn of(points: impl IntoIterator<Item = Vec3>) -> Self {
+        let mut b = Self::EMPTY;
+        points.into_iter().for_each(|p| b.grow(p));
+        b
+    }
+
+    fn grow(&mut self, p: Vec3) {
+        for a in 0..2 {
+            self.lo[a] = self.lo[a].min(p[a]);
+            self.hi[a] = self.hi[a].max(p[a]);
+        }
+    }
+
+    fn grown(self, margin: f64) -> Self {
+        Self { lo: self.lo.map(|x| x - margin), hi: self.hi.map(|x| x + margin) }
+    }
+
+    fn meets(&self, other: &Box2) -> bool {
+        (0..2).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
+    }
+}
+
+/// Shape h posed alone: where its active vertices are seen from, and what hides each.
+struct Alone {
+    /// h's moved triangles that can lie over any of its active vertices in any tested mix,
+    /// posed by h, in view coordinates.
+    posed: PosedTriangles,
+    /// Per active vertex, the triangles that hide it in pose h.
+    hiders: Vec<Vec<u32>>,
+}
+
+impl Scene<'_> {
+    fn view(&self, pose: &Pose, v: u32) -> Vec3 {
+        self.frame.map(pose.at(v))
+    }
+
+    /// Adds to `found` the static triangles (at rest; those `skip` names are not) that hide
+    /// the view point `q` of vertex `v`.
+    fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
+        let triangles = self.rig.triangles;
+        let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
+        self.rest_bvh.for_each_overlap(&ray, |t| {
+            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&triangles[t as usize].map(|u| self.rest[u as usize]), q, self.epsilon) {
+                found.push(t);
+            }
+        });
+    }
+
+    /// Adds to `found` the triangles of `set` (but those `skip` names) that hide `q`.
+    fn posed_hiders(&self, set: &PosedTriangles, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
+        let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
+        set.for_each_overlap(&ray, |j| {
+            let t = set.triangles[j as usize];
+            if !skip(t) && !self.rig.triangles[t as usize].contains(&v) && hides(&set.corners[j as usize], q, self.epsilon) {
+                found.push(t);
+            }
+        });
+    }
+
+    /// Pose h alone; `reach` covers h's active vertices in every mix to be tested.
+    fn alone(&self, h: usize, active: &[u32], reach: Box2) -> Alone {
+        let (rig, region) = (self.rig, &self.regions[h]);
+        let pose = Pose::of(rig, self.regions, &[h]);
+        let near: Vec<u32> = region
+            .triangles
+            .iter()
+            .copied()
+            .filter(|&t| Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&reach))
+            .collect();
+        let posed = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        let hiders = active
+            .iter()
+            .map(|&v| {
+                let (q, mut found) = (self.view(&pose, v), Vec::new());
+                self.static_hiders(v, q, |t| region.contains(t), &mut found);
+                self.posed_hiders(&posed, v, q, |_| false, &mut found);
+                found
+            })
+            .collect();
+        Alone { posed, hiders }
+    }
+
+    /// How many of h's active vertices are seen with `by` posed too. A vertex `by` does not
+    /// move (see `regions`) keeps its place: it is hidden by its hiders in pose h that `by` does not move, or
+    /// by a triangle `by` moves. One that `by` moves is traced afresh.
+    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, by_boxes: &[Box2]) -> usize {
+        let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
+        let pose = Pose::of(rig, self.regions, &[h, by]);
+        let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
+        let spot = Box2::of(points.iter().copied());
+        let near: Vec<u32> = rb
+            .triangles
+            .iter()
+            .zip(by_boxes)
+            .filter(|&(&t, b)| {
+                if rh.contains(t) {
+                    Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&spot)
+                } else {
+                    b.meets(&spot)
+                }
+            })
+            .map(|p| *p.0)
+            .collect();
+        let moving = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        (0..active.len())
+            .filter(|&i| {
+                let (v, q, mut found) = (active[i], points[i], Vec::new());
+                if rb.moves(v) {
+                    self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
+                    self.posed_hiders(&alone.posed, v, q, |t| rb.contains(t), &mut found);
+                } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
+                    return false;
+                }
+                self.posed_hiders(&moving, v, q, |_| false, &mut found);
+                found.is_empty()
+            })
+            .count()
+    }
+}
+
+/// The candidate pairs, in both directions, where one shape hides the other's motion:
+/// V(A + B) < `keep` V(A). `regions` and `active` hold every shape named in `candidates`;
+/// `toward` points from the face to the camera. Returns the occlusions and how many
+/// directions were tested; `None` when `toward` is not a direction.
+pub fn find_occlusions(
+    rig: &RigView,
+    regions: &[MovingRegion],
+    active: &[Vec<u32>],
+    candidates: &[(usize, usize)],
+    keep: f64,
+    margin: f64,
+    toward: Vec3,
+) -> Option<(Vec<Occlusion>, usize)> {
+    let frame = ViewFrame::new(toward)?;
+    let diagonal = rig.bbox_diagonal();
+    let margin = margin * diagonal;
+    let k_count = rig.n_shapes();
+    let mut involved = vec![false; k_count];
+    candidates.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
+    let rest_of = |v: u32| frame.map(rig.neutral[v as usize].map(f64::from));
+    // Front-view boxes: of each shape's active vertices in its pose, and of each moved
+    // triangle at rest and posed.
+    let boxes: Vec<(Box2, Box2, Vec<Box2>)> = (0..k_count)
+        .into_par_iter()
+        .map(|k| {
+            if !involved[k] {
+                return (Box2::EMPTY, Box2::EMPTY, Vec::new());
+            }
+            let pose = Pose::of(rig, regions, &[k]);
+            let active_box = Box2::of(active[k].iter().map(|&v| frame.map(pose.at(v)))).grown(margin);
+            let posed: Vec<Box2> =
+                regions[k].triangles.iter().map(|&t| Box2::of(rig.triangles[t as usize].map(|v| frame.map(pose.at(v))))).collect();
+            let mut region_box = Box2::EMPTY;
+            for (&t, b) in regions[k].triangles.iter().zip(&posed) {
+                region_box.grow([b.lo[0], b.lo[1], 0.0]);
+                region_box.grow([b.hi[0], b.hi[1], 0.0]);
+                rig.triangles[t as usize].iter().for_each(|&v| region_box.grow(rest_of(v)));
+            }
+            (active_box, region_box, posed)
+        })
+        .collect();
+    let interacts = |h: usize, by: usize| regions[h].meets(&regions[by], margin) || boxes[h].0.meets(&boxes[by].1);
+    let tested: Vec<(usize, usize)> =
+        candidates.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).filter(|&(h, b)| interacts(h, b)).collect();
+    if tested.is_empty() {
+        return Some((Vec::new(), 0));
+    }
+    let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
+    let scene = Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal };
+    let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
+    hidden_shapes.sort_unstable();
+    hidden_shapes.dedup();
+    let occlusions: Vec<Vec<Occlusion>> = hidden_shapes
+        .par_iter()
+        .map(|&h| {
+            let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
+            let mut reach = Box2::EMPTY;
+            for shapes in std::iter::once(vec![h]).chain(partners.iter().map(|&b| vec![h, b])) {
+                let pose = Pose::of(rig, regions, &shapes);
+                active[h].iter().for_each(|&v| reach.grow(scene.view(&pose, v)));
+            }
+            let alone = scene.alone(h, &active[h], reach.grown(margin));
+            let seen_alone = alone.hiders.iter().filter(|h| h.is_empty()).count();
+            if seen_alone == 0 {
+                return Vec::new();
+            }
+            partners
+                .iter()
+                .filter_map(|&by| {
+                    let kept = scene.seen_with(h, by, &active[h], &alone, &boxes[by].2) as f64 / seen_alone as f64;
+                    (kept < keep).then_some(Occlusion { hidden: h, by, kept })
+                })
+                .collect()
+        })
+        .collect();
+    let mut occlusions: Vec<Occlusion> = occlusions.into_iter().flatten().collect();
+    let order = |o: &Occlusion| tested.iter().position(|&p| p == (o.hidden, o.by));
+    occlusions.sort_by_key(order);
+    Some((occlusions, tested.len()))
+}
