@@ -324,7 +324,10 @@ def add_transfer_args(parser):
         "packed expressions, or after shape keys); with several targets use {target} in the names",
     )
     parser.add_argument("--pack-json", help="Pack Expressions JSON report naming the expressions' shapes")
-    parser.add_argument("--beta-reg", type=float, default=0.1, help="personalisation regularisation")
+    parser.add_argument(
+        "--beta-reg", type=float, default=1.0,
+        help="personalisation: pull towards the transferred shapes against noisy training expressions (default 1)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
     parser.add_argument("--json", help="write the report here")
