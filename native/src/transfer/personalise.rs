@@ -549,8 +549,8 @@ fn refit_member_weights(shapes: &[Vec<Vec3>], examples: &[Vec<Vec3>], alpha: &[f
         let w = &mut refined[j * k_all..(j + 1) * k_all];
         let members: Vec<usize> = (0..k_all).filter(|&k| w[k] != 0.0 && gram[k][k] > 0.0).collect();
         let target: Vec<f64> = members.par_iter().map(|&k| inner(&shapes[k], example)).collect();
-        for k in 0..k_all {
-            w[k] = if members.contains(&k) { w[k].clamp(0.0, 1.0) } else { 0.0 };
+        for (k, weight) in w.iter_mut().enumerate() {
+            *weight = if members.contains(&k) { weight.clamp(0.0, 1.0) } else { 0.0 };
         }
         for _sweep in 0..500 {
             let mut change: f64 = 0.0;
