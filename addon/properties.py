@@ -293,13 +293,18 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     )
     beta_reg: bpy.props.FloatProperty(
         name="Regularisation",
-        description="How strongly personalised shapes stay close to the transferred ones",
-        default=0.1,
-        min=0.0,
+        description="How strongly personalised shapes stay close to the transferred ones where the training "
+        "expressions are noisy (their noise is estimated from the vertices they do not move); exact scans are "
+        "followed wherever a shape moves",
+        default=1.0,
+        min=0.01,
         soft_max=10.0,
     )
     refine_weights: bpy.props.BoolProperty(
-        name="Refine Weights", description="Also refit each training expression's weights within [0, 1]", default=False
+        name="Refine Weights",
+        description="Refit the weights of each training expression's shapes within [0, 1] against the transferred "
+        "shapes first (for scans not posed at full strength); shapes not in the expression stay out",
+        default=False,
     )
 
 

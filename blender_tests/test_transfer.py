@@ -499,13 +499,18 @@ def test_batch_personalises_with_packed_expressions_from_a_pack_json(sample, tmp
     out = tmp_path / "transfer.json"
     run_batch(
         "transfer", "--input", path, "--source", "Template", "--target", "Target_Boy",
-        "--examples", "Boy_REF_01", "--pack-json", str(pack), "--json", str(out), check=True,
+        "--examples", "Boy_REF_01", "--pack-json", str(pack), "--json", str(out), "--refine-weights", check=True,
     )
     report = json.loads(out.read_text())["targets"][0]
     row = report["training"]["Boy_REF_01"]
     names = template_names()
     assert [names[k] for k, w in enumerate(row) if w == 1.0] == sorted(members, key=names.index) and sum(row) == 2
     assert report["seconds"]["personalisation"] > 0 and len(report["shapes"]) == 52
+    # Refined against the transferred shapes: the scan poses them at 1.2, clamped to 1; the
+    # shapes not in the expression stay out. The scan is exact where neither shape moves.
+    (refined,) = report["weights"]
+    assert [w for w, given in zip(refined, row) if given] == [1.0, 1.0] and sum(refined) == 2.0
+    assert len(report["example_noise"]) == 1 and report["example_noise"][0] < 1e-6
 
 
 def test_batch_collision_flags(sample_path, tmp_path):

@@ -342,7 +342,14 @@ def add_transfer_args(parser):
         "packed expressions, or after shape keys); with several targets use {target} in the names",
     )
     parser.add_argument("--pack-json", help="Pack Expressions JSON report naming the expressions' shapes")
-    parser.add_argument("--beta-reg", type=float, default=0.1, help="personalisation regularisation")
+    parser.add_argument(
+        "--beta-reg", type=float, default=1.0,
+        help="personalisation: pull towards the transferred shapes against noisy training expressions (default 1)",
+    )
+    parser.add_argument(
+        "--refine-weights", action="store_true",
+        help="personalisation: refit the weights of each training expression's shapes within [0, 1] first",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
     parser.add_argument("--json", help="write the report here")
@@ -402,6 +409,7 @@ def run_transfer(args):
                 training_objects=examples,
                 pack_report=pack_report,
                 beta_reg=args.beta_reg,
+                refine_weights=args.refine_weights,
                 compare_plain=args.compare_plain,
                 collisions=args.collisions,
                 collision_margin=args.collision_margin,
@@ -429,6 +437,7 @@ def run_transfer(args):
                 "template_neutral_penetration": result.report["template_neutral_penetration"],
                 "training": {name: row.tolist() for name, row in result.training.items()},
                 "weights": result.report.get("weights"),
+                "example_noise": result.report.get("example_noise"),
                 "worse_than_template": transfer.worse_than_template(result.report),
                 "worse_before_collisions": (
                     transfer.worse_than_template(result.report, key="before_collisions_length")

@@ -2,23 +2,16 @@
 
     python scripts/bench_transfer.py [-- --json OUT.json]
 
-1. Warp ground truth: the target is W(V0) for a known smooth map W (non-uniform scale
-   (1.0, 1.25, 0.85) and a bend), so the true shapes are W(V0 + D_k). Mean vertex error on each
-   shape's active vertices (moving at least 0.3 of its largest displacement), relative to the
-   bounding-box diagonal, for: the naive additive copy, plain deformation transfer, with
-   virtual edges, with virtual edges and the collision pass, personalised with the J packed
-   expressions as training data, and personalised with J random single shapes (the control;
-   mean over 5 seeds).
-2. Penetration on the MakeHuman identities (Target_*) and on the 25k head: per shape, the
+1. Penetration on the MakeHuman identities (Target_*) and on the 25k head: per shape, the
    intersection curve the result adds to the target's neutral beyond what the template's
    shape adds to its own, for plain transfer, virtual edges before the collision pass and
    after it; shapes worse than the template, and the added curve summed. The cheap metric
    (only triangles with a moving corner re-tested) is checked against a full sweep; the
    virtual-edge weight is swept with the collision pass on.
-3. Timings on the bundled rig, on a 4x denser subdivision of it (19k vertices) and on a
+2. Timings on the bundled rig, on a 4x denser subdivision of it (19k vertices) and on a
    25k-vertex version whose face, where the shapes move, is cut once more: native seconds
    split into setup, virtual edges, solves, collision pass and the penetration report.
-The packed expressions come from `shapesmith_native.pack_expressions` on the warped target.
+The warp ground truth of personalisation is scripts/bench_personalise.py.
 """
 
 import argparse
@@ -35,86 +28,7 @@ SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 
-SCALE = np.array([1.0, 1.25, 0.85])
-BEND = 0.03  # the bend moves the face's sides back by this fraction of the diagonal
-ACTIVE = 0.3  # SPEC 1's mu: a vertex is active in a shape moving >= 0.3 of its maximum
-CONTROL_SEEDS = 5
 FACE_EDGES = 4100  # edges cut again in the 25k timing mesh (19,337 -> 25,272 vertices)
-
-
-def warp(points, centre, half_width, diagonal):
-    """W: scale about the centre, then bend the sides back (y grows with x^2)."""
-    p = (points - centre) * SCALE + centre
-    p[..., 1] += BEND * diagonal * ((points[..., 0] - centre[0]) / half_width) ** 2
-    return p.astype(np.float32)
-
-
-def mean_active_error(predicted, truth, diagonal):
-    """Mean over shapes of the mean error on the shape's active vertices, / diagonal."""
-    errors = []
-    for k in range(len(truth)):
-        size = np.linalg.norm(truth[k], axis=1)
-        active = size >= ACTIVE * size.max()
-        errors.append(np.linalg.norm(predicted[k] - truth[k], axis=1)[active].mean() / diagonal)
-    return float(np.mean(errors))
-
-
-def packed_expressions(nat, rig, target_neutral):
-    report = nat.pack_expressions(rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral)
-    return [e["shapes"] for e in report["expressions"]], "shapesmith_native.pack_expressions"
-
-
-def warp_benchmark(nat, rig):
-    points = rig.neutral.astype(np.float64)
-    low, high = points.min(0), points.max(0)
-    diagonal = float(np.linalg.norm(high - low))
-    centre, half_width = (low + high) / 2, (high[0] - low[0]) / 2
-
-    def w(p):
-        return warp(p, centre, half_width, diagonal)
-
-    target = w(points)
-    truth = np.stack([w(points + d) - target for d in rig.deltas])
-    target_diagonal = float(np.linalg.norm(target.max(0) - target.min(0)))
-
-    def transfer(**options):
-        deltas, report = nat.transfer_shapes(
-            rig.neutral, rig.deltas, target, rig.triangles, rig.names, measure_penetration=False, **options
-        )
-        return mean_active_error(deltas, truth, target_diagonal), report
-
-    rows = {"additive copy": mean_active_error(rig.deltas, truth, target_diagonal)}
-    rows["plain transfer"], _ = transfer(virtual_edges=False, collisions=False)
-    rows["virtual edges"], _ = transfer(virtual_edges=True, collisions=False)
-    rows["virtual edges + collision pass"], _ = transfer(virtual_edges=True, collisions=True)
-    index = {name: k for k, name in enumerate(rig.names)}
-    expressions, packing_source = packed_expressions(nat, rig, target)
-    result = {"diagonal": target_diagonal, "packing": packing_source}
-    if expressions:
-        j = len(expressions)
-        weights = np.zeros((j, len(rig.names)), dtype=np.float32)
-        for row, members in enumerate(expressions):
-            weights[row, [index[m] for m in members]] = 1.0
-        examples = np.stack([w(points + np.tensordot(weights[row], rig.deltas, 1)) for row in range(j)])
-        started = time.perf_counter()
-        rows[f"personalised, {j} packed expressions"], report = transfer(
-            virtual_edges=True, examples=examples, example_weights=weights.tolist()
-        )
-        result["personalise_seconds"] = time.perf_counter() - started
-        result["personalise_native_seconds"] = report["seconds"]
-        controls = []
-        moving = [k for k in range(len(rig.names)) if np.abs(rig.deltas[k]).max() > 0]
-        for seed in range(CONTROL_SEEDS):
-            chosen = np.random.default_rng(seed).choice(moving, size=min(j, len(moving)), replace=False)
-            control_weights = np.zeros((len(chosen), len(rig.names)), dtype=np.float32)
-            control_weights[np.arange(len(chosen)), chosen] = 1.0
-            control_examples = np.stack([w(points + rig.deltas[k]) for k in chosen])
-            controls.append(transfer(virtual_edges=True, examples=control_examples, example_weights=control_weights.tolist())[0])
-        rows[f"personalised, {j} random single shapes (control, {CONTROL_SEEDS} seeds)"] = float(np.mean(controls))
-        result["control_spread"] = [float(min(controls)), float(max(controls))]
-        result["expressions"] = expressions
-    result["mean_active_error"] = rows
-    return result
 
 
 def added_summary(transfer_module, report):
@@ -369,10 +283,6 @@ def print_summary(indent, summary):
 
 
 def print_report(result):
-    warp_result = result["warp"]
-    print(f"\n== Warp ground truth (mean error on active vertices / bbox diagonal; packing: {warp_result['packing']})")
-    for name, value in warp_result["mean_active_error"].items():
-        print(f"  {name:55s} {value:.2e}")
     print(
         "\n== Penetration on the identities (curve added to each neutral beyond what the template's shape adds to its "
         "own, positive parts summed over the shapes)"
@@ -437,7 +347,6 @@ def main():
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {
-        "warp": warp_benchmark(nat, rig),
         "penetration": penetration_benchmark(transfer_module, landmarks_module, rig, template, targets),
         "edge_weight_sweep": edge_weight_sweep(transfer_module, template, targets),
         "timings": {"bundled": timing_benchmark(nat, mesh_arrays, transfer_module, template, targets[0], rest_positions)},

@@ -170,7 +170,7 @@ def transfer_object(
     edge_weight=3.0,
     training_objects=(),
     pack_report=None,
-    beta_reg=0.1,
+    beta_reg=1.0,
     refine_weights=False,
     compare_plain=False,
     collisions=False,

@@ -15,7 +15,7 @@ use crate::transfer::{
 
 /// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
 ///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
-///                 examples=None, example_weights=None, beta_reg=0.1, refine_weights=False,
+///                 examples=None, example_weights=None, beta_reg=1.0, refine_weights=False,
 ///                 compare_plain=False, measure_penetration=True, align_rotation=True,
 ///                 collisions=False, collision_margin=0.25, template_penetration=None,
 ///                 progress=None)
@@ -33,7 +33,7 @@ use crate::transfer::{
 /// `example_weights` their J x K blend weights (packed expressions are 0/1 rows).
 #[pyfunction]
 #[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
-                    tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=0.1,
+                    tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=1.0,
                     refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true,
                     collisions=false, collision_margin=0.25, template_penetration=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
@@ -103,7 +103,7 @@ fn transfer_shapes<'py>(
             collisions: collisions.then_some(CollisionParams { margin: collision_margin, ..Default::default() }),
             ..Default::default()
         },
-        personalise: PersonaliseParams { beta_reg, refine_weights, ..Default::default() },
+        personalise: PersonaliseParams { beta_reg, refine_weights },
         compare_plain,
         measure_penetration,
     };

@@ -243,7 +243,7 @@ impl DeformationTransfer {
     }
 
     /// `|D_k[n]| >= static_fraction x max_n |D_k[n]|`.
-    fn moving_vertices(&self, delta: &[[f32; 3]]) -> Vec<bool> {
+    pub(super) fn moving_vertices(&self, delta: &[[f32; 3]]) -> Vec<bool> {
         let threshold = self.static_fraction * max_length(delta);
         delta.iter().map(|d| length32(d) >= threshold).collect()
     }
@@ -266,12 +266,47 @@ impl DeformationTransfer {
         Ok(self.solve_shape_traced(delta, gradient, false)?.deltas)
     }
 
+    /// [`Self::solve_shape`] with the virtual-edge springs aiming at `edge_changes` (one
+    /// `f_k - f_0` per virtual edge, as [`Self::edge_changes`] gives for the template's shape)
+    /// instead of the template's: personalisation fits them to the training expressions.
+    pub(super) fn solve_shape_with_edge_changes(
+        &self,
+        delta: &[[f32; 3]],
+        gradient: impl Fn(usize) -> Mat3,
+        edge_changes: &[Vec3],
+    ) -> ShapesmithResult<Vec<Vec3>> {
+        Ok(self.solve_shape_aiming(delta, gradient, Some(edge_changes), false)?.deltas)
+    }
+
+    /// `f_k - f_0` of every virtual edge for the source shape `delta` ([`Self::edge_change`]).
+    pub(super) fn edge_changes(&self, delta: &[[f32; 3]]) -> Vec<Vec3> {
+        self.virtual_edges
+            .iter()
+            .zip(&self.edge_rest_maps)
+            .map(|(&(i, j), rest_map)| {
+                let (i, j) = (i as usize, j as usize);
+                self.edge_change(i, j, rest_map, sub(to_f64(&delta[i]), to_f64(&delta[j])))
+            })
+            .collect()
+    }
+
     /// [`Self::solve_shape`], followed by the collision pass when `collisions` and the pass is
     /// configured, with the deltas before the pass and what it did.
     pub(super) fn solve_shape_traced(
         &self,
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
+        collisions: bool,
+    ) -> ShapesmithResult<SolvedShape> {
+        self.solve_shape_aiming(delta, gradient, None, collisions)
+    }
+
+    /// [`Self::solve_shape_traced`], the springs aiming at `edge_changes` when given.
+    fn solve_shape_aiming(
+        &self,
+        delta: &[[f32; 3]],
+        gradient: impl Fn(usize) -> Mat3,
+        edge_changes: Option<&[Vec3]>,
         collisions: bool,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
@@ -300,7 +335,7 @@ impl DeformationTransfer {
             position[v] = kept;
             kept += 1;
         }
-        let rhs = self.right_hand_side(delta, &moving, gradient);
+        let rhs = self.right_hand_side(delta, &moving, gradient, edge_changes);
         let mut factor = self.matrix.factor_restricted(&position, kept as usize)?;
         let mut out = factor.solve(&rhs);
         if pinned.iter().any(|&p| p) {
@@ -324,8 +359,15 @@ impl DeformationTransfer {
 
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
     /// energy for deltas) plus `+-w_ve (f_k - f_0)` at the ends of each virtual edge, with
-    /// `f_0 = B0_i - B0_j` and `f_k` its target in this shape ([`Self::edge_change`]).
-    fn right_hand_side(&self, delta: &[[f32; 3]], moving: &[bool], gradient: impl Fn(usize) -> Mat3) -> Vec<Vec3> {
+    /// `f_0 = B0_i - B0_j` and `f_k` its target in this shape ([`Self::edge_change`], or
+    /// `edge_changes` when given).
+    fn right_hand_side(
+        &self,
+        delta: &[[f32; 3]],
+        moving: &[bool],
+        gradient: impl Fn(usize) -> Mat3,
+        edge_changes: Option<&[Vec3]>,
+    ) -> Vec<Vec3> {
         let mut rhs = vec![[0.0; 3]; self.n_vertices()];
         for (t, (tri, op)) in self.triangles.iter().zip(&self.target_operators).enumerate() {
             if !tri.iter().any(|&v| moving[v as usize]) {
@@ -337,9 +379,12 @@ impl DeformationTransfer {
                 rhs[v] = add(rhs[v], scale(mat_vec(&h, grad), op.area));
             }
         }
-        for (&(i, j), rest_map) in self.virtual_edges.iter().zip(&self.edge_rest_maps) {
+        for (e, (&(i, j), rest_map)) in self.virtual_edges.iter().zip(&self.edge_rest_maps).enumerate() {
             let (i, j) = (i as usize, j as usize);
-            let change = self.edge_change(i, j, rest_map, sub(to_f64(&delta[i]), to_f64(&delta[j])));
+            let change = match edge_changes {
+                Some(given) => given[e],
+                None => self.edge_change(i, j, rest_map, sub(to_f64(&delta[i]), to_f64(&delta[j]))),
+            };
             let target = scale(change, self.edge_weight);
             rhs[i] = add(rhs[i], target);
             rhs[j] = sub(rhs[j], target);

@@ -21,7 +21,7 @@
 //! | `w_ve` (virtual-edge weight) | [`TransferParams::edge_weight`] |
 //! | `A_ij` (rest-to-rest gradient at the ends of a virtual edge; replaces `S_ij`) | `DeformationTransfer::edge_rest_maps` |
 //! | `alpha_jk` (EBFR blend weights of example `j`) | `weights` of [`DeformationTransfer::personalise`] |
-//! | `beta`, `kappa`, `theta` (EBFR regulariser, its adaptive weight) | [`PersonaliseParams`] |
+//! | `beta` (EBFR regulariser; here the inverse square of the transfer's relative error) | [`PersonaliseParams`] |
 //!
 //! # Deviations
 //! - **Static vertices exactly put, by elimination.** Each shape fixes its static vertices
@@ -101,16 +101,14 @@
 //!   Target_Boy it makes things worse (13 -> 20 and 19 shapes, added curve 0.27 -> 2.43 m and
 //!   0.31 -> 2.83 m: pushed lip rows fold into their unconstrained neighbours). Hence
 //!   [`TransferParams::collisions`] defaults to `None` (off) everywhere until that is fixed.
-//! - **Personalisation** follows EBFR in the gradient domain: per triangle, the K target
-//!   gradients minimise `sum_j |sum_k alpha_jk M_k - A_j|^2 + beta sum_k w_k |M_k - S_k|^2`
-//!   with EBFR's adaptive weight `w_k = ((1 + |S_k|) / (kappa + |S_k|))^theta`, normalised
-//!   to 1 at the shape's largest strain (face units strain by 0.05-0.3, where the raw weight
-//!   is 10-60 and would turn `beta = 0.1` into a transfer-dominated fit), solved in
-//!   closed form through the J x J push-through identity (J examples, not K x K); each shape
-//!   is then one Poisson solve with the same static set as its plain transfer. Example
-//!   translations of floating pieces are not fitted (a gradient cannot see them). Optional
-//!   weight refinement is a bounded least-squares fit of each example's weights in [0, 1]
-//!   to the personalised shapes, alternated a fixed number of times.
+//! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
+//!   triangle: scans trusted up to their own noise (estimated from the vertices an
+//!   expression does not move), the transfer's error taken proportional to each shape's own
+//!   strain, so that in a packed expression each shape takes the scan where it moves alone;
+//!   closed form through the J x J push-through identity; the translations of floating pieces
+//!   and the virtual-edge targets are fitted the same way; weight refinement fits each
+//!   expression's members' weights to the transferred shapes. Equations, deviations from EBFR
+//!   and measurements in `personalise.rs`.
 
 mod alignment;
 mod collisions;

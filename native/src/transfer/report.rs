@@ -95,6 +95,10 @@ pub struct TransferReport {
     pub seconds: StageSeconds,
     /// J x K weights the personalisation used (refined, or as given); empty without examples.
     pub weights: Vec<Vec<f64>>,
+    /// Per training expression, the scan noise the personalisation estimated from the vertices
+    /// none of its shapes moves (standard deviation per coordinate, target units); empty
+    /// without examples.
+    pub example_noise: Vec<f64>,
     pub params: TransferShapesParams,
 }
 
@@ -131,10 +135,12 @@ pub fn transfer_shapes(
     let dt = DeformationTransfer::new(source_neutral, target_neutral, triangles, &params.transfer)?;
     let n = dt.n_vertices();
     let mut seconds = StageSeconds { factorisation: dt.setup_seconds, virtual_edges: dt.virtual_edge_seconds, ..Default::default() };
+    let mut example_noise = Vec::new();
     let (deltas, inert, weights, collisions, before_collisions) = match examples {
         Some(ex) if !ex.positions.is_empty() => {
             let out = dt.personalise(source_deltas, names, ex.positions, ex.weights, &params.personalise, &solving)?;
             seconds.personalisation = out.seconds;
+            example_noise = out.noise;
             let k = names.len();
             let rows = out.weights.chunks(k.max(1)).map(|r| r.to_vec()).collect();
             (out.deltas, out.inert, rows, None, Vec::new())
@@ -212,6 +218,7 @@ pub fn transfer_shapes(
         template_neutral_penetration,
         seconds,
         weights,
+        example_noise,
         params: *params,
     };
     Ok((deltas, report))

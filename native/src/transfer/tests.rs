@@ -348,10 +348,11 @@ fn personalisation_reproduces_its_examples_and_leaves_the_rest_alone() {
     assert_eq!(shape(&fitted.deltas, 3), vec![[0.0; 3]; n]);
     let none = dt.personalise(&deltas, &names, &[], &[], &PersonaliseParams::default(), &NoProgress).unwrap();
     assert_eq!(none.deltas, transferred);
-    // The default regulariser lands between the transfer and the example.
+    // Exact examples carry no noise (estimated from their still vertices): the default
+    // reproduces them too; a strong pull towards the transfer lands in between.
     let regular = dt.personalise(&deltas, &names, &examples, &weights, &PersonaliseParams::default(), &NoProgress).unwrap();
-    let err = max_error(&shape(&regular.deltas, 0), &shape(&truth, 0));
-    assert!(err < 0.5 * max_error(&shape(&transferred, 0), &shape(&truth, 0)) && err > 1e-6, "{err}");
+    assert!(regular.noise.iter().all(|&s| s < 1e-7), "{:?}", regular.noise);
+    assert!(max_error(&shape(&regular.deltas, 0), &shape(&truth, 0)) < 1e-5);
     // A packed example (two shapes at once) is split back into both shapes.
     let packed: Vec<[f32; 3]> = (0..n)
         .map(|v| [0, 1, 2].map(|a| target[v][a] + truth[v][a] + truth[2 * n + v][a]))
@@ -366,10 +367,102 @@ fn personalisation_reproduces_its_examples_and_leaves_the_rest_alone() {
     let example_delta: Vec<[f32; 3]> = (0..n).map(|v| [0, 1, 2].map(|a| packed[v][a] - target[v][a])).collect();
     let plain_sum: Vec<[f32; 3]> = (0..n).map(|v| [0, 1, 2].map(|a| transferred[v][a] + transferred[2 * n + v][a])).collect();
     assert!(max_error(&sum, &example_delta) < 0.5 * max_error(&plain_sum, &example_delta));
-    // Refinement keeps exact 0/1 weights of a consistent example.
-    let refine = PersonaliseParams { refine_weights: true, ..exact };
-    let refined = dt.personalise(&deltas, &names, &examples, &weights, &refine, &NoProgress).unwrap();
-    assert!(refined.weights.iter().zip(&weights).all(|(a, b)| (a - b).abs() < 1e-3), "{:?}", refined.weights);
+    // Refinement: an example posed at 0.7 but told 1 gets a weight near 0.7 (fitted against
+    // the transferred shape, the warp's own error aside); shapes not in it stay at 0.
+    let weak: Vec<[f32; 3]> = (0..n).map(|v| [0, 1, 2].map(|a| target[v][a] + 0.7 * truth[v][a])).collect();
+    let refine = PersonaliseParams { refine_weights: true, ..Default::default() };
+    let refined = dt.personalise(&deltas, &names, &weak, &weights[..k], &refine, &NoProgress).unwrap();
+    assert!((refined.weights[0] - 0.7).abs() < 0.1 && refined.weights[1..].iter().all(|&w| w == 0.0), "{:?}", refined.weights);
+    let told = dt.personalise(&deltas, &names, &weak, &weights[..k], &PersonaliseParams::default(), &NoProgress).unwrap();
+    let refined_err = max_error(&shape(&refined.deltas, 0), &shape(&truth, 0));
+    assert!(refined_err < 0.5 * max_error(&shape(&told.deltas, 0), &shape(&truth, 0)), "{refined_err}");
+}
+
+/// Standard normal numbers from a fixed seed (Box-Muller on ChaCha uniforms).
+fn gaussian(seed: u64, count: usize) -> Vec<f64> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..count)
+        .map(|_| {
+            let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        })
+        .collect()
+}
+
+#[test]
+fn packed_examples_personalise_far_below_the_additive_copy_and_noise_degrades_smoothly() {
+    // The whole head under the warp; truth W(V0 + D_k) - W(V0). Two packed expressions, as
+    // packing would make them: {smile, lookLeft (a floating eyeball), cheekPuff} (regions
+    // apart) and {jawOpen (floating teeth, lower face)}.
+    let (pts, tris, pieces) = head();
+    let n = pts.len();
+    let (deltas, names) = head_shapes(&pts, &pieces);
+    let k = names.len();
+    let target: Vec<[f32; 3]> = pts.iter().map(warp).collect();
+    let posed = |w: &[f64]| -> Vec<[f32; 3]> {
+        (0..n)
+            .map(|v| {
+                let p = [0, 1, 2].map(|a| pts[v][a] + (0..k).map(|s| w[s] as f32 * deltas[s * n + v][a]).sum::<f32>());
+                let (q, r) = (warp(&p), warp(&pts[v]));
+                [0, 1, 2].map(|a| target[v][a] + (q[a] - r[a]))
+            })
+            .collect()
+    };
+    let truth: Vec<Vec<[f32; 3]>> = (0..k)
+        .map(|s| {
+            let mut w = vec![0.0; k];
+            w[s] = 1.0;
+            posed(&w).iter().zip(&target).map(|(p, t)| [0, 1, 2].map(|a| p[a] - t[a])).collect()
+        })
+        .collect();
+    let mut weights = vec![0.0; 2 * k];
+    for s in [0, 1, 4] {
+        weights[s] = 1.0;
+    }
+    weights[k + 2] = 1.0;
+    let clean: Vec<[f32; 3]> = [&weights[..k], &weights[k..]].iter().flat_map(|w| posed(w)).collect();
+    // Mean error over the moving shapes of the mean error on each shape's active vertices
+    // (moving at least 0.3 of its largest displacement), as the bench measures it.
+    let mean_active = |d: &[[f32; 3]]| {
+        let errors: Vec<f64> = [0usize, 1, 2, 4]
+            .iter()
+            .map(|&s| {
+                let size: Vec<f64> = truth[s].iter().map(|t| t.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt()).collect();
+                let top = size.iter().copied().fold(0.0, f64::max);
+                let active: Vec<usize> = (0..n).filter(|&v| size[v] >= 0.3 * top).collect();
+                active.iter().map(|&v| max_error(&d[s * n + v..s * n + v + 1], &truth[s][v..v + 1])).sum::<f64>() / active.len() as f64
+            })
+            .collect();
+        errors.iter().sum::<f64>() / errors.len() as f64
+    };
+    let additive = mean_active(&deltas);
+    let dt = DeformationTransfer::new(&pts, &target, &tris, &plain()).unwrap();
+    let transferred = mean_active(&dt.transfer(&deltas, &names, &NoProgress).unwrap().deltas);
+    let fit = |examples: &[[f32; 3]]| dt.personalise(&deltas, &names, examples, &weights, &PersonaliseParams::default(), &NoProgress).unwrap();
+    let exact = fit(&clean);
+    let personalised = mean_active(&exact.deltas);
+    assert!(additive > 2e-3 && transferred > 2e-3, "the warp should defeat both: {additive}, {transferred}");
+    // Stated bound: 2% of the additive copy's error (measured 1.3%: what is left lies where
+    // the smile's and the puff's weak tails overlap, split by the prior).
+    assert!(personalised < 0.02 * additive, "personalised {personalised:.2e} vs additive {additive:.2e}");
+    // Scan noise of 0.05%, 0.1%, 0.2%, 0.4% of the diagonal per coordinate: the noise is
+    // estimated within 25%, the error grows with it, by at most twice the added level, and
+    // stays below the scans' own mean noise (1.6 sigma for a 3D Gaussian): the fit never
+    // amplifies it. Measured: 1.3e-3, 2.3e-3, 3.9e-3, 5.4e-3 (clean 7e-5; additive copy 5.5e-3).
+    let diagonal = crate::rig::bbox_diagonal(&target);
+    let unit = gaussian(13, clean.len() * 3);
+    let mut last = personalised;
+    for level in [5e-4, 1e-3, 2e-3, 4e-3] {
+        let noisy: Vec<[f32; 3]> =
+            clean.iter().enumerate().map(|(i, p)| [0, 1, 2].map(|a| p[a] + (level * diagonal * unit[3 * i + a]) as f32)).collect();
+        let out = fit(&noisy);
+        let error = mean_active(&out.deltas);
+        assert!(out.noise.iter().all(|&s| (s / (level * diagonal) - 1.0).abs() < 0.25), "noise {:?} vs {}", out.noise, level * diagonal);
+        assert!(error > last && error < last + 2.0 * level * diagonal, "noise {level}: {error:.2e} after {last:.2e}");
+        assert!(error < 1.6 * level * diagonal, "noise {level}: {error:.2e}");
+        last = error;
+    }
 }
 
 #[test]
