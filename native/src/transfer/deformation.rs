@@ -30,7 +30,7 @@ pub struct DeformationTransfer {
     /// The target neutral rotated into the source's orientation (the working frame).
     pub(super) target_neutral: Vec<Vec3>,
     target_operators: Vec<HatGradients>,
-    matrix: NormalMatrix,
+    pub(super) matrix: NormalMatrix,
     virtual_edges: Vec<(u32, u32)>,
     /// Per virtual edge: `A_ij`, the mean target-rest / source-rest gradient at its ends.
     edge_rest_maps: Vec<Mat3>,
@@ -134,7 +134,7 @@ impl DeformationTransfer {
             .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
         let guard_start = Instant::now();
-        let collisions = params.collisions.map(|c| CollisionGuard::new(&target, triangles, c));
+        let collisions = params.collisions.map(|c| CollisionGuard::new(&source, &target, triangles, c));
         let collision_setup_seconds = guard_start.elapsed().as_secs_f64();
         Ok(Self {
             triangles: triangles.to_vec(),
@@ -301,7 +301,7 @@ impl DeformationTransfer {
             kept += 1;
         }
         let rhs = self.right_hand_side(delta, &moving, gradient);
-        let mut factor = self.matrix.factor_restricted(&position, kept as usize)?;
+        let factor = self.matrix.factor_restricted(&position, kept as usize)?;
         let mut out = factor.solve(&rhs);
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
@@ -312,7 +312,7 @@ impl DeformationTransfer {
         };
         let plain = out.clone();
         let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs };
-        let outcome = self.collision_pass(guard, &shape, &mut factor, &mut out)?;
+        let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
             before_collisions: (outcome.solves > 0).then_some(plain),
             deltas: out,
