@@ -206,4 +206,48 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn local_solve_over_every_unknown_is_the_constrained_full_solve_and_keeps_the_rest() {
+        let (pts, tris) = grid(7, 6);
+        let ops: Vec<HatGradients> = tris.iter().map(|t| HatGradients::new(t.map(|v| pts[v as usize])).unwrap()).collect();
+        let a = NormalMatrix::assemble(pts.len(), &tris, &ops, &[(3, 40)], 2.0).unwrap();
+        let n = pts.len();
+        // Vertices 0..7 are Dirichlet at zero (the shape's static row); the rest are free.
+        let free: Vec<usize> = (7..n).collect();
+        let rhs: Vec<Vec3> = (0..n).map(|v| [(v as f64 * 0.3).sin(), 0.2, (v as f64) * 0.01]).collect();
+        let current = vec![[0.0; 3]; n];
+        let constraints = vec![(20usize, 5.0 * a.diagonal(20), [0.1, -0.2, 0.3]), (33, 2.0 * a.diagonal(33), [0.0, 0.5, 0.0])];
+        let local = a.solve_local(&free, &constraints, &rhs, &current).unwrap();
+        // (A_FF + W) d_F = rhs_F + W c, checked through A's product on the whole vector.
+        for c in 0..3 {
+            let col: Vec<f64> = local.iter().map(|x| x[c]).collect();
+            let ad = a.apply(&col);
+            for &v in &free {
+                let mut expect = rhs[v][c];
+                let mut lhs = ad[v];
+                for &(u, w, target) in &constraints {
+                    if u == v {
+                        lhs += w * col[v];
+                        expect += w * target[c];
+                    }
+                }
+                assert!((lhs - expect).abs() < 1e-9, "vertex {v}: {lhs} vs {expect}");
+            }
+        }
+        // On a smaller region with the same constraints the optimum is the same (the whole
+        // solution is optimal on any part with the rest held); a new target moves only the
+        // region, and moves vertex 20 towards it.
+        let region: Vec<usize> = vec![19, 20, 21, 26, 27, 28];
+        let same = a.solve_local(&region, &constraints[..1], &rhs, &local).unwrap();
+        assert!(region.iter().all(|&v| (0..3).all(|c| (same[v][c] - local[v][c]).abs() < 1e-9)));
+        let pulled = [(20usize, constraints[0].1, [1.0, 1.0, 1.0])];
+        let again = a.solve_local(&region, &pulled, &rhs, &local).unwrap();
+        for v in 0..n {
+            if !region.contains(&v) {
+                assert_eq!(again[v], local[v]);
+            }
+        }
+        assert!((0..3).all(|c| again[20][c] > local[20][c]));
+    }
 }
