@@ -69,7 +69,7 @@ pub struct CollisionParams {
 
 impl Default for CollisionParams {
     fn default() -> Self {
-        Self { margin: 0.25, max_iterations: 4, stiffness: 100.0 }
+        Self { margin: 1.0, max_iterations: 4, stiffness: 100.0 }
     }
 }
 
@@ -92,10 +92,11 @@ pub struct CollisionOutcome {
 /// What the pass needs of the two neutrals, computed once per transfer.
 pub(super) struct CollisionGuard {
     params: CollisionParams,
-    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted.
+    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted, with their lengths.
     rest_pairs: Vec<(u32, u32)>,
+    rest_lengths: Vec<f64>,
     /// The same on the template's neutral.
-    template_rest_pairs: Vec<(u32, u32)>,
+    template_rest_pairs: Vec<(u32, u32, f64)>,
     /// Over the target neutral: refitted to each result, and the static obstacles' surface.
     bvh: TriangleBvh,
     /// Over the template neutral, refitted to each template shape that needs it.
@@ -111,9 +112,9 @@ pub(super) struct CollisionGuard {
 impl CollisionGuard {
     pub(super) fn new(source: &[Vec3], neutral: &[Vec3], triangles: &[[u32; 3]], params: CollisionParams) -> Self {
         let n = neutral.len();
-        let pairs = |points: &[Vec3], bvh: &TriangleBvh| crossings(points, triangles, bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
         let (bvh, template_bvh) = (TriangleBvh::build(neutral, triangles), TriangleBvh::build(source, triangles));
-        let (rest_pairs, template_rest_pairs) = (pairs(neutral, &bvh), pairs(source, &template_bvh));
+        let (rest_pairs, rest_lengths) = crossings(neutral, triangles, &bvh, None).into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
+        let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
         let adjacency = Adjacency::from_triangles(n, triangles);
         let edge_length = (0..n)
             .map(|v| {
@@ -139,7 +140,7 @@ impl CollisionGuard {
                 fill[v as usize] += 1;
             }
         }
-        Self { params, rest_pairs, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
+        Self { params, rest_pairs, rest_lengths, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
     }
 
     fn triangles_at(&self, v: u32) -> &[u32] {
@@ -169,6 +170,8 @@ pub(super) struct ShapeSystem<'a> {
     /// Per piece: floats (pinned and translated after the solve).
     pub pinned: &'a [bool],
     pub rhs: &'a [Vec3],
+    /// The intersection curve the template's shape adds to its neutral, when known.
+    pub template_added: Option<f64>,
 }
 
 /// Where a vertex that went through must go: its target position (working frame).
@@ -196,11 +199,24 @@ impl DeformationTransfer {
             }
         }
         let mut outcome = CollisionOutcome::default();
+        // Curve of the rest pairs whose triangles both stay put: crossing exactly as at rest.
+        let unmoved_rest: f64 = guard
+            .rest_pairs
+            .iter()
+            .zip(&guard.rest_lengths)
+            .filter(|&(&(a, b), _)| !moved[a as usize] && !moved[b as usize])
+            .map(|(_, l)| l)
+            .sum();
+        let rest_total: f64 = guard.rest_lengths.iter().sum();
+        let mut template_added = shape.template_added;
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
-        let mut crossing: Vec<(u32, u32)> = Vec::new();
+        let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         let mut last: Option<Vec<Vec3>> = None;
         let mut template: Option<TemplateContacts> = None;
+        let plain = out.clone();
+        // The least curve added so far, and the deltas that add it (empty: the plain solve).
+        let mut best: Option<(f64, Vec<Vec3>)> = None;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             crossing = match &last {
@@ -213,17 +229,34 @@ impl DeformationTransfer {
                         .collect();
                     let changed: Vec<bool> =
                         self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
-                    let mut pairs: Vec<(u32, u32)> =
-                        crossing.iter().copied().filter(|&(a, b)| !changed[a as usize] && !changed[b as usize]).collect();
+                    let mut pairs: Vec<(u32, u32, f64)> =
+                        crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
                     pairs.extend(self.crossing_pairs(guard, &positions, &changed, Some(&moved)));
-                    pairs.sort_unstable();
+                    pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
                     pairs
                 }
             };
-            let candidates: Vec<(u32, u32)> =
-                crossing.iter().copied().filter(|pair| guard.rest_pairs.binary_search(pair).is_err()).collect();
-            if !candidates.is_empty() && template.is_none() {
-                template = Some(self.template_contacts(guard, shape.delta, &moved));
+            // The curve this result adds to the target's neutral (SPEC 3's criterion).
+            let added = crossing.iter().map(|p| p.2).sum::<f64>() + unmoved_rest - rest_total;
+            if best.as_ref().is_none_or(|(b, _)| added < *b) {
+                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }));
+            }
+            let candidates: Vec<(u32, u32)> = crossing
+                .iter()
+                .map(|&(a, b, _)| (a, b))
+                .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
+                .collect();
+            // Nothing new crosses, or no more curve than the template's own shape adds.
+            if candidates.is_empty() || template_added.is_some_and(|t| added <= t) {
+                break;
+            }
+            if template.is_none() {
+                let contacts = self.template_contacts(guard, shape.delta, &moved);
+                template_added = Some(contacts.added);
+                template = Some(contacts);
+                if template_added.is_some_and(|t| added <= t) {
+                    break;
+                }
             }
             let new_pairs: Vec<(u32, u32)> = match &template {
                 Some(contacts) => candidates.into_iter().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
@@ -258,6 +291,12 @@ impl DeformationTransfer {
             outcome.region_vertices = members.len();
         }
         outcome.constrained_vertices = targets.len();
+        // The round that adds least curve wins; when that is the plain solve, the shape comes
+        // out exactly as without the pass.
+        match best {
+            Some((_, kept)) if !kept.is_empty() => *out = kept,
+            _ => *out = plain,
+        }
         Ok(outcome)
     }
 
@@ -304,12 +343,12 @@ impl DeformationTransfer {
 
     /// Pairs crossing at `positions` (working frame) with a triangle in `tested` (and, when
     /// `moved` is given, the other in it too or anywhere when the other is in `tested`), sorted.
-    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32)> {
+    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
         let bvh = guard.bvh.refitted(positions, &self.triangles);
-        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter().map(|(a, b, _)| (a, b));
+        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter();
         match moved {
-            // An unmoved triangle against an unmoved one crosses as at rest: not new anyway.
-            Some(moved) => pairs.filter(|&(a, b)| moved[a as usize] || moved[b as usize]).collect(),
+            // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
+            Some(moved) => pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect(),
             None => pairs.collect(),
         }
     }
@@ -319,14 +358,17 @@ impl DeformationTransfer {
     fn template_contacts(&self, guard: &CollisionGuard, delta: &[[f32; 3]], moved: &[bool]) -> TemplateContacts {
         let points: Vec<Vec3> = self.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
         let bvh = guard.template_bvh.refitted(&points, &self.triangles);
-        let swept = crossings(&points, &self.triangles, &bvh, Some(moved)).into_iter().map(|(a, b, _)| (a, b));
-        let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b)| !moved[a as usize] && !moved[b as usize]);
+        let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
+        let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
         let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
-        for (a, b) in swept.chain(unmoved) {
+        let mut total = 0.0;
+        for (a, b, l) in swept.into_iter().chain(unmoved) {
             partners.entry(a).or_default().push(b);
             partners.entry(b).or_default().push(a);
+            total += l;
         }
-        TemplateContacts { partners }
+        let added = total - guard.template_rest_pairs.iter().map(|p| p.2).sum::<f64>();
+        TemplateContacts { partners, added }
     }
 
     /// The free vertices that went through the other surface of a new pair, with the target
@@ -485,9 +527,11 @@ impl DeformationTransfer {
     }
 }
 
-/// The template shape's crossing pairs, per triangle its partners.
+/// The template shape's crossing pairs, per triangle its partners, and the curve the shape
+/// adds to the template's neutral.
 struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
+    added: f64,
 }
 
 impl TemplateContacts {

@@ -171,8 +171,27 @@ impl DeformationTransfer {
 
     /// Transfers every shape: `source_deltas` is K x N (shape-major), `names` has K entries.
     pub fn transfer(&self, source_deltas: &[[f32; 3]], names: &[String], progress: &dyn Progress) -> ShapesmithResult<TransferResult> {
+        self.transfer_judged(source_deltas, names, None, progress)
+    }
+
+    /// [`Self::transfer`], told how much intersection curve each template shape adds to the
+    /// template's neutral (`template_added`, K entries, from the template's own penetration):
+    /// the collision pass then leaves a shape alone without sweeping the template's shape when
+    /// the result adds no more than that.
+    pub fn transfer_judged(
+        &self,
+        source_deltas: &[[f32; 3]],
+        names: &[String],
+        template_added: Option<&[f64]>,
+        progress: &dyn Progress,
+    ) -> ShapesmithResult<TransferResult> {
         let start = Instant::now();
         self.validate_deltas(source_deltas, names)?;
+        if let Some(given) = template_added {
+            if given.len() != names.len() {
+                return Err(invalid!("the template's penetration has {} shapes but {} shape names were given", given.len(), names.len()));
+            }
+        }
         let n = self.n_vertices();
         let done = AtomicUsize::new(0);
         let shapes = (0..names.len())
@@ -182,7 +201,7 @@ impl DeformationTransfer {
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
                 } else {
-                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), true)?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), Some(template_added.map(|a| a[k])))?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -263,16 +282,17 @@ impl DeformationTransfer {
     /// Personalisation calls this without the collision pass: its shapes follow the training
     /// expressions, which are the character's truth (a scan's pressed lips stay pressed).
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_traced(delta, gradient, false)?.deltas)
+        Ok(self.solve_shape_traced(delta, gradient, None)?.deltas)
     }
 
-    /// [`Self::solve_shape`], followed by the collision pass when `collisions` and the pass is
-    /// configured, with the deltas before the pass and what it did.
+    /// [`Self::solve_shape`], followed by the collision pass when `collisions` is given and the
+    /// pass is configured (with the curve the template's shape adds to its neutral, when
+    /// known), with the deltas before the pass and what it did.
     pub(super) fn solve_shape_traced(
         &self,
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
-        collisions: bool,
+        collisions: Option<Option<f64>>,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();
@@ -307,11 +327,11 @@ impl DeformationTransfer {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
         let solve_seconds = start.elapsed().as_secs_f64();
-        let Some(guard) = self.collisions.as_ref().filter(|_| collisions) else {
+        let (Some(guard), Some(template_added)) = (self.collisions.as_ref(), collisions) else {
             return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
         };
         let plain = out.clone();
-        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs };
+        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, template_added };
         let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
             before_collisions: (outcome.solves > 0).then_some(plain),
