@@ -60,6 +60,9 @@ pub struct CollisionParams {
     /// Distance kept from the other surface, as a fraction of the mean length of the edges at
     /// the vertex on the target's neutral (SPEC: 25%).
     pub margin: f64,
+    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal:
+    /// on dense meshes a fraction of an edge is too thin to keep a lip off the teeth.
+    pub min_margin: f64,
     /// Re-solves per shape at most.
     pub max_iterations: usize,
     /// Weight of a vertex's target point, as a multiple of its diagonal entry in the normal
@@ -69,7 +72,7 @@ pub struct CollisionParams {
 
 impl Default for CollisionParams {
     fn default() -> Self {
-        Self { margin: 1.0, max_iterations: 4, stiffness: 100.0 }
+        Self { margin: 0.25, min_margin: 0.008, max_iterations: 4, stiffness: 100.0 }
     }
 }
 
@@ -79,7 +82,7 @@ pub struct CollisionOutcome {
     /// Crossing pairs new after the plain solve (not at the target's rest, not in the
     /// template's shape).
     pub new_pairs: usize,
-    /// New pairs left after the last re-solve.
+    /// New pairs left in the result kept (0 when it adds no more curve than the template).
     pub remaining_pairs: usize,
     /// Vertices held by a target point.
     pub constrained_vertices: usize,
@@ -103,6 +106,8 @@ pub(super) struct CollisionGuard {
     template_bvh: TriangleBvh,
     /// Per vertex, the mean length of its edges on the target neutral.
     edge_length: Vec<f64>,
+    /// The target neutral's bounding-box diagonal.
+    diagonal: f64,
     adjacency: Adjacency,
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
@@ -140,7 +145,8 @@ impl CollisionGuard {
                 fill[v as usize] += 1;
             }
         }
-        Self { params, rest_pairs, rest_lengths, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
+        let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
+        Self { params, diagonal, rest_pairs, rest_lengths, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
     }
 
     fn triangles_at(&self, v: u32) -> &[u32] {
@@ -157,7 +163,7 @@ impl CollisionGuard {
 
     /// The distance kept from the other surface at vertex `u`.
     fn margin(&self, u: usize) -> f64 {
-        self.params.margin * self.edge_length[u]
+        (self.params.margin * self.edge_length[u]).max(self.params.min_margin * self.diagonal)
     }
 }
 
@@ -215,8 +221,9 @@ impl DeformationTransfer {
         let mut last: Option<Vec<Vec3>> = None;
         let mut template: Option<TemplateContacts> = None;
         let plain = out.clone();
-        // The least curve added so far, and the deltas that add it (empty: the plain solve).
-        let mut best: Option<(f64, Vec<Vec3>)> = None;
+        // The least curve added so far, the deltas that add it (empty: the plain solve) and
+        // the new pairs left in them.
+        let mut best: Option<(f64, Vec<Vec3>, usize)> = None;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             crossing = match &last {
@@ -238,8 +245,9 @@ impl DeformationTransfer {
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
             let added = crossing.iter().map(|p| p.2).sum::<f64>() + unmoved_rest - rest_total;
-            if best.as_ref().is_none_or(|(b, _)| added < *b) {
-                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }));
+            let improved = best.as_ref().is_none_or(|(b, _, _)| added < *b);
+            if improved {
+                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }, 0));
             }
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
@@ -265,7 +273,9 @@ impl DeformationTransfer {
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
-            outcome.remaining_pairs = new_pairs.len();
+            if let Some((_, _, left)) = best.as_mut().filter(|_| improved) {
+                *left = new_pairs.len();
+            }
             if new_pairs.is_empty() || round == guard.params.max_iterations {
                 break;
             }
@@ -293,9 +303,9 @@ impl DeformationTransfer {
         outcome.constrained_vertices = targets.len();
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
-        match best {
-            Some((_, kept)) if !kept.is_empty() => *out = kept,
-            _ => *out = plain,
+        if let Some((_, kept, left)) = best {
+            outcome.remaining_pairs = left;
+            *out = if kept.is_empty() { plain } else { kept };
         }
         Ok(outcome)
     }

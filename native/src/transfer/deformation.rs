@@ -443,6 +443,12 @@ fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
         if !(c.margin.is_finite() && (0.0..=MAX_MARGIN).contains(&c.margin)) {
             return Err(invalid!("the collision margin must lie in [0, {MAX_MARGIN}] (a fraction of the local edge length), got {}", c.margin));
         }
+        if !(c.min_margin.is_finite() && (0.0..=MAX_MIN_MARGIN).contains(&c.min_margin)) {
+            return Err(invalid!(
+                "the collision pass's least margin must lie in [0, {MAX_MIN_MARGIN}] (a fraction of the bounding-box diagonal), got {}",
+                c.min_margin
+            ));
+        }
         if !(c.stiffness.is_finite() && c.stiffness > 0.0) || c.max_iterations > 20 {
             return Err(invalid!(
                 "collision stiffness must be positive and iterations at most 20, got {} and {}",
@@ -486,6 +492,9 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
 /// The largest collision margin accepted, in local edge lengths: beyond it the kept distance
 /// would exceed the lips' own thickness on most heads.
 pub const MAX_MARGIN: f64 = 2.0;
+
+/// The largest least margin accepted, in bounding-box diagonals (1% of a head is 3-4 mm).
+pub const MAX_MIN_MARGIN: f64 = 0.02;
 
 fn length32(d: &[f32; 3]) -> f64 {
     super::gradients::length(to_f64(d))
