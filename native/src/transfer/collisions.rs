@@ -90,6 +90,9 @@ pub struct CollisionOutcome {
     pub solves: usize,
     /// Unknowns of the last local re-solve.
     pub region_vertices: usize,
+    /// Whether the result is a re-solve; `false` when the plain solve was kept (bit for bit),
+    /// because it was no worse than the template or no re-solve added less curve.
+    pub applied: bool,
 }
 
 /// What the pass needs of the two neutrals, computed once per transfer.
@@ -305,6 +308,7 @@ impl DeformationTransfer {
         // out exactly as without the pass.
         if let Some((_, kept, left)) = best {
             outcome.remaining_pairs = left;
+            outcome.applied = !kept.is_empty();
             *out = if kept.is_empty() { plain } else { kept };
         }
         Ok(outcome)

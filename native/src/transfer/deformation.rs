@@ -334,7 +334,7 @@ impl DeformationTransfer {
         let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, template_added };
         let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
-            before_collisions: (outcome.solves > 0).then_some(plain),
+            before_collisions: outcome.applied.then_some(plain),
             deltas: out,
             collisions: Some(outcome),
             solve_seconds,
