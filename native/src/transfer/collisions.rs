@@ -1,47 +1,43 @@
 //! Collision-aware pass (SPEC section 3, after Ichim et al. 2016's collision handling): after
-//! a shape is solved, the triangle pairs that cross in the result but neither in the target's
-//! neutral nor in the template's own shape are found, the vertices that went through the
-//! other surface are held on the side they were on at rest (plus a margin), and the shape is
-//! solved again on the same factorisation; a few rounds at most.
+//! a shape is solved, a result that adds more intersection curve to the target's neutral than
+//! the template's own shape adds to the template's has the vertices that went through another
+//! surface held on the side they were on at rest (plus a margin) and is re-solved around
+//! them; a few rounds at most, and the round adding least curve is kept.
 //!
-//! **Which pairs.** Pairs of triangles sharing no vertex, at least one with a moving corner
-//! (two unmoved triangles cross exactly as at rest), crossing in the result, not crossing in
-//! the target's neutral, and not crossing in the template's shape (the artist's own contacts,
-//! e.g. lips pressed together in mouthClose, are kept: the criterion is "no more than the
-//! template", and self-transfer stays exact). A static piece is an obstacle where the target
-//! has it, a piece moving as a whole where the solve put it; only vertices the solve is free
-//! to move (moving, in a piece anchored by its static vertices) are constrained.
+//! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
+//! triangles cross exactly as at rest) and its added curve compared with the template
+//! shape's (from the report's template numbers when given, else one sweep of the template
+//! shape). A shape adding no more is returned untouched, bit for bit: the criterion is "no
+//! more than the template", so the artist's own contacts (lips pressed together in
+//! mouthClose) stay, and self-transfer stays exact.
 //!
-//! **Which vertices.** For a new pair (a, b), each free corner `u` of `a` against `b` (and of
-//! `b` against `a`) is offending when it lies on the other side of `b`'s plane than at rest:
-//! `sign(n_b^0 . (B0_u - p_b^0)) != sign(n_b . (x_u - p_b))`. Triangle pairs cross only along a
-//! curve, so the vertices beyond it (the part of the lip that went through) are reached by a
-//! flood from offending vertices over mesh neighbours, each tested against the triangle near
-//! the last obstacle (its corners' one-rings) that its projection falls in. The flood stops
-//! at vertices still on their rest side.
+//! **Which pairs.** Pairs sharing no vertex, crossing in the result, not at the target's rest,
+//! and not near a pair the template's shape crosses: some triangle sharing a corner with one
+//! crosses some triangle sharing a corner with the other in the template (the template's
+//! crossing triangles are listed once per shape, then each pair is a lookup). Only vertices
+//! the solve is free to move (moving, in a piece anchored by its static vertices) are held.
 //!
-//! **Constraint.** An offending vertex `u` gets a target point: its position pushed along the
-//! obstacle's current unit normal to the rest side plus a margin, `t_u = x_u + (s m_u - h) n`
-//! (`s` the rest side, `h` the signed distance now, `m_u` the margin: `margin` x the mean
-//! length of the edges at `u` on the target neutral); half of that when the obstacle can move
-//! too (its own corners get the other half from the pair seen the other way round). The
-//! energy gains `w_u |d_u - (t_u - B0_u)|^2` with `w_u = stiffness x A_uu`. A point target
-//! with a scalar weight adds the same number to the diagonal of the x, y and z systems, so the
-//! three coordinates stay separable and one factor still serves all three right-hand sides; a
-//! half-space term `w (n . d - c)^2` would couple them (a 3N system, or an iteration). The
-//! point target also holds the vertex's tangential position where the solve put it, which is
-//! what a rigger wants of a lip pushed back out of the other lip.
+//! **Which vertices, and where to.** Against a piece that is static in the shape (teeth, an
+//! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
+//! pair offends when it is on the other side of that piece's surface than at rest, the side
+//! read at its closest point on the piece (`TriangleBvh::closest_point_where`); its target is
+//! that closest point plus the margin along the surface normal. Against a surface that moves
+//! too (lip through lip), it offends when it is on the other side of the other triangle's
+//! plane than at rest; its target is pushed along that plane's normal to the rest side plus
+//! the margin, `t_u = x_u + (s m_u - h) n` (`s` the rest side, `h` the signed distance now),
+//! half of it when the other triangle can move (its corners get the other half from the pair
+//! seen the other way round). Triangle pairs cross only along a curve, so the vertices beyond
+//! it are reached by a flood over mesh neighbours with the same tests. The margin `m_u` is
+//! `margin` x the mean length of the edges at `u`, at least `min_margin` x the diagonal.
 //!
-//! **Reuse.** The constraints only add to the diagonal of `A_FF`: the shape's symbolic factor
-//! is kept and only the numeric factorisation is redone on the same pattern (no ordering, no
-//! symbolic analysis). The alternative, Woodbury on the existing factor, needs `A^-1 U`: one
-//! pair of triangular solves per constrained vertex, and a flood constrains tens to hundreds
-//! of vertices (see the module's Deviations for the counts on the bundled heads), which costs
-//! more than one numeric factorisation of the moving sub-mesh.
-//!
-//! Constraints accumulate over the rounds (a vertex flagged again gets its target moved from
-//! where it now is); a shape with no new pair, or whose new pairs have no offending vertex,
-//! is returned untouched, bit for bit.
+//! **Constraint and local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u =
+//! stiffness x A_uu`: a point target with a scalar weight adds the same number to the
+//! diagonal of the x, y and z systems, so the coordinates stay separable (a half-space term
+//! would couple them). Only the free vertices within reach of a held vertex (3 edge lengths,
+//! or 3x its push) are unknowns; the rest of the shape stays as solved (Dirichlet), so a
+//! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
+//! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
+//! the one adding least curve is kept: the pass never makes a shape worse by the criterion.
 
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
