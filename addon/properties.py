@@ -258,9 +258,8 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     collisions: bpy.props.BoolProperty(
         name="Collision Pass",
         description="After each shape is solved, push back lips, lids and skin that pass through each other or "
-        "through teeth, eyes and lashes, and solve the shape again (shapes that add no intersection are unchanged). "
-        "Off by default: it helps on the bundled heads but adds intersection on denser ones (docs/transfer.md)",
-        default=False,
+        "through teeth, eyes and lashes, and solve the shape again (shapes that add no more intersection than the template's own are unchanged)",
+        default=True,
     )
     collision_margin: bpy.props.FloatProperty(
         name="Margin",

@@ -132,11 +132,11 @@ def transfer_module(shapesmith):
     return importlib.import_module(shapesmith.__name__ + ".blender.transfer")
 
 
-def test_the_collision_pass_when_ticked_lists_what_is_still_worse(sample, shapesmith):
+def test_the_collision_pass_on_by_default_lists_what_is_still_worse(sample, shapesmith):
     s = settings()
-    assert not s.collisions and s.collision_margin == pytest.approx(0.25)
+    assert s.collisions and s.collision_margin == pytest.approx(0.25)
     target = bpy.data.objects["Target_OldMan"]
-    assert transfer_onto(target, collisions=True) == {"FINISHED"}
+    assert transfer_onto(target) == {"FINISHED"}
     result = target.shapesmith.transfer
     assert result.collisions and result.collision_margin == pytest.approx(0.25)
     assert result.collision_resolved > 0, "the pass should re-solve some shapes on a MakeHuman identity"
@@ -156,17 +156,21 @@ def test_shapes_the_pass_leaves_alone_are_bit_for_bit_as_without_it(sample, shap
     template, target = bpy.data.objects["Template"], bpy.data.objects["Target_YoungWoman"]
     off = transfer.transfer_object(template, target, collisions=False)
     on = transfer.transfer_object(template, target, collisions=True)
-    solves = [row["collisions"]["solves"] for row in on.report["penetration"]]
+    applied = [row["collisions"]["applied"] for row in on.report["penetration"]]
     assert "before_collisions_length" not in off.report["penetration"][0]
-    untouched = [k for k, n in enumerate(solves) if n == 0]
-    touched = [k for k, n in enumerate(solves) if n > 0]
+    untouched = [k for k, a in enumerate(applied) if not a]
+    touched = [k for k, a in enumerate(applied) if a]
     assert untouched and touched
     np.testing.assert_array_equal(on.deltas[untouched], off.deltas[untouched])
     for k in touched:
         row = on.report["penetration"][k]
         assert np.abs(on.deltas[k] - off.deltas[k]).max() > 0
-        # the numbers before the pass are those of the transfer without it
+        # the numbers before the pass are those of the transfer without it, and the pass
+        # keeps a re-solve only when it adds less curve
         assert row["before_collisions_length"] == pytest.approx(off.report["penetration"][k]["length"], abs=1e-9)
+        assert row["length"] < row["before_collisions_length"] + 1e-9
+    # no shape comes out adding more curve than without the pass
+    assert len(transfer.worse_than_template(on.report)) < len(transfer.worse_than_template(off.report))
 
 
 def test_a_bad_collision_margin_is_refused_and_the_target_left_alone(sample, shapesmith):
@@ -459,16 +463,16 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
     assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "template_penetration", "total"} <= set(
         report["seconds"]
     )
-    assert report["params"]["transfer"]["collisions"] is None  # the pass is opt-in
+    assert report["params"]["transfer"]["collisions"]["margin"] == 0.25  # the pass is on by default
     template_lengths = None
     for target in report["targets"]:
         assert len(target["shapes"]) == 52 and target["virtual_edges"] > 0
         assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "penetration"} <= set(target["seconds"])
         row = target["penetrations"][0]
         assert {"name", "length", "pairs", "template_length", "template_pairs"} <= set(row)
-        # the plain comparison and the collision pass are opt-in
+        # the plain comparison is opt-in; the collision pass reports each shape before it
         assert "plain_length" not in row and target["plain_worse_than_template"] is None
-        assert "before_collisions_length" not in row and target["worse_before_collisions"] is None
+        assert "before_collisions_length" in row and len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
         assert set(target["worse_than_template"]) <= set(target["penetrations"][k]["name"] for k in range(52))
         # the template's own numbers are measured once and are the same for every target
         lengths = [r["template_length"] for r in target["penetrations"]]
@@ -525,7 +529,7 @@ def test_batch_collision_flags(sample_path, tmp_path):
     assert target["worse_before_collisions"] is None and isinstance(target["plain_worse_than_template"], list)
     assert "before_collisions_length" not in target["penetrations"][0] and "plain_length" in target["penetrations"][0]
     run_batch(
-        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy", "--collisions",
+        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy",
         "--collision-margin", "0.5", "--json", str(out), check=True,
     )
     report = json.loads(out.read_text())

@@ -325,8 +325,8 @@ def add_transfer_args(parser):
     parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
     parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
     parser.add_argument(
-        "--collisions", action=argparse.BooleanOptionalAction, default=False,
-        help="run the collision pass (lips, lids, skin through teeth and eyes; off by default, see docs/transfer.md)",
+        "--collisions", action=argparse.BooleanOptionalAction, default=True,
+        help="run the collision pass (lips, lids, skin through teeth and eyes; on by default, --no-collisions turns it off)",
     )
     parser.add_argument(
         "--collision-margin", type=float, default=0.25,

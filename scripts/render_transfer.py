@@ -2,10 +2,11 @@
 
     python scripts/render_transfer.py [-- --target Target_OldMan --shape mouthClose --output docs/transfer_mouthClose.png]
 
-The template's keys are transferred onto two copies of the target, one without and one with
-virtual edges; both are posed at the shape and rendered (Workbench, orthographic close-up of
-the region the shape moves) side by side: left plain, right with virtual edges. The
-intersection-curve lengths are printed for the caption.
+The template's keys are transferred onto three copies of the target: plain deformation
+transfer, with virtual edges, and with virtual edges and the collision pass (the default);
+each is posed at the shape and rendered (Workbench, orthographic close-up of the region the
+shape moves) side by side in that order. The intersection-curve lengths are printed for the
+caption.
 """
 
 import argparse
@@ -25,12 +26,12 @@ from bench_transfer import batch_cache  # noqa: E402
 SIZE = (300, 250)
 
 
-def transferred_copy(modules, template, target, name, virtual_edges):
+def transferred_copy(modules, template, target, name, virtual_edges, collisions):
     copy = target.copy()
     copy.data = target.data.copy()
     copy.name = name
     bpy.context.scene.collection.objects.link(copy)
-    transfer = modules["transfer"].transfer_object(template, copy, virtual_edges=virtual_edges)
+    transfer = modules["transfer"].transfer_object(template, copy, virtual_edges=virtual_edges, collisions=collisions)
     modules["shape_keys"].write_transferred_keys(transfer)
     return copy, transfer
 
@@ -65,7 +66,7 @@ def side_by_side(paths, output):
     width, height = images[0].size
     pixels = [np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4) for image in images]
     gap = np.ones((height, 6, 4), dtype=np.float32)
-    combined = np.concatenate([pixels[0], gap, pixels[1]], axis=1)
+    combined = np.concatenate([part for p in pixels for part in (p, gap)][:-1], axis=1)
     result = bpy.data.images.new("side_by_side", combined.shape[1], height, alpha=False)
     result.pixels = combined.ravel()
     # save through the scene's output settings: 8-bit RGB, full compression (a small PNG)
@@ -98,8 +99,8 @@ def main():
 
     os.makedirs(os.path.dirname(output), exist_ok=True)
     paths = []
-    for label, virtual_edges in (("plain", False), ("virtual_edges", True)):
-        copy, transfer = transferred_copy(modules, template, target, f"{args.target}_{label}", virtual_edges)
+    for label, virtual_edges, collisions in (("plain", False, False), ("virtual_edges", True, False), ("collision_pass", True, True)):
+        copy, transfer = transferred_copy(modules, template, target, f"{args.target}_{label}", virtual_edges, collisions)
         row = next(r for r in transfer.report["penetration"] if r["name"] == args.shape)
         print(
             f"{args.shape} on {args.target}, {label}: intersection curve {row['length']:.4f} ({row['pairs']} pairs); "

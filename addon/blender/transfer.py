@@ -173,7 +173,7 @@ def transfer_object(
     beta_reg=1.0,
     refine_weights=False,
     compare_plain=False,
-    collisions=False,
+    collisions=True,
     collision_margin=0.25,
     template_penetration=None,
     progress=None,
@@ -274,7 +274,7 @@ def store_transfer(transfer, written, skipped):
     rows = report["penetration"]
     traced = collision_traced(report)
     result.worse_before_collisions = len(worse_than_template(report, key="before_collisions_length")) if traced else 0
-    result.collision_resolved = sum(1 for row in rows if (row.get("collisions") or {}).get("solves", 0) > 0)
+    result.collision_resolved = sum(1 for row in rows if (row.get("collisions") or {}).get("applied", False))
     worse = set(worse_than_template(report))
     result.shapes.clear()
     for row in rows:
@@ -332,7 +332,7 @@ def summary_lines(transfer, written, skipped):
     worse = worse_than_template(report)
     collision_line = []
     if collision_traced(report):
-        resolved = sum(1 for row in report["penetration"] if (row.get("collisions") or {}).get("solves", 0) > 0)
+        resolved = sum(1 for row in report["penetration"] if (row.get("collisions") or {}).get("applied", False))
         collision_line = [
             f"collision pass: {resolved} shapes re-solved; shapes adding more intersection than on the template "
             f"{len(worse_than_template(report, key='before_collisions_length'))} before the pass, {len(worse)} after"

@@ -97,6 +97,38 @@ impl SymmetricMatrix {
     /// `position[v] != u32::MAX`, renumbered to `position[v]` (increasing in `v`), eliminated in
     /// `order` restricted to them. The other unknowns are Dirichlet at zero.
     pub fn factor_restricted(&self, position: &[u32], n_kept: usize, order: &[usize]) -> ShapesmithResult<Cholesky> {
+        self.factor_restricted_plus_diagonal(position, n_kept, order, &[])
+    }
+
+    /// [`Self::factor_restricted`] of the submatrix plus `diag(extra)`, `extra` holding
+    /// `(unknown, value)` pairs of kept unknowns (soft point constraints on them).
+    pub fn factor_restricted_plus_diagonal(
+        &self,
+        position: &[u32],
+        n_kept: usize,
+        order: &[usize],
+        extra: &[(usize, f64)],
+    ) -> ShapesmithResult<Cholesky> {
+        let (col_ptr, row_idx, mut values) = self.restricted(position, n_kept);
+        for &(v, w) in extra {
+            // Rows are sorted: a stored diagonal is the column's first entry.
+            let c = position[v] as usize;
+            if col_ptr[c] == col_ptr[c + 1] || row_idx[col_ptr[c]] != c {
+                return Err(ShapesmithError::Solver(format!("unknown {v} has no diagonal entry to add a constraint to")));
+            }
+            values[col_ptr[c]] += w;
+        }
+        let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
+        let mut inverse = vec![0usize; n_kept];
+        for (slot, &p) in forward.iter().enumerate() {
+            inverse[p] = slot;
+        }
+        Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))
+    }
+
+    /// The principal submatrix on the unknowns with `position[v] != u32::MAX`, renumbered; the
+    /// lower triangle stays lower and rows stay sorted because `position` increases.
+    fn restricted(&self, position: &[u32], n_kept: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
         let mut col_ptr = Vec::with_capacity(n_kept + 1);
         let mut row_idx = Vec::new();
         let mut values = Vec::new();
@@ -114,12 +146,17 @@ impl SymmetricMatrix {
             }
             col_ptr.push(row_idx.len());
         }
-        let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
-        let mut inverse = vec![0usize; n_kept];
-        for (slot, &p) in forward.iter().enumerate() {
-            inverse[p] = slot;
+        (col_ptr, row_idx, values)
+    }
+
+    /// The diagonal entry `A_vv` (zero when it is not stored).
+    pub fn diagonal(&self, v: usize) -> f64 {
+        let k = self.col_ptr[v];
+        if k < self.col_ptr[v + 1] && self.row_idx[k] == v {
+            self.values[k]
+        } else {
+            0.0
         }
-        Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))
     }
 }
 

@@ -17,7 +17,7 @@ use crate::transfer::{
 ///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
 ///                 examples=None, example_weights=None, beta_reg=1.0, refine_weights=False,
 ///                 compare_plain=False, measure_penetration=True, align_rotation=True,
-///                 collisions=False, collision_margin=0.25, template_penetration=None,
+///                 collisions=True, collision_margin=0.25, template_penetration=None,
 ///                 progress=None)
 ///     -> (deltas float32 (K, N, 3), report dict)
 ///
@@ -35,7 +35,7 @@ use crate::transfer::{
 #[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
                     tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=1.0,
                     refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true,
-                    collisions=false, collision_margin=0.25, template_penetration=None, progress=None))]
+                    collisions=true, collision_margin=0.25, template_penetration=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn transfer_shapes<'py>(
     py: Python<'py>,

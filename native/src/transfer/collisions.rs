@@ -1,56 +1,53 @@
 //! Collision-aware pass (SPEC section 3, after Ichim et al. 2016's collision handling): after
-//! a shape is solved, the triangle pairs that cross in the result but neither in the target's
-//! neutral nor in the template's own shape are found, the vertices that went through the
-//! other surface are held on the side they were on at rest (plus a margin), and the shape is
-//! solved again on the same factorisation; a few rounds at most.
+//! a shape is solved, a result that adds more intersection curve to the target's neutral than
+//! the template's own shape adds to the template's has the vertices that went through another
+//! surface held on the side they were on at rest (plus a margin) and is re-solved around
+//! them; a few rounds at most, and the round adding least curve is kept.
 //!
-//! **Which pairs.** Pairs of triangles sharing no vertex, at least one with a moving corner
-//! (two unmoved triangles cross exactly as at rest), crossing in the result, not crossing in
-//! the target's neutral, and not crossing in the template's shape (the artist's own contacts,
-//! e.g. lips pressed together in mouthClose, are kept: the criterion is "no more than the
-//! template", and self-transfer stays exact). A static piece is an obstacle where the target
-//! has it, a piece moving as a whole where the solve put it; only vertices the solve is free
-//! to move (moving, in a piece anchored by its static vertices) are constrained.
+//! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
+//! triangles cross exactly as at rest) and its added curve compared with the template
+//! shape's (from the report's template numbers when given, else one sweep of the template
+//! shape). A shape adding no more is returned untouched, bit for bit: the criterion is "no
+//! more than the template", so the artist's own contacts (lips pressed together in
+//! mouthClose) stay, and self-transfer stays exact.
 //!
-//! **Which vertices.** For a new pair (a, b), each free corner `u` of `a` against `b` (and of
-//! `b` against `a`) is offending when it lies on the other side of `b`'s plane than at rest:
-//! `sign(n_b^0 . (B0_u - p_b^0)) != sign(n_b . (x_u - p_b))`. Triangle pairs cross only along a
-//! curve, so the vertices beyond it (the part of the lip that went through) are reached by a
-//! flood from offending vertices over mesh neighbours, each tested against the triangle near
-//! the last obstacle (its corners' one-rings) that its projection falls in. The flood stops
-//! at vertices still on their rest side.
+//! **Which pairs.** Pairs sharing no vertex, crossing in the result, not at the target's rest,
+//! and not near a pair the template's shape crosses: some triangle sharing a corner with one
+//! crosses some triangle sharing a corner with the other in the template (the template's
+//! crossing triangles are listed once per shape, then each pair is a lookup). Only vertices
+//! the solve is free to move (moving, in a piece anchored by its static vertices) are held.
 //!
-//! **Constraint.** An offending vertex `u` gets a target point: its position pushed along the
-//! obstacle's current unit normal to the rest side plus a margin, `t_u = x_u + (s m_u - h) n`
-//! (`s` the rest side, `h` the signed distance now, `m_u` the margin: `margin` x the mean
-//! length of the edges at `u` on the target neutral); half of that when the obstacle can move
-//! too (its own corners get the other half from the pair seen the other way round). The
-//! energy gains `w_u |d_u - (t_u - B0_u)|^2` with `w_u = stiffness x A_uu`. A point target
-//! with a scalar weight adds the same number to the diagonal of the x, y and z systems, so the
-//! three coordinates stay separable and one factor still serves all three right-hand sides; a
-//! half-space term `w (n . d - c)^2` would couple them (a 3N system, or an iteration). The
-//! point target also holds the vertex's tangential position where the solve put it, which is
-//! what a rigger wants of a lip pushed back out of the other lip.
+//! **Which vertices, and where to.** Against a piece that is static in the shape (teeth, an
+//! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
+//! pair offends when it is on the other side of that piece's surface than at rest, the side
+//! read at its closest point on the piece (`TriangleBvh::closest_point_where`); its target is
+//! that closest point plus the margin along the surface normal. Against a surface that moves
+//! too (lip through lip), it offends when it is on the other side of the other triangle's
+//! plane than at rest; its target is pushed along that plane's normal to the rest side plus
+//! the margin, `t_u = x_u + (s m_u - h) n` (`s` the rest side, `h` the signed distance now),
+//! half of it when the other triangle can move (its corners get the other half from the pair
+//! seen the other way round). Triangle pairs cross only along a curve, so the vertices beyond
+//! it are reached by a flood over mesh neighbours with the same tests. The margin `m_u` is
+//! `margin` x the mean length of the edges at `u`, at least `min_margin` x the diagonal.
 //!
-//! **Reuse.** The constraints only add to the diagonal of `A_FF`: the shape's symbolic factor
-//! is kept and only the numeric factorisation is redone on the same pattern (no ordering, no
-//! symbolic analysis). The alternative, Woodbury on the existing factor, needs `A^-1 U`: one
-//! pair of triangular solves per constrained vertex, and a flood constrains tens to hundreds
-//! of vertices (see the module's Deviations for the counts on the bundled heads), which costs
-//! more than one numeric factorisation of the moving sub-mesh.
-//!
-//! Constraints accumulate over the rounds (a vertex flagged again gets its target moved from
-//! where it now is); a shape with no new pair, or whose new pairs have no offending vertex,
-//! is returned untouched, bit for bit.
+//! **Constraint and local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u =
+//! stiffness x A_uu`: a point target with a scalar weight adds the same number to the
+//! diagonal of the x, y and z systems, so the coordinates stay separable (a half-space term
+//! would couple them). Only the free vertices within reach of a held vertex (3 edge lengths,
+//! or 3x its push) are unknowns; the rest of the shape stays as solved (Dirichlet), so a
+//! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
+//! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
+//! the one adding least curve is kept: the pass never makes a shape worse by the criterion.
 
-use std::collections::BTreeMap;
+use std::cmp::Ordering;
+use std::collections::{BTreeMap, BinaryHeap, HashMap};
 
 use super::deformation::DeformationTransfer;
 use super::gradients::{add, cross, dot, length, scale, sub, to_f64, Vec3};
-use crate::geometry::penetration::{crossings, intersection_length};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::penetration::crossings;
 use crate::geometry::topology::Adjacency;
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
@@ -59,6 +56,9 @@ pub struct CollisionParams {
     /// Distance kept from the other surface, as a fraction of the mean length of the edges at
     /// the vertex on the target's neutral (SPEC: 25%).
     pub margin: f64,
+    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal:
+    /// on dense meshes a fraction of an edge is too thin to keep a lip off the teeth.
+    pub min_margin: f64,
     /// Re-solves per shape at most.
     pub max_iterations: usize,
     /// Weight of a vertex's target point, as a multiple of its diagonal entry in the normal
@@ -68,7 +68,7 @@ pub struct CollisionParams {
 
 impl Default for CollisionParams {
     fn default() -> Self {
-        Self { margin: 0.25, max_iterations: 4, stiffness: 100.0 }
+        Self { margin: 0.25, min_margin: 0.008, max_iterations: 4, stiffness: 100.0 }
     }
 }
 
@@ -78,23 +78,35 @@ pub struct CollisionOutcome {
     /// Crossing pairs new after the plain solve (not at the target's rest, not in the
     /// template's shape).
     pub new_pairs: usize,
-    /// New pairs left after the last re-solve.
+    /// New pairs left in the result kept (0 when it adds no more curve than the template).
     pub remaining_pairs: usize,
     /// Vertices held by a target point.
     pub constrained_vertices: usize,
     /// Re-solves done.
     pub solves: usize,
+    /// Unknowns of the last local re-solve.
+    pub region_vertices: usize,
+    /// Whether the result is a re-solve; `false` when the plain solve was kept (bit for bit),
+    /// because it was no worse than the template or no re-solve added less curve.
+    pub applied: bool,
 }
 
-/// What the pass needs of the target neutral, computed once per transfer.
+/// What the pass needs of the two neutrals, computed once per transfer.
 pub(super) struct CollisionGuard {
     params: CollisionParams,
-    /// Pairs `(a, b)`, `a < b`, crossing at rest, sorted.
+    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted, with their lengths.
     rest_pairs: Vec<(u32, u32)>,
-    /// Over the target neutral; refitted to each result.
+    rest_lengths: Vec<f64>,
+    /// The same on the template's neutral.
+    template_rest_pairs: Vec<(u32, u32, f64)>,
+    /// Over the target neutral: refitted to each result, and the static obstacles' surface.
     bvh: TriangleBvh,
+    /// Over the template neutral, refitted to each template shape that needs it.
+    template_bvh: TriangleBvh,
     /// Per vertex, the mean length of its edges on the target neutral.
     edge_length: Vec<f64>,
+    /// The target neutral's bounding-box diagonal.
+    diagonal: f64,
     adjacency: Adjacency,
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
@@ -102,10 +114,11 @@ pub(super) struct CollisionGuard {
 }
 
 impl CollisionGuard {
-    pub(super) fn new(neutral: &[Vec3], triangles: &[[u32; 3]], params: CollisionParams) -> Self {
+    pub(super) fn new(source: &[Vec3], neutral: &[Vec3], triangles: &[[u32; 3]], params: CollisionParams) -> Self {
         let n = neutral.len();
-        let bvh = TriangleBvh::build(neutral, triangles);
-        let rest_pairs = crossings(neutral, triangles, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        let (bvh, template_bvh) = (TriangleBvh::build(neutral, triangles), TriangleBvh::build(source, triangles));
+        let (rest_pairs, rest_lengths) = crossings(neutral, triangles, &bvh, None).into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
+        let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
         let adjacency = Adjacency::from_triangles(n, triangles);
         let edge_length = (0..n)
             .map(|v| {
@@ -131,19 +144,25 @@ impl CollisionGuard {
                 fill[v as usize] += 1;
             }
         }
-        Self { params, rest_pairs, bvh, edge_length, adjacency, ring_offsets, ring_triangles }
+        let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
+        Self { params, diagonal, rest_pairs, rest_lengths, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
     }
 
     fn triangles_at(&self, v: u32) -> &[u32] {
         &self.ring_triangles[self.ring_offsets[v as usize]..self.ring_offsets[v as usize + 1]]
     }
 
-    /// Triangle `t` and the triangles sharing a corner with it.
+    /// Triangle `t` and the triangles sharing a corner with it, sorted.
     fn around(&self, triangle: &[u32; 3]) -> Vec<u32> {
         let mut near: Vec<u32> = triangle.iter().flat_map(|&v| self.triangles_at(v).iter().copied()).collect();
         near.sort_unstable();
         near.dedup();
         near
+    }
+
+    /// The distance kept from the other surface at vertex `u`.
+    fn margin(&self, u: usize) -> f64 {
+        (self.params.margin * self.edge_length[u]).max(self.params.min_margin * self.diagonal)
     }
 }
 
@@ -156,26 +175,54 @@ pub(super) struct ShapeSystem<'a> {
     /// Per piece: floats (pinned and translated after the solve).
     pub pinned: &'a [bool],
     pub rhs: &'a [Vec3],
+    /// The intersection curve the template's shape adds to its neutral, when known.
+    pub template_added: Option<f64>,
 }
 
+/// Where a vertex that went through must go: its target position (working frame).
+type Targets = BTreeMap<usize, Vec3>;
+
 impl DeformationTransfer {
-    /// Runs the pass on the solved deltas `out` (working frame) of one shape, re-solving with
-    /// `factor` (the shape's factorisation, refactorised in place when constraints are added).
+    /// Runs the pass on the solved deltas `out` (working frame) of one shape; `factor` tells
+    /// which vertices the shape's solve was free to move.
     pub(super) fn collision_pass(
         &self,
         guard: &CollisionGuard,
         shape: &ShapeSystem<'_>,
-        factor: &mut RestrictedFactor,
+        factor: &RestrictedFactor,
         out: &mut Vec<Vec3>,
     ) -> ShapesmithResult<CollisionOutcome> {
         let moved: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
         let free: Vec<bool> =
             (0..out.len()).map(|v| factor.is_kept(v) && !shape.pinned[self.piece[v] as usize]).collect();
+        // A piece none of whose vertices moves is a static obstacle: exactly where the
+        // target's neutral has it.
+        let mut static_piece = vec![true; shape.pinned.len()];
+        for (v, &m) in shape.moving.iter().enumerate() {
+            if m {
+                static_piece[self.piece[v] as usize] = false;
+            }
+        }
         let mut outcome = CollisionOutcome::default();
-        let mut targets: BTreeMap<usize, Vec3> = BTreeMap::new();
-        let mut crossing: Vec<(u32, u32)> = Vec::new();
+        // Curve of the rest pairs whose triangles both stay put: crossing exactly as at rest.
+        let unmoved_rest: f64 = guard
+            .rest_pairs
+            .iter()
+            .zip(&guard.rest_lengths)
+            .filter(|&(&(a, b), _)| !moved[a as usize] && !moved[b as usize])
+            .map(|(_, l)| l)
+            .sum();
+        let rest_total: f64 = guard.rest_lengths.iter().sum();
+        let mut template_added = shape.template_added;
+        let mut targets = Targets::new();
+        let mut region = vec![false; out.len()];
+        let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         let mut last: Option<Vec<Vec3>> = None;
-        let mut artists_own: BTreeMap<(u32, u32), bool> = BTreeMap::new();
+        let mut template: Option<TemplateContacts> = None;
+        let plain = out.clone();
+        // The least curve added so far, the deltas that add it (empty: the plain solve) and
+        // the new pairs left in them.
+        let mut best: Option<(f64, Vec<Vec3>, usize)> = None;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             crossing = match &last {
@@ -188,92 +235,166 @@ impl DeformationTransfer {
                         .collect();
                     let changed: Vec<bool> =
                         self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
-                    let mut pairs: Vec<(u32, u32)> =
-                        crossing.iter().copied().filter(|&(a, b)| !changed[a as usize] && !changed[b as usize]).collect();
+                    let mut pairs: Vec<(u32, u32, f64)> =
+                        crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
                     pairs.extend(self.crossing_pairs(guard, &positions, &changed, Some(&moved)));
-                    pairs.sort_unstable();
+                    pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
                     pairs
                 }
             };
-            let new_pairs = self.new_crossings(guard, &crossing, shape.delta, &mut artists_own);
+            // The curve this result adds to the target's neutral (SPEC 3's criterion).
+            let added = crossing.iter().map(|p| p.2).sum::<f64>() + unmoved_rest - rest_total;
+            let improved = best.as_ref().is_none_or(|(b, _, _)| added < *b);
+            if improved {
+                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }, 0));
+            }
+            let candidates: Vec<(u32, u32)> = crossing
+                .iter()
+                .map(|&(a, b, _)| (a, b))
+                .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
+                .collect();
+            // Nothing new crosses, or no more curve than the template's own shape adds.
+            if candidates.is_empty() || template_added.is_some_and(|t| added <= t) {
+                break;
+            }
+            if template.is_none() {
+                let contacts = self.template_contacts(guard, shape.delta, &moved);
+                template_added = Some(contacts.added);
+                template = Some(contacts);
+                if template_added.is_some_and(|t| added <= t) {
+                    break;
+                }
+            }
+            let new_pairs: Vec<(u32, u32)> = match &template {
+                Some(contacts) => candidates.into_iter().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
+                None => candidates,
+            };
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
-            outcome.remaining_pairs = new_pairs.len();
+            if let Some((_, _, left)) = best.as_mut().filter(|_| improved) {
+                *left = new_pairs.len();
+            }
             if new_pairs.is_empty() || round == guard.params.max_iterations {
                 break;
             }
-            let pushes = self.offending_vertices(guard, &positions, &new_pairs, &free);
-            if pushes.is_empty() {
+            let found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece);
+            if found.is_empty() {
                 break;
             }
             last = Some(positions);
-            for (u, push) in pushes {
-                targets.insert(u, add(out[u], push));
+            let mut seeds = Vec::with_capacity(found.len());
+            for (u, target) in found {
+                let reach = length(sub(target, add(self.target_neutral[u], out[u])));
+                seeds.push((u, reach));
+                targets.insert(u, target);
             }
-            let weights: Vec<(usize, f64)> =
-                targets.keys().map(|&u| (u, guard.params.stiffness * factor.diagonal(u))).collect();
-            factor.add_to_diagonal(&weights)?;
-            let mut rhs = shape.rhs.to_vec();
-            for (&(u, w), target) in weights.iter().zip(targets.values()) {
-                rhs[u] = add(rhs[u], scale(*target, w));
-            }
-            *out = factor.solve(&rhs);
-            if shape.pinned.iter().any(|&p| p) {
-                self.place_floating_pieces(shape.delta, shape.pinned, out);
-            }
+            self.grow_region(guard, &seeds, &free, &mut region);
+            let members: Vec<usize> = (0..out.len()).filter(|&v| region[v]).collect();
+            let constraints: Vec<(usize, f64, Vec3)> = targets
+                .iter()
+                .map(|(&u, &target)| (u, guard.params.stiffness * self.matrix.diagonal(u), sub(target, self.target_neutral[u])))
+                .collect();
+            *out = self.matrix.solve_local(&members, &constraints, shape.rhs, out)?;
             outcome.solves += 1;
+            outcome.region_vertices = members.len();
         }
         outcome.constrained_vertices = targets.len();
+        // The round that adds least curve wins; when that is the plain solve, the shape comes
+        // out exactly as without the pass.
+        if let Some((_, kept, left)) = best {
+            outcome.remaining_pairs = left;
+            outcome.applied = !kept.is_empty();
+            *out = if kept.is_empty() { plain } else { kept };
+        }
         Ok(outcome)
+    }
+
+    /// Adds to `region` the free vertices within reach of the seeds `(u, reach)` along the
+    /// target neutral's edges: `REGION_RINGS` of `u`'s edge lengths, or `REGION_SPREAD` times
+    /// the distance `u` is pushed, whichever is more. Outside the region the shape stays as
+    /// solved; inside, the energy spreads the push smoothly instead of folding the vertices
+    /// next to a held one.
+    fn grow_region(&self, guard: &CollisionGuard, seeds: &[(usize, f64)], free: &[bool], region: &mut [bool]) {
+        #[derive(PartialEq)]
+        struct Budget(f64, usize);
+        impl Eq for Budget {}
+        impl PartialOrd for Budget {
+            fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+                Some(self.cmp(other))
+            }
+        }
+        impl Ord for Budget {
+            fn cmp(&self, other: &Self) -> Ordering {
+                self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+            }
+        }
+        let mut best: HashMap<usize, f64> = HashMap::new();
+        let mut heap = BinaryHeap::new();
+        for &(u, reach) in seeds {
+            let budget = (REGION_RINGS * guard.edge_length[u]).max(REGION_SPREAD * reach);
+            heap.push(Budget(budget, u));
+        }
+        while let Some(Budget(budget, v)) = heap.pop() {
+            if best.get(&v).is_some_and(|&b| b >= budget) {
+                continue;
+            }
+            best.insert(v, budget);
+            region[v] = true;
+            for &w in guard.adjacency.neighbours(v) {
+                let w = w as usize;
+                let left = budget - length(sub(self.target_neutral[w], self.target_neutral[v]));
+                if free[w] && left >= 0.0 && best.get(&w).is_none_or(|&b| b < left) {
+                    heap.push(Budget(left, w));
+                }
+            }
+        }
     }
 
     /// Pairs crossing at `positions` (working frame) with a triangle in `tested` (and, when
     /// `moved` is given, the other in it too or anywhere when the other is in `tested`), sorted.
-    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32)> {
+    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
         let bvh = guard.bvh.refitted(positions, &self.triangles);
-        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter().map(|(a, b, _)| (a, b));
+        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter();
         match moved {
-            // An unmoved triangle against an unmoved one crosses as at rest: not new anyway.
-            Some(moved) => pairs.filter(|&(a, b)| moved[a as usize] || moved[b as usize]).collect(),
+            // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
+            Some(moved) => pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect(),
             None => pairs.collect(),
         }
     }
 
-    /// The pairs of `crossing` that cross neither at the target's rest nor, near them, in the
-    /// template's shape: a pair is the artist's own when some triangle sharing a corner with
-    /// one of them crosses some triangle sharing a corner with the other in the template (the
-    /// target's contact may sit a triangle away from the template's). Lips the template
-    /// presses into each other stay as the template has them.
-    /// `artists_own` remembers the answer per pair across the rounds of one shape.
-    fn new_crossings(
-        &self,
-        guard: &CollisionGuard,
-        crossing: &[(u32, u32)],
-        delta: &[[f32; 3]],
-        artists_own: &mut BTreeMap<(u32, u32), bool>,
-    ) -> Vec<(u32, u32)> {
-        let template = |t: u32| self.triangles[t as usize].map(|v| add(self.source_neutral[v as usize], to_f64(&delta[v as usize])));
-        let shares_corner = |a: u32, b: u32| self.triangles[a as usize].iter().any(|v| self.triangles[b as usize].contains(v));
-        crossing
-            .iter()
-            .copied()
-            .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
-            .filter(|&(a, b)| {
-                !*artists_own.entry((a, b)).or_insert_with(|| {
-                    let near_b = guard.around(&self.triangles[b as usize]);
-                    guard.around(&self.triangles[a as usize]).into_iter().any(|x| {
-                        near_b.iter().any(|&y| !shares_corner(x, y) && intersection_length(template(x), template(y)).is_some())
-                    })
-                })
-            })
-            .collect()
+    /// The template shape's own crossing pairs (one sweep of its moved triangles, plus its
+    /// neutral's unmoved ones), computed once per shape that has candidate pairs.
+    fn template_contacts(&self, guard: &CollisionGuard, delta: &[[f32; 3]], moved: &[bool]) -> TemplateContacts {
+        let points: Vec<Vec3> = self.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let bvh = guard.template_bvh.refitted(&points, &self.triangles);
+        let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
+        let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
+        let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
+        let mut total = 0.0;
+        for (a, b, l) in swept.into_iter().chain(unmoved) {
+            partners.entry(a).or_default().push(b);
+            partners.entry(b).or_default().push(a);
+            total += l;
+        }
+        let added = total - guard.template_rest_pairs.iter().map(|p| p.2).sum::<f64>();
+        TemplateContacts { partners, added }
     }
 
-    /// The free vertices that went through the other surface of a new pair, with the push
-    /// that puts each back on its rest side plus the margin (the largest when several
-    /// obstacles ask), flooding from the pairs' corners to the vertices beyond the crossing.
-    fn offending_vertices(&self, guard: &CollisionGuard, positions: &[Vec3], pairs: &[(u32, u32)], free: &[bool]) -> BTreeMap<usize, Vec3> {
+    /// The free vertices that went through the other surface of a new pair, with the target
+    /// position that puts each back on its rest side plus the margin, flooding from the
+    /// pairs' corners to the vertices beyond the crossing. Against a static piece (teeth,
+    /// an eyeball, lashes where the target has them) the target is the closest point of
+    /// that piece's surface plus the margin along its normal; against a surface that moves
+    /// too (lip through lip), a push along the obstacle triangle's normal.
+    fn offending_vertices(
+        &self,
+        guard: &CollisionGuard,
+        positions: &[Vec3],
+        pairs: &[(u32, u32)],
+        free: &[bool],
+        static_piece: &[bool],
+    ) -> Targets {
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
         let keep = |u: usize, push: Vec3, obstacle: u32, pushes: &mut BTreeMap<usize, Vec3>, queue: &mut Vec<(u32, u32)>| {
@@ -289,14 +410,23 @@ impl DeformationTransfer {
                 }
             }
         };
+        let obstacle_piece = |u: usize, t: u32| {
+            let p = self.piece[self.triangles[t as usize][0] as usize];
+            (p != self.piece[u] && static_piece[p as usize]).then_some(p)
+        };
         for &(a, b) in pairs {
             for (side, obstacle) in [(a, b), (b, a)] {
                 for &u in &self.triangles[side as usize] {
                     let u = u as usize;
-                    if free[u] {
-                        if let Some(push) = self.push_out(guard, positions, u, obstacle as usize, free) {
-                            keep(u, push, obstacle, &mut pushes, &mut queue);
-                        }
+                    if !free[u] {
+                        continue;
+                    }
+                    let push = match obstacle_piece(u, obstacle) {
+                        Some(piece) => self.push_off_piece(guard, positions, u, piece),
+                        None => self.push_out(guard, positions, u, obstacle as usize, free),
+                    };
+                    if let Some(push) = push {
+                        keep(u, push, obstacle, &mut pushes, &mut queue);
                     }
                 }
             }
@@ -307,13 +437,60 @@ impl DeformationTransfer {
                 if !free[w] || pushes.contains_key(&w) {
                     continue;
                 }
+                if let Some(piece) = obstacle_piece(w, obstacle) {
+                    if let Some(push) = self.push_off_piece(guard, positions, w, piece) {
+                        keep(w, push, obstacle, &mut pushes, &mut queue);
+                    }
+                    continue;
+                }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
                 if let Some(push) = self.push_out(guard, positions, w, beneath as usize, free) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
         }
-        pushes
+        pushes.into_iter().map(|(u, push)| (u, add(positions[u], push))).collect()
+    }
+
+    /// The push of vertex `u` out of the static piece `piece`, when it is on the other side
+    /// of that piece's surface than at rest: to the closest point of the surface plus the
+    /// margin along the surface's normal, on the rest side. The side is read at the closest
+    /// point (through its face's normal, or the mean normal around its nearest corner when it
+    /// lies on an edge or corner), at rest and now.
+    fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32) -> Option<Vec3> {
+        let in_piece = |t: u32| self.piece[self.triangles[t as usize][0] as usize] == piece;
+        let side_at = |q: Vec3| -> Option<(f64, Vec3, Vec3)> {
+            let hit = guard.bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
+            let normal = self.surface_normal(guard, hit.triangle, &hit.barycentric)?;
+            Some((dot(normal, sub(q, hit.point)), hit.point, normal))
+        };
+        let (rest_height, _, _) = side_at(self.target_neutral[u])?;
+        let (height, point, normal) = side_at(positions[u])?;
+        if rest_height == 0.0 || rest_height * height > 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
+            return None;
+        }
+        let target = add(point, scale(normal, rest_height.signum() * guard.margin(u)));
+        Some(sub(target, positions[u]))
+    }
+
+    /// The unit normal of the target's neutral surface at a point of triangle `t`: the face's
+    /// inside it, the mean of the faces around the nearest corner on an edge or a corner
+    /// (where the face's own normal can point the wrong way for a point outside).
+    fn surface_normal(&self, guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
+        let unit = |t: u32| {
+            let p = self.triangles[t as usize].map(|v| self.target_neutral[v as usize]);
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            let l = length(n);
+            (l > 0.0).then(|| scale(n, 1.0 / l))
+        };
+        if barycentric.iter().all(|&b| b > 1e-9) {
+            return unit(t);
+        }
+        let corner = (0..3).max_by(|&i, &j| barycentric[i].total_cmp(&barycentric[j]))?;
+        let around = guard.triangles_at(self.triangles[t as usize][corner]);
+        let sum = around.iter().filter_map(|&s| unit(s)).fold([0.0; 3], add);
+        let l = length(sum);
+        (l > 0.0).then(|| scale(sum, 1.0 / l))
     }
 
     /// The push of vertex `u` back across triangle `t`'s plane to the side it was on at rest,
@@ -336,7 +513,7 @@ impl DeformationTransfer {
             return None;
         }
         let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
-        Some(scale(normal, (side * guard.params.margin * guard.edge_length[u] - height) * share))
+        Some(scale(normal, (side * guard.margin(u) - height) * share))
     }
 
     /// Among `near` and the triangles around its corners (not touching `w`), the one whose
@@ -359,6 +536,31 @@ impl DeformationTransfer {
         best.map(|(_, t)| t)
     }
 }
+
+/// The template shape's crossing pairs, per triangle its partners, and the curve the shape
+/// adds to the template's neutral.
+struct TemplateContacts {
+    partners: HashMap<u32, Vec<u32>>,
+    added: f64,
+}
+
+impl TemplateContacts {
+    /// Whether the pair `(a, b)` is the artist's own: some triangle sharing a corner with `a`
+    /// crosses some triangle sharing a corner with `b` in the template's shape (the target's
+    /// contact may sit a triangle away from the template's). Lips the template presses into
+    /// each other stay as the template has them.
+    fn near(&self, dt: &DeformationTransfer, guard: &CollisionGuard, a: u32, b: u32) -> bool {
+        let near_b = guard.around(&dt.triangles[b as usize]);
+        guard.around(&dt.triangles[a as usize]).into_iter().any(|x| {
+            self.partners.get(&x).is_some_and(|ys| ys.iter().any(|y| near_b.binary_search(y).is_ok()))
+        })
+    }
+}
+
+/// How far the local re-solve reaches from a held vertex, in its edge lengths at least, and
+/// in multiples of the distance it is pushed.
+const REGION_RINGS: f64 = 3.0;
+const REGION_SPREAD: f64 = 3.0;
 
 /// How deep behind an obstacle's plane (in the vertex's edge lengths) a vertex still counts as
 /// having gone through it.

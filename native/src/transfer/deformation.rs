@@ -30,7 +30,7 @@ pub struct DeformationTransfer {
     /// The target neutral rotated into the source's orientation (the working frame).
     pub(super) target_neutral: Vec<Vec3>,
     target_operators: Vec<HatGradients>,
-    matrix: NormalMatrix,
+    pub(super) matrix: NormalMatrix,
     virtual_edges: Vec<(u32, u32)>,
     /// Per virtual edge: `A_ij`, the mean target-rest / source-rest gradient at its ends.
     edge_rest_maps: Vec<Mat3>,
@@ -134,7 +134,7 @@ impl DeformationTransfer {
             .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
         let guard_start = Instant::now();
-        let collisions = params.collisions.map(|c| CollisionGuard::new(&target, triangles, c));
+        let collisions = params.collisions.map(|c| CollisionGuard::new(&source, &target, triangles, c));
         let collision_setup_seconds = guard_start.elapsed().as_secs_f64();
         Ok(Self {
             triangles: triangles.to_vec(),
@@ -171,8 +171,27 @@ impl DeformationTransfer {
 
     /// Transfers every shape: `source_deltas` is K x N (shape-major), `names` has K entries.
     pub fn transfer(&self, source_deltas: &[[f32; 3]], names: &[String], progress: &dyn Progress) -> ShapesmithResult<TransferResult> {
+        self.transfer_judged(source_deltas, names, None, progress)
+    }
+
+    /// [`Self::transfer`], told how much intersection curve each template shape adds to the
+    /// template's neutral (`template_added`, K entries, from the template's own penetration):
+    /// the collision pass then leaves a shape alone without sweeping the template's shape when
+    /// the result adds no more than that.
+    pub fn transfer_judged(
+        &self,
+        source_deltas: &[[f32; 3]],
+        names: &[String],
+        template_added: Option<&[f64]>,
+        progress: &dyn Progress,
+    ) -> ShapesmithResult<TransferResult> {
         let start = Instant::now();
         self.validate_deltas(source_deltas, names)?;
+        if let Some(given) = template_added {
+            if given.len() != names.len() {
+                return Err(invalid!("the template's penetration has {} shapes but {} shape names were given", given.len(), names.len()));
+            }
+        }
         let n = self.n_vertices();
         let done = AtomicUsize::new(0);
         let shapes = (0..names.len())
@@ -182,7 +201,7 @@ impl DeformationTransfer {
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
                 } else {
-                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), true)?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), Some(template_added.map(|a| a[k])))?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -263,7 +282,7 @@ impl DeformationTransfer {
     /// Personalisation calls this without the collision pass: its shapes follow the training
     /// expressions, which are the character's truth (a scan's pressed lips stay pressed).
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_traced(delta, gradient, false)?.deltas)
+        Ok(self.solve_shape_traced(delta, gradient, None)?.deltas)
     }
 
     /// [`Self::solve_shape`] with the virtual-edge springs aiming at `edge_changes` (one
@@ -275,7 +294,7 @@ impl DeformationTransfer {
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: &[Vec3],
     ) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_aiming(delta, gradient, Some(edge_changes), false)?.deltas)
+        Ok(self.solve_shape_aiming(delta, gradient, Some(edge_changes), None)?.deltas)
     }
 
     /// `f_k - f_0` of every virtual edge for the source shape `delta` ([`Self::edge_change`]).
@@ -290,13 +309,14 @@ impl DeformationTransfer {
             .collect()
     }
 
-    /// [`Self::solve_shape`], followed by the collision pass when `collisions` and the pass is
-    /// configured, with the deltas before the pass and what it did.
+    /// [`Self::solve_shape`], followed by the collision pass when `collisions` is given and the
+    /// pass is configured (with the curve the template's shape adds to its neutral, when
+    /// known), with the deltas before the pass and what it did.
     pub(super) fn solve_shape_traced(
         &self,
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
-        collisions: bool,
+        collisions: Option<Option<f64>>,
     ) -> ShapesmithResult<SolvedShape> {
         self.solve_shape_aiming(delta, gradient, None, collisions)
     }
@@ -307,7 +327,7 @@ impl DeformationTransfer {
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: Option<&[Vec3]>,
-        collisions: bool,
+        collisions: Option<Option<f64>>,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();
@@ -336,20 +356,20 @@ impl DeformationTransfer {
             kept += 1;
         }
         let rhs = self.right_hand_side(delta, &moving, gradient, edge_changes);
-        let mut factor = self.matrix.factor_restricted(&position, kept as usize)?;
+        let factor = self.matrix.factor_restricted(&position, kept as usize)?;
         let mut out = factor.solve(&rhs);
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
         let solve_seconds = start.elapsed().as_secs_f64();
-        let Some(guard) = self.collisions.as_ref().filter(|_| collisions) else {
+        let (Some(guard), Some(template_added)) = (self.collisions.as_ref(), collisions) else {
             return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
         };
         let plain = out.clone();
-        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs };
-        let outcome = self.collision_pass(guard, &shape, &mut factor, &mut out)?;
+        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, template_added };
+        let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
-            before_collisions: (outcome.solves > 0).then_some(plain),
+            before_collisions: outcome.applied.then_some(plain),
             deltas: out,
             collisions: Some(outcome),
             solve_seconds,
@@ -468,6 +488,12 @@ fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
         if !(c.margin.is_finite() && (0.0..=MAX_MARGIN).contains(&c.margin)) {
             return Err(invalid!("the collision margin must lie in [0, {MAX_MARGIN}] (a fraction of the local edge length), got {}", c.margin));
         }
+        if !(c.min_margin.is_finite() && (0.0..=MAX_MIN_MARGIN).contains(&c.min_margin)) {
+            return Err(invalid!(
+                "the collision pass's least margin must lie in [0, {MAX_MIN_MARGIN}] (a fraction of the bounding-box diagonal), got {}",
+                c.min_margin
+            ));
+        }
         if !(c.stiffness.is_finite() && c.stiffness > 0.0) || c.max_iterations > 20 {
             return Err(invalid!(
                 "collision stiffness must be positive and iterations at most 20, got {} and {}",
@@ -511,6 +537,9 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
 /// The largest collision margin accepted, in local edge lengths: beyond it the kept distance
 /// would exceed the lips' own thickness on most heads.
 pub const MAX_MARGIN: f64 = 2.0;
+
+/// The largest least margin accepted, in bounding-box diagonals (1% of a head is 3-4 mm).
+pub const MAX_MIN_MARGIN: f64 = 0.02;
 
 fn length32(d: &[f32; 3]) -> f64 {
     super::gradients::length(to_f64(d))

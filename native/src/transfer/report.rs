@@ -146,7 +146,11 @@ pub fn transfer_shapes(
             (out.deltas, out.inert, rows, None, Vec::new())
         }
         _ => {
-            let out = dt.transfer(source_deltas, names, &solving)?;
+            // The template's own numbers, when given, spare the collision pass a sweep of each
+            // template shape it has to judge.
+            let template_added: Option<Vec<f64>> =
+                template_penetration.map(|t| t.shapes.iter().map(|s| s.length - t.neutral.length).collect());
+            let out = dt.transfer_judged(source_deltas, names, template_added.as_deref(), &solving)?;
             seconds.solves = out.seconds;
             seconds.collisions = out.collision_seconds;
             (out.deltas, out.inert, Vec::new(), out.collisions, out.before_collisions)

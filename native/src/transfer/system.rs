@@ -8,24 +8,21 @@
 //! the shape's moving vertices: symbolic and numeric Cholesky of that smaller matrix,
 //! `Par::Seq` inside so that rayon can run shapes side by side. The fill-reducing order
 //! (AMD) is computed once on the whole matrix and each submatrix takes its restriction,
-//! which costs a fifth of the solve time less than ordering every shape afresh.
+//! which costs a fifth of the solve time less than ordering every shape afresh. The matrix,
+//! the order and the restricted factorisations are [`crate::sparse`]'s (the wrap's too).
+//!
+//! The collision pass re-solves a shape only near the vertices it holds
+//! ([`NormalMatrix::solve_local`]): the deltas outside a small region are kept as solved
+//! (Dirichlet), so a re-solve factorises a few hundred unknowns, not the shape's system.
 
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use super::gradients::{add, dot, scale, sub, HatGradients, Vec3};
+use crate::error::ShapesmithResult;
+use crate::sparse::{Cholesky, SymmetricMatrix};
 
-use super::gradients::{dot, HatGradients};
-use crate::error::{ShapesmithError, ShapesmithResult};
-
-/// The lower triangle of the symmetric normal matrix in compressed columns, sorted rows.
+/// The symmetric normal matrix and a fill-reducing order of all vertices.
 #[derive(Clone, Debug)]
 pub struct NormalMatrix {
-    n: usize,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    values: Vec<f64>,
+    matrix: SymmetricMatrix,
     /// A fill-reducing elimination order of all vertices (AMD), restricted per solve.
     order: Vec<usize>,
 }
@@ -46,7 +43,7 @@ impl NormalMatrix {
                 for b in 0..3 {
                     let (r, c) = (tri[a] as usize, tri[b] as usize);
                     if r >= c {
-                        entries.push((c, r, op.area * dot(op.gradients[a], op.gradients[b])));
+                        entries.push((r, c, op.area * dot(op.gradients[a], op.gradients[b])));
                     }
                 }
             }
@@ -55,77 +52,22 @@ impl NormalMatrix {
             let (lo, hi) = ((i.min(j)) as usize, (i.max(j)) as usize);
             entries.push((lo, lo, spring_weight));
             entries.push((hi, hi, spring_weight));
-            entries.push((lo, hi, -spring_weight));
+            entries.push((hi, lo, -spring_weight));
         }
-        // (column, row) order, duplicates summed.
-        entries.sort_unstable_by_key(|&(c, r, _)| (c, r));
-        let mut col_ptr = vec![0usize; n + 1];
-        let mut row_idx = Vec::with_capacity(entries.len());
-        let mut values: Vec<f64> = Vec::with_capacity(entries.len());
-        let mut last: Option<(usize, usize)> = None;
-        for (c, r, v) in entries {
-            if last == Some((c, r)) {
-                if let Some(x) = values.last_mut() {
-                    *x += v;
-                }
-                continue;
-            }
-            last = Some((c, r));
-            row_idx.push(r);
-            values.push(v);
-            col_ptr[c + 1] += 1;
-        }
-        for c in 0..n {
-            col_ptr[c + 1] += col_ptr[c];
-        }
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, Default::default())
-            .map_err(|e| ShapesmithError::Solver(format!("the transfer system could not be ordered: {e:?}")))?;
-        let order = match symbolic.perm() {
-            Some(perm) => perm.arrays().0.to_vec(),
-            None => (0..n).collect(),
-        };
-        Ok(Self { n, col_ptr, row_idx, values, order })
+        let matrix = SymmetricMatrix::from_triplets(n, entries);
+        let order = matrix.fill_reducing_order()?;
+        Ok(Self { matrix, order })
     }
 
     /// `A x` for a vector stored per vertex (residual checks in tests).
     #[cfg(test)]
     pub fn apply(&self, x: &[f64]) -> Vec<f64> {
-        let mut y = vec![0.0; self.n];
-        for c in 0..self.n {
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let r = self.row_idx[k];
-                y[r] += self.values[k] * x[c];
-                if r != c {
-                    y[c] += self.values[k] * x[r];
-                }
-            }
-        }
-        y
+        self.matrix.apply(x)
     }
 
-    /// The principal submatrix on the vertices with `position[v] != u32::MAX`, renumbered to
-    /// `position[v]`. `position` must be increasing on the kept vertices, so the lower
-    /// triangle stays lower and rows stay sorted.
-    fn restricted(&self, position: &[u32], n_kept: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
-        let mut col_ptr = Vec::with_capacity(n_kept + 1);
-        let mut row_idx = Vec::new();
-        let mut values = Vec::new();
-        col_ptr.push(0);
-        for c in 0..self.n {
-            if position[c] == u32::MAX {
-                continue;
-            }
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let r = position[self.row_idx[k]];
-                if r != u32::MAX {
-                    row_idx.push(r as usize);
-                    values.push(self.values[k]);
-                }
-            }
-            col_ptr.push(row_idx.len());
-        }
-        (col_ptr, row_idx, values)
+    /// `A_vv`.
+    pub fn diagonal(&self, v: usize) -> f64 {
+        self.matrix.diagonal(v)
     }
 
     /// Solves `A_FF d_F = rhs_F` on the kept vertices for the three coordinates; the other
@@ -138,32 +80,54 @@ impl NormalMatrix {
 
     /// Factorises `A_FF`, the principal submatrix on the kept vertices (`position[v] !=
     /// u32::MAX`, numbered `position[v]`, increasing), in the whole matrix's AMD order
-    /// restricted. The factor is kept so that soft constraints can be added to its diagonal
-    /// and refactorised numerically on the same pattern ([`RestrictedFactor::add_to_diagonal`]).
+    /// restricted.
     pub fn factor_restricted(&self, position: &[u32], n_kept: usize) -> ShapesmithResult<RestrictedFactor> {
-        let (col_ptr, row_idx, values) = self.restricted(position, n_kept);
-        let forward: Vec<usize> = self.order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
-        let mut inverse = vec![0usize; n_kept];
-        for (slot, &p) in forward.iter().enumerate() {
-            inverse[p] = slot;
+        let factor = if n_kept == 0 { None } else { Some(self.matrix.factor_restricted(position, n_kept, &self.order)?) };
+        Ok(RestrictedFactor { position: position.to_vec(), n_kept, factor })
+    }
+
+    /// Minimises the shape's energy plus `sum_u w_u |d_u - c_u|^2` over the deltas of the
+    /// vertices in `region` only, the others held at `current` (Dirichlet):
+    /// `(A_RR + W) d_R = rhs_R - A_R,out d_out + W c`. `constraints` holds `(u, w_u, c_u)`
+    /// with `u` in `region`; `rhs` is the shape's right-hand side per vertex. Returns
+    /// `current` with the region's rows replaced.
+    pub fn solve_local(&self, region: &[usize], constraints: &[(usize, f64, Vec3)], rhs: &[Vec3], current: &[Vec3]) -> ShapesmithResult<Vec<Vec3>> {
+        let n = current.len();
+        let mut position = vec![u32::MAX; n];
+        let mut sorted = region.to_vec();
+        sorted.sort_unstable();
+        sorted.dedup();
+        for (slot, &v) in sorted.iter().enumerate() {
+            position[v] = slot as u32;
         }
-        let factor = if n_kept == 0 {
-            None
-        } else {
-            Some(Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))?)
-        };
-        Ok(RestrictedFactor { position: position.to_vec(), n_kept, col_ptr, row_idx, values, factor })
+        // A_R,out d_out: the product with the region's rows zeroed, read on the region.
+        let mut coupling = vec![[0.0; 3]; n];
+        for axis in 0..3 {
+            let outside: Vec<f64> = (0..n).map(|v| if position[v] == u32::MAX { current[v][axis] } else { 0.0 }).collect();
+            for (v, x) in self.matrix.apply(&outside).into_iter().enumerate() {
+                coupling[v][axis] = x;
+            }
+        }
+        let extra: Vec<(usize, f64)> = constraints.iter().map(|&(u, w, _)| (u, w)).collect();
+        let factor = self.matrix.factor_restricted_plus_diagonal(&position, sorted.len(), &self.order, &extra)?;
+        let mut local: Vec<Vec3> = sorted.iter().map(|&v| sub(rhs[v], coupling[v])).collect();
+        for &(u, w, target) in constraints {
+            let slot = position[u] as usize;
+            local[slot] = add(local[slot], scale(target, w));
+        }
+        let solved = factor.solve_points(&local);
+        let mut out = current.to_vec();
+        for (&v, d) in sorted.iter().zip(solved) {
+            out[v] = d;
+        }
+        Ok(out)
     }
 }
 
-/// One shape's factorised system `A_FF` on its kept vertices, plus any diagonal additions.
+/// One shape's factorised system `A_FF` on its kept vertices.
 pub struct RestrictedFactor {
     position: Vec<u32>,
     n_kept: usize,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    /// The restricted matrix as assembled (without diagonal additions).
-    values: Vec<f64>,
     /// `None` when no vertex is kept.
     factor: Option<Cholesky>,
 }
@@ -174,92 +138,23 @@ impl RestrictedFactor {
         self.position[v] != u32::MAX
     }
 
-    /// The diagonal entry `A_vv` of a kept vertex (the first stored row of its lower column).
-    pub fn diagonal(&self, v: usize) -> f64 {
-        let c = self.position[v] as usize;
-        let k = self.col_ptr[c];
-        debug_assert_eq!(self.row_idx[k], c);
-        self.values[k]
-    }
-
-    /// Refactorises `A_FF + diag(extra)` numerically on the symbolic factor already computed
-    /// (the pattern does not change): `extra` holds `(vertex, weight)` of kept vertices and
-    /// replaces any earlier additions.
-    pub fn add_to_diagonal(&mut self, extra: &[(usize, f64)]) -> ShapesmithResult<()> {
-        let Some(factor) = self.factor.as_mut() else { return Ok(()) };
-        let mut values = self.values.clone();
-        for &(v, w) in extra {
-            values[self.col_ptr[self.position[v] as usize]] += w;
-        }
-        factor.refactor(self.n_kept, &self.col_ptr, &self.row_idx, &values)
-    }
-
-    /// `d_F` with `(A_FF + additions) d_F = rhs_F`, per vertex (all N), zeros at eliminated
-    /// vertices.
+    /// `d_F` with `A_FF d_F = rhs_F`, per vertex (all N), zeros at eliminated vertices.
     pub fn solve(&self, rhs: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let mut out = vec![[0.0; 3]; self.position.len()];
         let Some(factor) = &self.factor else { return out };
-        let mut b = faer::Mat::<f64>::zeros(self.n_kept, 3);
+        let mut kept = vec![[0.0; 3]; self.n_kept];
         for (v, &p) in self.position.iter().enumerate() {
             if p != u32::MAX {
-                for a in 0..3 {
-                    b[(p as usize, a)] = rhs[v][a];
-                }
+                kept[p as usize] = rhs[v];
             }
         }
-        factor.solve_in_place(b.as_mut());
+        let solved = factor.solve_points(&kept);
         for (v, &p) in self.position.iter().enumerate() {
             if p != u32::MAX {
-                out[v] = [b[(p as usize, 0)], b[(p as usize, 1)], b[(p as usize, 2)]];
+                out[v] = solved[p as usize];
             }
         }
         out
-    }
-}
-
-fn solver_error(what: &str, e: &dyn std::fmt::Debug) -> ShapesmithError {
-    ShapesmithError::Solver(format!("the transfer system could not be factorised ({what}: {e:?})"))
-}
-
-/// A sparse LL^T factor in a given elimination order, sequential inside.
-struct Cholesky {
-    symbolic: SymbolicCholesky<usize>,
-    values: Vec<f64>,
-}
-
-impl Cholesky {
-    fn factor(n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64], order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
-        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Custom(order), Default::default())
-            .map_err(|e| solver_error("symbolic", &e))?;
-        let mut factor = Self { values: vec![0.0; symbolic.len_val()], symbolic };
-        factor.refactor(n, col_ptr, row_idx, values)?;
-        Ok(factor)
-    }
-
-    /// Numeric factorisation of a matrix with the pattern the symbolic factor was made for.
-    fn refactor(&mut self, n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> ShapesmithResult<()> {
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
-        let matrix = SparseColMatRef::new(structure, values);
-        let scratch = self.symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
-        let mut buffer = MemBuffer::try_new(scratch).map_err(|e| solver_error("memory", &e))?;
-        self.symbolic
-            .factorize_numeric_llt(
-                &mut self.values,
-                matrix,
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut buffer),
-                Default::default(),
-            )
-            .map_err(|e| solver_error("not positive definite", &e))?;
-        Ok(())
-    }
-
-    fn solve_in_place(&self, rhs: MatMut<'_, f64>) {
-        let mut buffer = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq));
-        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buffer));
     }
 }
 
@@ -310,5 +205,49 @@ mod tests {
                 assert!((ad[v] - rhs[v][c]).abs() < 1e-9, "vertex {v}: {} vs {}", ad[v], rhs[v][c]);
             }
         }
+    }
+
+    #[test]
+    fn local_solve_over_every_unknown_is_the_constrained_full_solve_and_keeps_the_rest() {
+        let (pts, tris) = grid(7, 6);
+        let ops: Vec<HatGradients> = tris.iter().map(|t| HatGradients::new(t.map(|v| pts[v as usize])).unwrap()).collect();
+        let a = NormalMatrix::assemble(pts.len(), &tris, &ops, &[(3, 40)], 2.0).unwrap();
+        let n = pts.len();
+        // Vertices 0..7 are Dirichlet at zero (the shape's static row); the rest are free.
+        let free: Vec<usize> = (7..n).collect();
+        let rhs: Vec<Vec3> = (0..n).map(|v| [(v as f64 * 0.3).sin(), 0.2, (v as f64) * 0.01]).collect();
+        let current = vec![[0.0; 3]; n];
+        let constraints = vec![(20usize, 5.0 * a.diagonal(20), [0.1, -0.2, 0.3]), (33, 2.0 * a.diagonal(33), [0.0, 0.5, 0.0])];
+        let local = a.solve_local(&free, &constraints, &rhs, &current).unwrap();
+        // (A_FF + W) d_F = rhs_F + W c, checked through A's product on the whole vector.
+        for c in 0..3 {
+            let col: Vec<f64> = local.iter().map(|x| x[c]).collect();
+            let ad = a.apply(&col);
+            for &v in &free {
+                let mut expect = rhs[v][c];
+                let mut lhs = ad[v];
+                for &(u, w, target) in &constraints {
+                    if u == v {
+                        lhs += w * col[v];
+                        expect += w * target[c];
+                    }
+                }
+                assert!((lhs - expect).abs() < 1e-9, "vertex {v}: {lhs} vs {expect}");
+            }
+        }
+        // On a smaller region with the same constraints the optimum is the same (the whole
+        // solution is optimal on any part with the rest held); a new target moves only the
+        // region, and moves vertex 20 towards it.
+        let region: Vec<usize> = vec![19, 20, 21, 26, 27, 28];
+        let same = a.solve_local(&region, &constraints[..1], &rhs, &local).unwrap();
+        assert!(region.iter().all(|&v| (0..3).all(|c| (same[v][c] - local[v][c]).abs() < 1e-9)));
+        let pulled = [(20usize, constraints[0].1, [1.0, 1.0, 1.0])];
+        let again = a.solve_local(&region, &pulled, &rhs, &local).unwrap();
+        for v in 0..n {
+            if !region.contains(&v) {
+                assert_eq!(again[v], local[v]);
+            }
+        }
+        assert!((0..3).all(|c| again[20][c] > local[20][c]));
     }
 }
