@@ -448,3 +448,21 @@ def test_batch_pack_bad_input_exits_with_one_line(sample_path, tmp_path, args, m
     lines = proc.stderr.strip().splitlines()
     assert lines and message in lines[-1] and lines[-1].startswith("shapesmith: error:")
     assert file_digest(path) == digest and not output.exists()
+
+
+def test_progress_reaches_the_caller_and_stopping_keeps_the_previous_result(sample, shapesmith):
+    """Packing with the collision and occlusion tests takes seconds on a dense head: the
+    operator shows it in the progress cursor, and False from the callback stops it."""
+    template = make_active(bpy.data.objects["Template"])
+    assert bpy.ops.shapesmith.pack_expressions() == {"FINISHED"}
+    first = shapesmith.blender.packing.stored_report(template)
+    seen = []
+    report = shapesmith.blender.packing.pack_object(template, progress=seen.append)
+    assert len(seen) >= 5 and seen == sorted(seen) and seen[0] == 0.0 and seen[-1] == 1.0, seen
+    # Stages in between: the poseability tests end at 80%, the programs fill the rest.
+    assert any(0.0 < f <= 0.8 for f in seen) and any(0.8 < f < 1.0 for f in seen), seen
+    without = shapesmith.blender.packing.pack_object(template)
+    assert [e["shapes"] for e in report["expressions"]] == [e["shapes"] for e in without["expressions"]]
+    with pytest.raises(shapesmith.native.module().CancelledError):
+        shapesmith.blender.packing.pack_object(template, progress=lambda fraction: fraction < 0.5)
+    assert shapesmith.blender.packing.stored_report(template) == first

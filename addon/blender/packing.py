@@ -56,13 +56,14 @@ def _check_named_pairs(pairs, what):
             raise MeshDataError(f"{what}: entry {index + 1} is missing a shape key name: fill it in or remove it")
 
 
-def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, **params):
+def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, progress=None, **params):
     """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
     returns its report with timings and shape-key warnings added. Writes nothing.
 
     `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
     antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
-    collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction). Raises MeshDataError
+    collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction); `progress(fraction)`,
+    when given, is called on this thread as the work advances (False cancels). Raises MeshDataError
     (or the core's InvalidInputError) for anything the user has to fix."""
     started = time.perf_counter()
     if max_expressions is not None and max_expressions < 1:
@@ -93,6 +94,7 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
         symmetric=symmetric,
         pairs=pairs if symmetric else None,
         time_limit=time_limit,
+        progress=progress,
         **params,
     )
     solved = time.perf_counter()

@@ -5,7 +5,7 @@ import bpy
 
 from .. import preferences
 from ..blender.packing import pack_object, packing_options, store_packing
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
@@ -27,7 +27,8 @@ class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
         time_limit = prefs.solver_time_limit if prefs and prefs.solver_time_limit > 0 else None
         options = packing_options(obj, axis=int(context.scene.shapesmith.symmetry_axis), time_limit=time_limit)
         try:
-            report = pack_object(obj, **options)
+            with progress_cursor(context) as progress:
+                report = pack_object(obj, progress=progress, **options)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

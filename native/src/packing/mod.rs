@@ -61,7 +61,7 @@ use collisions::Collision;
 use conflicts::ShapeConflict;
 use occlusion::Occlusion;
 use crate::ilp::{IlpOptions, SolveStatus};
-use crate::progress::Progress;
+use crate::progress::{Progress, Stage};
 use crate::rig::RigView;
 use programs::{fewest_colours, first_fit, heaviest_independent_set};
 use setup::{prepare, Prepared};
@@ -119,6 +119,10 @@ pub struct PackingParams {
 /// to interact. Any margin >= 0 gives the same conflicts (the pruning is exact, see
 /// `regions`); this one absorbs rounding.
 pub const INTERACTION_MARGIN: f64 = 1e-3;
+
+/// The share of [`pack_expressions`]' progress given to its preparation: with the collision
+/// and occlusion tests on, they take most of a packing's time (the programs a few ms).
+const PREPARE_SHARE: f64 = 0.8;
 
 impl Default for PackingParams {
     fn default() -> Self {
@@ -245,7 +249,8 @@ pub fn pack_expressions(
     progress: &dyn Progress,
 ) -> ShapesmithResult<Packing> {
     progress.checkpoint(0.0)?;
-    let prep = prepare(rig, target_neutral, params)?;
+    let prep = prepare(rig, target_neutral, params, &Stage { whole: progress, start: 0.0, span: PREPARE_SHARE })?;
+    let progress = &Stage { whole: progress, start: PREPARE_SHARE, span: 1.0 - PREPARE_SHARE };
     let graph = &prep.graph;
     let options = IlpOptions { time_limit: params.time_limit };
     let mut remaining = vec![true; graph.n_nodes()];
@@ -289,7 +294,7 @@ pub fn pack_greedy(
     progress: &dyn Progress,
 ) -> ShapesmithResult<Packing> {
     progress.checkpoint(0.0)?;
-    let prep = prepare(rig, target_neutral, params)?;
+    let prep = prepare(rig, target_neutral, params, progress)?;
     let mut groups = first_fit(&prep.graph, &by_importance(&prep));
     let rest = groups.split_off(params.max_expressions.unwrap_or(usize::MAX).min(groups.len()));
     let unplaced = sorted_members(&prep.graph, &rest.concat());

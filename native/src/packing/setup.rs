@@ -13,6 +13,7 @@ use super::{PackingParams, PoseabilityReport, INTERACTION_MARGIN};
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::mirror::{find_symmetry_given, MirrorMap, SymmetryParams};
 use crate::invalid;
+use crate::progress::Progress;
 use rayon::prelude::*;
 
 use crate::rig::{norm, validate_points, validate_triangles, RigView, INERT_FRACTION};
@@ -32,7 +33,9 @@ pub struct Prepared {
     pub poseability: PoseabilityReport,
 }
 
-pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams) -> ShapesmithResult<Prepared> {
+/// `progress` sees the poseability tests, the only long part (regions, then collisions, then
+/// occlusions, each a share of the whole in proportion to its usual cost).
+pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams, progress: &dyn Progress) -> ShapesmithResult<Prepared> {
     rig.validate()?;
     let k_count = rig.n_shapes();
     if k_count == 0 {
@@ -115,7 +118,7 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
         (None, false) => Vec::new(),
     };
     let overlap = overlapping(&active, &placeable, rig.n_vertices());
-    let poseability = poseability(rig, params, &active, &placeable, &overlap, &antagonists)?;
+    let poseability = poseability(rig, params, &active, &placeable, &overlap, &antagonists, progress)?;
     let graph = ConflictGraph::build(&ShapeRelations {
         overlap: &overlap,
         placeable: &placeable,
@@ -141,6 +144,7 @@ fn poseability(
     placeable: &[bool],
     overlap: &[Vec<bool>],
     antagonists: &[(usize, usize)],
+    progress: &dyn Progress,
 ) -> ShapesmithResult<PoseabilityReport> {
     let listed = |list: &[(usize, usize)], i: usize, j: usize| list.contains(&(i, j)) || list.contains(&(j, i));
     let k_count = placeable.len();
@@ -158,6 +162,7 @@ fn poseability(
     candidates.iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
     let regions = moving_regions(rig, &wanted);
     report.seconds_regions = started.elapsed().as_secs_f64();
+    progress.checkpoint(0.05)?;
     let mut rest = candidates;
     if params.collision_conflicts {
         let started = Instant::now();
@@ -165,6 +170,7 @@ fn poseability(
         rest.retain(|&(i, j)| !found.iter().any(|c| (c.first, c.second) == (i, j)));
         (report.collisions, report.collision_pairs_tested) = (found, tested);
         report.seconds_collisions = started.elapsed().as_secs_f64();
+        progress.checkpoint(0.7)?;
     }
     if params.occlusion_conflicts {
         let started = Instant::now();
@@ -174,6 +180,7 @@ fn poseability(
         (report.occlusions, report.occlusion_directions_tested) = (found, tested);
         report.seconds_occlusions = started.elapsed().as_secs_f64();
     }
+    progress.checkpoint(1.0)?;
     Ok(report)
 }
 

@@ -7,11 +7,10 @@ use serde_json::{json, Value};
 
 use super::arrays;
 use super::errors::py_err;
-use super::run::detached;
+use super::run::detached_with_progress;
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::packing::{self, Packing, PackingParams};
-use crate::progress::NoProgress;
 use crate::rig::RigView;
 
 type NamePairs = Vec<(String, String)>;
@@ -101,15 +100,16 @@ fn run<'py>(
     names: Vec<String>,
     target_neutral: Option<PyReadonlyArray2<'py, f32>>,
     options: Options,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
     let target = target_neutral.as_ref().map(|t| arrays::points(t, "target_neutral")).transpose().map_err(py_err(py))?;
     let params = options.params(&names).map_err(py_err(py))?;
-    let packing = detached(py, || {
+    let packing = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
-        packer(&rig, target, &params, &NoProgress)
+        packer(&rig, target, &params, progress)
     })?;
     arrays::to_python(py, &named(&packing, &names, options.echo()))
 }
@@ -159,7 +159,7 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 ///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
 ///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3,
 ///     collision_conflicts=True, collision_tolerance=0.11, occlusion_conflicts=True,
-///     occlusion_keep=0.5, camera_direction=(0, -1, 0)) -> dict
+///     occlusion_keep=0.5, camera_direction=(0, -1, 0), progress=None) -> dict
 ///
 /// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
 /// `pairs`, `pin_together` and `keep_apart` are lists of (name, name); `exclude` a list of
@@ -168,14 +168,16 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 /// collision, occlusion), collisions (added curve / diagonal), occlusions (kept share),
 /// poseability (pairs tested, seconds), regions (each placed shape's strongly moving
 /// vertices, for the reference sheet), weights (J x K 0/1 in the order of `names`),
-/// fewest, params.
+/// fewest, params. `progress(fraction)`, when given, is called on the calling thread as the
+/// work advances (the collision and occlusion tests take most of it); returning False
+/// cancels (CancelledError).
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
                     max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
                     exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3,
                     collision_conflicts=true, collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE,
-                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0]))]
+                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_expressions<'py>(
     py: Python<'py>,
@@ -205,13 +207,14 @@ fn pack_expressions<'py>(
     occlusion_conflicts: bool,
     occlusion_keep: f64,
     camera_direction: [f64; 3],
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest, time_limit, axis, mirror_tolerance,
         collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
     };
-    run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options)
+    run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options, progress)
 }
 
 /// pack_greedy(...) -> dict, with the arguments of `pack_expressions` except `fewest` and
@@ -223,7 +226,7 @@ fn pack_expressions<'py>(
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
                     exclude=Vec::new(), axis=0, mirror_tolerance=1e-3, collision_conflicts=true,
                     collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE, occlusion_conflicts=true,
-                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0]))]
+                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_greedy<'py>(
     py: Python<'py>,
@@ -251,13 +254,14 @@ fn pack_greedy<'py>(
     occlusion_conflicts: bool,
     occlusion_keep: f64,
     camera_direction: [f64; 3],
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest: false, time_limit: None, axis, mirror_tolerance,
         collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
     };
-    run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options)
+    run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options, progress)
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
