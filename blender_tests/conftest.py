@@ -20,7 +20,6 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="shapesm
 import bpy  # noqa: E402  (after BLENDER_USER_RESOURCES is set)
 
 BATCH = os.path.join(ROOT, "scripts", "batch.py")
-CACHE = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
 
 
 def extension_zip():
@@ -47,12 +46,15 @@ def shapesmith():
 
 
 @pytest.fixture(scope="session")
-def sample_path():
+def sample_path(shapesmith):
     """sample.blend for this Blender version and this scripts/makehuman.py (its digest is in
     the name, so a changed sample never reuses an older cached file), built by
-    `batch.py sample` when missing."""
-    version = "%d.%d" % bpy.app.version[:2]
-    path = os.path.join(CACHE, f"sample-{version}-{sample_version()}.blend")
+    `batch.py sample` when missing. With the extension installed, so that a test running
+    batch commands on it passes alone as in the whole suite."""
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import batch
+
+    path = batch.cached_sample_path()
     if not os.path.isfile(path):
         run_batch("sample", "--output", path, check=True)
     return path
@@ -63,13 +65,6 @@ def sample(sample_path, shapesmith):
     """A fresh copy of the sample file opened in this Blender; returns its path."""
     bpy.ops.wm.open_mainfile(filepath=sample_path)
     return sample_path
-
-
-def sample_version():
-    sys.path.insert(0, os.path.join(ROOT, "scripts"))
-    import makehuman
-
-    return makehuman.sample_version()
 
 
 def make_active(obj):

@@ -70,6 +70,24 @@ def add_sample_args(parser):
     parser.add_argument("--output", required=True, help="where to write sample.blend")
 
 
+def cached_sample_path():
+    """Where the sample.blend for this Blender (major.minor) and this scripts/makehuman.py is
+    cached: tests, benches and renders share it, keyed by the script's digest so that a
+    changed sample never reuses an older file."""
+    sys.path.insert(0, SCRIPTS)
+    import makehuman
+
+    return os.path.join(makehuman.cache_dir(), "sample-%d.%d-%s.blend" % (*bpy.app.version[:2], makehuman.sample_version()))
+
+
+def cached_sample():
+    """The cached sample.blend (`cached_sample_path`), built when missing."""
+    path = cached_sample_path()
+    if not os.path.isfile(path):
+        run_sample(argparse.Namespace(output=path))
+    return path
+
+
 def run_sample(args):
     """Template (MakeHuman head + 52 ARKit face units), Target_* identity heads and
     Character_* heads of other topology."""

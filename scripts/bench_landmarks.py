@@ -282,7 +282,7 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_landmarks.py --")
     cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
-    parser.add_argument("--input", default=os.path.join(cache, "sample-%d.%d.blend" % bpy.app.version[:2]))
+    parser.add_argument("--input", help="a sample.blend (default: the cached one, built when missing)")
     parser.add_argument("--json", default=os.path.join(cache, "bench", "landmarks.json"))
     parser.add_argument("--picture", default=os.path.join(ROOT, "docs", "landmarks_front.png"))
     parser.add_argument("--conventional-picture", default=os.path.join(ROOT, "docs", "landmarks_conventional68.png"))
@@ -297,9 +297,7 @@ def main():
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
     picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
     curve = import_module(shapesmith.__name__ + ".blender.landmark_curve")
-    if not os.path.isfile(args.input):
-        batch.run_sample(argparse.Namespace(output=args.input))
-    batch.open_blend(args.input)
+    batch.open_blend(args.input or batch.cached_sample())
     template = bpy.data.objects["Template"]
     started = time.perf_counter()
     dense = dense_copy(template)

@@ -14,7 +14,6 @@ under 50 ms of native time (2 cores); reported beside the time to read the delta
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
@@ -22,7 +21,7 @@ import bpy
 import bmesh  # after bpy: the bpy wheel provides it
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from batch import BatchError, load_shapesmith  # noqa: E402
+from batch import BatchError, cached_sample, load_shapesmith  # noqa: E402
 
 NATIVE_TARGET_SECONDS = 0.050
 
@@ -74,16 +73,12 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(description="Pack Expressions benchmark")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--sample", default=os.path.join(
-        os.environ.get("SHAPESMITH_CACHE", os.path.expanduser("~/.cache/shapesmith")), "sample-%d.%d.blend" % bpy.app.version[:2]))
+    parser.add_argument("--sample", help="a sample.blend (default: the cached one, built when missing)")
     parser.add_argument("--json", help="write the measurements here")
     args = parser.parse_args(argv)
 
     shapesmith = load_shapesmith()
-    if not os.path.isfile(args.sample):
-        batch = os.path.join(os.path.dirname(os.path.abspath(__file__)), "batch.py")
-        subprocess.run([sys.executable, batch, "--", "sample", "--output", args.sample], check=True)
-    bpy.ops.wm.open_mainfile(filepath=args.sample)
+    bpy.ops.wm.open_mainfile(filepath=args.sample or cached_sample())
     from importlib import import_module
 
     packing = import_module(shapesmith.__name__ + ".blender.packing")

@@ -200,10 +200,7 @@ def main():
 
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
     nat = shapesmith.native.module()
-    sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
-    if not os.path.isfile(sample):
-        batch.run_sample(argparse.Namespace(output=sample))
-    bpy.ops.wm.open_mainfile(filepath=sample)
+    bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     template = bpy.data.objects["Template"]
     result = {}
     if "bundled" in heads:

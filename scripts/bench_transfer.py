@@ -339,10 +339,7 @@ def main():
     landmarks_module = import_module(shapesmith.__name__ + ".blender.landmarks")
     rest_positions = transfer_module.rest_positions
     nat = shapesmith.native.module()
-    sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
-    if not os.path.isfile(sample):
-        batch.run_sample(argparse.Namespace(output=sample))
-    bpy.ops.wm.open_mainfile(filepath=sample)
+    bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     template = bpy.data.objects["Template"]
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)

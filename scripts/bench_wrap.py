@@ -166,10 +166,7 @@ def main():
     from importlib import import_module
 
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
-    sample = os.path.join(cache, f"sample-%d.%d-{makehuman.sample_version()}.blend" % bpy.app.version[:2])
-    if not os.path.isfile(sample):
-        batch.run_sample(argparse.Namespace(output=sample))
-    bpy.ops.wm.open_mainfile(filepath=sample)
+    bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY]).deltas.astype(np.float64)
     result = {label: run_size(shapesmith, label, vertices, truth) for label, vertices in SIZES.items()}
     print("\n== Wrap + transfer + carry onto a character of other topology (seconds, one run, 2 cores)")

@@ -85,10 +85,7 @@ def main():
     output = os.path.abspath(args.output or os.path.join(SCRIPTS, "..", "docs", f"transfer_{args.shape}.png"))
     shapesmith = batch.load_shapesmith()
     modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys")}
-    sample = os.path.join(batch_cache(), "sample-%d.%d.blend" % bpy.app.version[:2])
-    if not os.path.isfile(sample):
-        batch.run_sample(argparse.Namespace(output=sample))
-    bpy.ops.wm.open_mainfile(filepath=sample)
+    bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     template, target = bpy.data.objects["Template"], bpy.data.objects[args.target]
 
     rig = import_module(f"{shapesmith.__name__}.blender.mesh_arrays").read_rig(template)
