@@ -91,7 +91,7 @@ def character(motion, name="Character_Test"):
     return obj, [[int(v), [float(x) for x in q]] for v, q in zip(vertices, targets)]
 
 
-def wrap_and_carry(shapesmith, obj, entries):
+def wrap_and_carry(shapesmith, obj, entries, **transfer_options):
     """The whole chain through the plain functions: keys written on `obj`; returns (names,
     the Wrapped, the carried Transfer)."""
     wrap = module(shapesmith, "blender.wrap")
@@ -100,7 +100,7 @@ def wrap_and_carry(shapesmith, obj, entries):
     template_points, character_points = wrap.pairs_from_list(entries, template, obj)
     wrapped = wrap.wrap_object(template, obj, template_points, character_points)
     wrapped_object = wrap.show_wrapped(wrapped)
-    result = wrap.carry_onto_character(template, obj, wrapped_object)
+    result = wrap.carry_onto_character(template, obj, wrapped_object, transfer_options=transfer_options)
     written, _, _ = shape_keys.write_transferred_keys(result)
     return written, wrapped, result
 
@@ -170,7 +170,8 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
     barycentric_copy = np.einsum("vc,kvcx->kvx", barycentric, wrapped_deltas[:, triangles[triangle]])
     barycentric_error = moving_error(barycentric_copy, reference, diagonal)
     print(f"carry {carry_error:.2e}, nearest vertex {nearest_error:.2e}, barycentric {barycentric_error:.2e} of the diagonal")
-    # Measured: carry 1.7e-3, nearest vertex 2.2e-3, barycentric 2.4e-3; the wrapped template's
+    # Measured: carry 1.95e-3, nearest vertex 2.43e-3, barycentric 2.61e-3 with the transfer's
+    # collision pass on (1.7e-3, 2.2e-3, 2.4e-3 without); the wrapped template's
     # own keys are 1.2e-3 from the truth at the same vertices (the fit slides by ~1% of the
     # diagonal between the pairs), a floor every copy shares.
     assert carry_error < 2e-3, carry_error
@@ -180,8 +181,12 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
 def test_another_motion_of_the_character_gives_the_same_keys_moved(sample, shapesmith):
     first, first_entries = character(MOTIONS["cm_y_up"], "Character_A")
     second, second_entries = character(MOTIONS["mm_turned"], "Character_B")
-    names, _, _ = wrap_and_carry(shapesmith, first, first_entries)
-    wrap_and_carry(shapesmith, second, second_entries)
+    # Without the transfer's collision pass: its decisions (which shapes it re-solves, which
+    # round it keeps) flip under the rounding of another frame, and where they do a shape
+    # differs locally (measured with the pass: mean 4e-5 to 1e-4 of the diagonal, largest
+    # 3e-2 to 4e-2 in eyeBlinkRight, mouthLeft, mouthClose). This test is about the wrap.
+    names, _, _ = wrap_and_carry(shapesmith, first, first_entries, collisions=False)
+    wrap_and_carry(shapesmith, second, second_entries, collisions=False)
     # Second = T(first) for the similarity T taking the first motion to the second.
     s1, a1, t1 = MOTIONS["cm_y_up"]
     s2, a2, _ = MOTIONS["mm_turned"]
