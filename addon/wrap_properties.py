@@ -6,13 +6,11 @@ import bpy
 
 
 def _refresh_markers(owner, context):
-    """Markers follow the pairs: rebuilt when shown, hidden or edited by hand (`self.id_data`
-    is the character that stores them)."""
+    """Markers follow the pairs: rebuilt when shown, hidden or edited by hand (`id_data` is
+    the character that stores them; with markers off this only finds none to remove)."""
     from .blender.wrap import refresh_markers
 
-    wrap = owner.id_data.shapesmith_wrap
-    if wrap.show_markers or owner == wrap:
-        refresh_markers(owner.id_data, context.scene.shapesmith.transfer.source)
+    refresh_markers(owner.id_data, context.scene.shapesmith.transfer.source)
 
 
 class SHAPESMITH_PG_point_pair(bpy.types.PropertyGroup):

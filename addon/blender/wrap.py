@@ -89,17 +89,22 @@ def pairs_from_json(path, template, character):
     return pairs_from_list(entries, template, character)
 
 
-def stored_pairs(character, template):
-    """The pairs stored on the character (`shapesmith_wrap.pairs`) as two (P, 3) arrays.
-    Pairs given as the custom property `shapesmith_wrap_pairs` (the `--pairs` JSON form, as
-    scripts write them) are imported into the list first when the list is empty."""
-    pairs = character.shapesmith_wrap.pairs
-    if not len(pairs) and PAIRS_PROPERTY in character.keys():
+def import_script_pairs(character, template):
+    """Pairs given as the custom property `shapesmith_wrap_pairs` (the `--pairs` JSON form, as
+    scripts write them) join the character's list when the list is empty."""
+    if not len(character.shapesmith_wrap.pairs) and PAIRS_PROPERTY in character.keys():
         try:
             entries = json.loads(character[PAIRS_PROPERTY])
         except (TypeError, json.JSONDecodeError) as error:
             raise MeshDataError(f"the custom property '{PAIRS_PROPERTY}' of '{character.name}' is not JSON: {error}")
         store_pairs(character, entries, template)
+
+
+def stored_pairs(character, template):
+    """The pairs stored on the character (`shapesmith_wrap.pairs`, after `import_script_pairs`)
+    as two (P, 3) arrays."""
+    import_script_pairs(character, template)
+    pairs = character.shapesmith_wrap.pairs
     template_points = np.array([p.template_co for p in pairs], dtype=np.float32).reshape(-1, 3)
     character_points = np.array([p.character_co for p in pairs], dtype=np.float32).reshape(-1, 3)
     return template_points, character_points
@@ -131,17 +136,19 @@ def refresh_markers(character, template):
     `show_markers` is off or there is no template."""
     import bpy
 
+    settings = character.shapesmith_wrap
+    shown = settings.show_markers and template is not None and template != character
+    if shown:
+        import_script_pairs(character, template)  # before the markers are cleared and rebuilt
     name = marker_collection_name(character)
     collection = bpy.data.collections.get(name)
     if collection is not None:
         for marker in list(collection.objects):
             bpy.data.objects.remove(marker)
-    settings = character.shapesmith_wrap
-    if not settings.show_markers or template is None or template == character:
+    if not shown:
         if collection is not None:
             bpy.data.collections.remove(collection)
         return
-    stored_pairs(character, template)  # pairs a script left as JSON join the list first
     if collection is None:
         collection = bpy.data.collections.new(name)
         bpy.context.scene.collection.children.link(collection)
@@ -260,9 +267,10 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     onto_wrapped = transfer_object(template, wrapped_object, progress=progress, **(transfer_options or {}))
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
+    wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
     deltas, carry_report = native.module().carry_shapes(
-        np.ascontiguousarray(rest_positions(wrapped_object)),
-        read_triangles(wrapped_object),
+        np.ascontiguousarray(wrapped_neutral),
+        wrapped_triangles,
         np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
         character_neutral,
         character_triangles,
@@ -276,17 +284,17 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
     stage_seconds["carry"] = time.perf_counter() - transferred
     report["stage_seconds"] = stage_seconds
-    groups = carried_vertex_groups(template, wrapped_object, character, onto_wrapped.names)
+    groups = carried_vertex_groups(template, onto_wrapped.names, (wrapped_neutral, wrapped_triangles), character_neutral)
     return Transfer(
         template, character, onto_wrapped.names, character_neutral, deltas, report, {}, list(onto_wrapped.warnings), groups
     )
 
 
-def carried_vertex_groups(template, wrapped_object, character, names):
+def carried_vertex_groups(template, names, wrapped_surface, character_neutral):
     """The template's vertex groups that the keys `names` are masked by, carried onto the
-    character (name -> float32 weights (Nc,)): each character vertex takes the weights at its
-    closest point on the wrapped template, mixed barycentrically (the binding of
-    `bind_to_surface`)."""
+    character (name -> float32 weights (Nc,)): each character vertex (`character_neutral`)
+    takes the weights at its closest point on the wrapped template (`wrapped_surface`:
+    positions, triangles), mixed barycentrically (the binding of `bind_to_surface`)."""
     blocks = template.data.shape_keys.key_blocks
     wanted = sorted({blocks[n].vertex_group for n in names if blocks[n].vertex_group in template.vertex_groups})
     if not wanted:
@@ -297,8 +305,8 @@ def carried_vertex_groups(template, wrapped_object, character, names):
         for membership in vertex.groups:
             if membership.group in row:
                 weights[row[membership.group], vertex.index] = membership.weight
-    triangles = read_triangles(wrapped_object)
-    triangle, barycentric, _ = native.module().bind_to_surface(rest_positions(character), rest_positions(wrapped_object), triangles)
+    positions, triangles = wrapped_surface
+    triangle, barycentric, _ = native.module().bind_to_surface(character_neutral, positions, triangles)
     carried = np.einsum("vc,gvc->gv", barycentric, weights[:, triangles[triangle]])
     return {name: carried[k].astype(np.float32) for k, name in enumerate(wanted)}
 
