@@ -32,6 +32,18 @@ pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Pe
     total(&crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None), &triangle_pieces(positions.len(), triangles))
 }
 
+/// Which triangles of `positions` cross a triangle they share no vertex with: what a picture
+/// paints and a rigger selects to see where a shape passes through itself.
+pub fn intersecting_triangles(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<bool> {
+    let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
+    let mut crossed = vec![false; triangles.len()];
+    for (a, b, _) in crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None) {
+        crossed[a as usize] = true;
+        crossed[b as usize] = true;
+    }
+    crossed
+}
+
 /// The connected piece of each triangle.
 fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
     let (label, _) = connected_components(n_vertices, triangles);
@@ -206,6 +218,8 @@ mod tests {
         assert!((p.length - expect).abs() < 1e-12 && p.length > 0.0);
         // The piercing triangle is a piece of its own: all of the curve lies between pieces.
         assert_eq!(p.between_pieces, p.length);
+        // Exactly the pierced and the piercing triangle are flagged, not the folded neighbour.
+        assert_eq!(intersecting_triangles(&pts32, &with_pierce), vec![true, false, true]);
         // Joined to the first piece by a bridge triangle above them all (it crosses nothing),
         // the same crossing lies inside one piece.
         let mut bridged = pts32.clone();

@@ -1,5 +1,5 @@
 //! Bindings of [`crate::transfer`]: `transfer_shapes`, `find_virtual_edges`,
-//! `measure_penetration`.
+//! `measure_penetration`, `intersecting_triangles`.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 use super::arrays;
 use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
+use crate::geometry::penetration::intersecting_triangles as find_intersecting_triangles;
 use crate::invalid;
 use crate::transfer::{
     find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, CollisionParams, PersonaliseParams,
@@ -157,8 +158,29 @@ fn measure_penetration<'py>(
     arrays::to_python(py, &report)
 }
 
+/// intersecting_triangles(positions, triangles) -> bool (T,)
+///
+/// True for each triangle that crosses another one it shares no vertex with (the pairs the
+/// penetration metric counts).
+#[pyfunction]
+fn intersecting_triangles<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray2<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    let points = arrays::points(&positions, "positions").map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let crossed = detached(py, || {
+        crate::rig::validate_triangle_indices(points.len(), &tris)?;
+        crate::rig::validate_points(points, "positions")?;
+        Ok(find_intersecting_triangles(points, &tris))
+    })?;
+    Ok(PyArray1::from_vec(py, crossed))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(transfer_shapes, m)?)?;
     m.add_function(wrap_pyfunction!(find_virtual_edges, m)?)?;
-    m.add_function(wrap_pyfunction!(measure_penetration, m)?)
+    m.add_function(wrap_pyfunction!(measure_penetration, m)?)?;
+    m.add_function(wrap_pyfunction!(intersecting_triangles, m)?)
 }
