@@ -6,8 +6,8 @@ The template's keys are transferred onto three copies of the target: plain defor
 transfer, with virtual edges, and with virtual edges and the collision pass (the default);
 each is posed at the shape and rendered (Workbench, orthographic close-up of the region the
 shape moves, the skin half transparent) side by side in that order, every triangle that passes
-through another one painted red, so what each variant pushes through lips, teeth or eyes shows
-even inside the mouth. The intersection-curve lengths are printed for the caption.
+through another one (and did not at rest) painted red, so what each variant pushes through
+lips, teeth or eyes shows even inside the mouth. The intersection-curve lengths are printed for the caption.
 """
 
 import argparse
@@ -38,12 +38,14 @@ def transferred_copy(modules, template, target, name, virtual_edges, collisions)
 
 
 def paint_crossings(obj, shape, native, mesh_arrays):
-    """Paints red the faces whose triangles cross another triangle when `obj` is posed at `shape`."""
+    """Paints red the faces whose triangles cross another triangle when `obj` is posed at
+    `shape` and did not cross it at rest (the neutral's own crossings at the lashes stay grey)."""
     mesh = obj.data
     posed = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     mesh.shape_keys.key_blocks[shape].data.foreach_get("co", posed)
     triangles = mesh_arrays.read_triangles(obj)
-    crossed = native.intersecting_triangles(posed.reshape(-1, 3), triangles)
+    rest = mesh_arrays.read_positions(obj)
+    crossed = native.intersecting_triangles(posed.reshape(-1, 3), triangles, rest=rest)
     polygon_of_triangle = np.empty(len(mesh.loop_triangles), dtype=np.int32)
     mesh.loop_triangles.foreach_get("polygon_index", polygon_of_triangle)
     crossed_polygon = np.zeros(len(mesh.polygons), dtype=bool)

@@ -32,14 +32,22 @@ pub fn measure_penetration(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Pe
     total(&crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None), &triangle_pieces(positions.len(), triangles))
 }
 
-/// Which triangles of `positions` cross a triangle they share no vertex with: what a picture
-/// paints and a rigger selects to see where a shape passes through itself.
-pub fn intersecting_triangles(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<bool> {
-    let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
+/// Which triangles of `positions` cross a triangle they share no vertex with, leaving out the
+/// pairs that already cross in `rest` when it is given: what a picture paints and a rigger
+/// selects to see where a shape passes through itself beyond what the neutral does.
+pub fn intersecting_triangles(positions: &[[f32; 3]], rest: Option<&[[f32; 3]]>, triangles: &[[u32; 3]]) -> Vec<bool> {
+    let pairs = |positions: &[[f32; 3]]| {
+        let points: Vec<Vec3> = positions.iter().map(|p| p.map(f64::from)).collect();
+        crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None)
+    };
+    let at_rest: std::collections::HashSet<(u32, u32)> =
+        rest.map(|rest| pairs(rest).into_iter().map(|(a, b, _)| (a, b)).collect()).unwrap_or_default();
     let mut crossed = vec![false; triangles.len()];
-    for (a, b, _) in crossings(&points, triangles, &TriangleBvh::build(&points, triangles), None) {
-        crossed[a as usize] = true;
-        crossed[b as usize] = true;
+    for (a, b, _) in pairs(positions) {
+        if !at_rest.contains(&(a, b)) {
+            crossed[a as usize] = true;
+            crossed[b as usize] = true;
+        }
     }
     crossed
 }
@@ -219,7 +227,9 @@ mod tests {
         // The piercing triangle is a piece of its own: all of the curve lies between pieces.
         assert_eq!(p.between_pieces, p.length);
         // Exactly the pierced and the piercing triangle are flagged, not the folded neighbour.
-        assert_eq!(intersecting_triangles(&pts32, &with_pierce), vec![true, false, true]);
+        assert_eq!(intersecting_triangles(&pts32, None, &with_pierce), vec![true, false, true]);
+        // Measured against itself as the rest pose, nothing is new.
+        assert_eq!(intersecting_triangles(&pts32, Some(&pts32), &with_pierce), vec![false; 3]);
         // Joined to the first piece by a bridge triangle above them all (it crosses nothing),
         // the same crossing lies inside one piece.
         let mut bridged = pts32.clone();

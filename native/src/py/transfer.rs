@@ -158,22 +158,32 @@ fn measure_penetration<'py>(
     arrays::to_python(py, &report)
 }
 
-/// intersecting_triangles(positions, triangles) -> bool (T,)
+/// intersecting_triangles(positions, triangles, rest=None) -> bool (T,)
 ///
 /// True for each triangle that crosses another one it shares no vertex with (the pairs the
-/// penetration metric counts).
+/// penetration metric counts); with `rest` (same shape as `positions`), only pairs that do not
+/// already cross at rest.
 #[pyfunction]
+#[pyo3(signature = (positions, triangles, rest=None))]
 fn intersecting_triangles<'py>(
     py: Python<'py>,
     positions: PyReadonlyArray2<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
+    rest: Option<PyReadonlyArray2<'py, f32>>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let points = arrays::points(&positions, "positions").map_err(py_err(py))?;
+    let rest_points = rest.as_ref().map(|r| arrays::points(r, "rest")).transpose().map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
     let crossed = detached(py, || {
         crate::rig::validate_triangle_indices(points.len(), &tris)?;
         crate::rig::validate_points(points, "positions")?;
-        Ok(find_intersecting_triangles(points, &tris))
+        if let Some(rest_points) = rest_points {
+            if rest_points.len() != points.len() {
+                return Err(invalid!("rest has {} vertices, positions {}", rest_points.len(), points.len()));
+            }
+            crate::rig::validate_points(rest_points, "rest")?;
+        }
+        Ok(find_intersecting_triangles(points, rest_points, &tris))
     })?;
     Ok(PyArray1::from_vec(py, crossed))
 }
