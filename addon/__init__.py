@@ -22,6 +22,7 @@ _MODULE_NAMES = (
     "operators.render_landmark_curve",
     "operators.preview_virtual_edges",
     "operators.transfer_shape_keys",
+    "operators.show_crossings",
     "operators.wrap_pairs",
     "operators.wrap_template",
     "operators.transfer_onto_character",

@@ -37,27 +37,19 @@ def transferred_copy(modules, template, target, name, virtual_edges, collisions)
     return copy, transfer
 
 
-def paint_crossings(obj, shape, native, mesh_arrays):
-    """Paints red the faces whose triangles cross another triangle when `obj` is posed at
-    `shape` and did not cross it at rest (the neutral's own crossings at the lashes stay grey)."""
+def paint_crossings(obj, shape, crossings):
+    """Paints red the faces that pass through the mesh when `obj` is posed at `shape` and did
+    not at rest (the neutral's own crossings at the lashes stay grey); returns their count."""
     mesh = obj.data
-    posed = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.shape_keys.key_blocks[shape].data.foreach_get("co", posed)
-    triangles = mesh_arrays.read_triangles(obj)
-    rest = mesh_arrays.read_positions(obj)
-    crossed = native.intersecting_triangles(posed.reshape(-1, 3), triangles, rest=rest)
-    polygon_of_triangle = np.empty(len(mesh.loop_triangles), dtype=np.int32)
-    mesh.loop_triangles.foreach_get("polygon_index", polygon_of_triangle)
-    crossed_polygon = np.zeros(len(mesh.polygons), dtype=bool)
-    crossed_polygon[polygon_of_triangle[crossed]] = True
+    faces = crossings.crossing_faces(obj, shape)
     loop_totals = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", loop_totals)
-    crossed_loop = np.repeat(crossed_polygon, loop_totals)
+    crossed_loop = np.repeat(faces, loop_totals)
     colours = np.where(crossed_loop[:, None], (0.9, 0.05, 0.02, 1.0), (0.8, 0.8, 0.8, 1.0)).astype(np.float32)
     attribute = mesh.color_attributes.new("crossings", "FLOAT_COLOR", "CORNER")
     attribute.data.foreach_set("color", colours.ravel())
     mesh.color_attributes.active_color = attribute
-    return int(crossed.sum())
+    return int(faces.sum())
 
 
 def render(obj, shape, centre, extent, path):
@@ -112,12 +104,11 @@ def main():
     args = parser.parse_args(argv)
     output = os.path.abspath(args.output or os.path.join(SCRIPTS, "..", "docs", f"transfer_{args.shape}.png"))
     shapesmith = batch.load_shapesmith()
-    modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys", "mesh_arrays")}
-    native = import_module(f"{shapesmith.__name__}.native").module()
+    modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys", "mesh_arrays", "crossings")}
     bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     template, target = bpy.data.objects["Template"], bpy.data.objects[args.target]
 
-    rig = import_module(f"{shapesmith.__name__}.blender.mesh_arrays").read_rig(template)
+    rig = modules["mesh_arrays"].read_rig(template)
     moved = np.linalg.norm(rig.deltas[rig.names.index(args.shape)], axis=1)
     region = modules["transfer"].rest_positions(target)[moved > 0.2 * moved.max()]
     centre = (region.min(0) + region.max(0)) / 2
@@ -132,8 +123,7 @@ def main():
             f"{args.shape} on {args.target}, {label}: intersection curve {row['length']:.4f} ({row['pairs']} pairs); "
             f"template {row['template_length']:.4f} ({row['template_pairs']} pairs)"
         )
-        crossed = paint_crossings(copy, args.shape, native, modules["mesh_arrays"])
-        print(f"  {crossed} triangles painted red")
+        print(f"  {paint_crossings(copy, args.shape, modules['crossings'])} faces painted red")
         path = os.path.join(batch_cache(), "render", f"{label}.png")
         render(copy, args.shape, centre, extent, path)
         paths.append(path)
