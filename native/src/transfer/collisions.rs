@@ -91,6 +91,39 @@ pub struct CollisionOutcome {
     pub applied: bool,
 }
 
+/// The intersection curve a shape adds to its neutral (its length in the shape minus at
+/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
+/// and between two pieces (skin through teeth, an eyeball, lashes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AddedCurve {
+    pub inside: f64,
+    pub between: f64,
+}
+
+impl AddedCurve {
+    /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
+    /// total `rest`, `piece` giving each triangle's piece.
+    fn of(pairs: impl Iterator<Item = (u32, u32, f64)>, piece: impl Fn(u32) -> u32, rest: AddedCurve) -> Self {
+        let mut added = AddedCurve { inside: -rest.inside, between: -rest.between };
+        for (a, b, l) in pairs {
+            if piece(a) == piece(b) {
+                added.inside += l;
+            } else {
+                added.between += l;
+            }
+        }
+        added
+    }
+
+    /// How much more this adds than the template's shape `template` adds, per part, a part
+    /// where the template removes some of its neutral's curve counting as adding none (issue
+    /// 9's criterion: where the template adds none, the transfer adds none), and removing in
+    /// one part not paying for adding in the other. Zero when the shape meets the criterion.
+    pub fn excess(&self, template: &AddedCurve) -> f64 {
+        (self.inside - template.inside.max(0.0)).max(0.0) + (self.between - template.between.max(0.0)).max(0.0)
+    }
+}
+
 /// What the pass needs of the two neutrals, computed once per transfer.
 pub(super) struct CollisionGuard {
     params: CollisionParams,
@@ -176,7 +209,7 @@ pub(super) struct ShapeSystem<'a> {
     pub pinned: &'a [bool],
     pub rhs: &'a [Vec3],
     /// The intersection curve the template's shape adds to its neutral, when known.
-    pub template_added: Option<f64>,
+    pub template_added: Option<AddedCurve>,
 }
 
 /// Where a vertex that went through must go: its target position (working frame).
@@ -204,15 +237,14 @@ impl DeformationTransfer {
             }
         }
         let mut outcome = CollisionOutcome::default();
-        // Curve of the rest pairs whose triangles both stay put: crossing exactly as at rest.
-        let unmoved_rest: f64 = guard
-            .rest_pairs
-            .iter()
-            .zip(&guard.rest_lengths)
-            .filter(|&(&(a, b), _)| !moved[a as usize] && !moved[b as usize])
-            .map(|(_, l)| l)
-            .sum();
-        let rest_total: f64 = guard.rest_lengths.iter().sum();
+        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        // The rest curve the sweeps see again: all of it but the rest pairs whose triangles
+        // both stay put (those cross exactly as at rest and are not swept).
+        let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
+        let swept_rest =
+            AddedCurve::of(rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]), piece_of, AddedCurve::default());
+        let tolerance = JUDGE_TOLERANCE * guard.diagonal;
+        let meets = |added: &AddedCurve, template: &Option<AddedCurve>| template.is_some_and(|t| added.excess(&t) <= tolerance);
         let mut template_added = shape.template_added;
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
@@ -220,9 +252,11 @@ impl DeformationTransfer {
         let mut last: Option<Vec<Vec3>> = None;
         let mut template: Option<TemplateContacts> = None;
         let plain = out.clone();
-        // The least curve added so far, the deltas that add it (empty: the plain solve) and
-        // the new pairs left in them.
+        // The least excess over the template so far (the least added curve while the
+        // template's is not known), the deltas that add it (empty: the plain solve) and the
+        // new pairs left in them.
         let mut best: Option<(f64, Vec<Vec3>, usize)> = None;
+        let mut first: Option<AddedCurve> = None;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             crossing = match &last {
@@ -243,10 +277,12 @@ impl DeformationTransfer {
                 }
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
-            let added = crossing.iter().map(|p| p.2).sum::<f64>() + unmoved_rest - rest_total;
-            let improved = best.as_ref().is_none_or(|(b, _, _)| added < *b);
+            let added = AddedCurve::of(crossing.iter().copied(), piece_of, swept_rest);
+            first.get_or_insert(added);
+            let score = |a: &AddedCurve| template_added.map_or(a.inside + a.between, |t| a.excess(&t));
+            let improved = best.as_ref().is_none_or(|(b, _, _)| score(&added) < *b);
             if improved {
-                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }, 0));
+                best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0));
             }
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
@@ -254,14 +290,19 @@ impl DeformationTransfer {
                 .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
                 .collect();
             // Nothing new crosses, or no more curve than the template's own shape adds.
-            if candidates.is_empty() || template_added.is_some_and(|t| added <= t) {
+            if candidates.is_empty() || meets(&added, &template_added) {
                 break;
             }
             if template.is_none() {
                 let contacts = self.template_contacts(guard, shape.delta, &moved);
-                template_added = Some(contacts.added);
+                if template_added.is_none() {
+                    // Only the plain solve was judged so far (by added curve): judge it by
+                    // its excess over the template.
+                    template_added = Some(contacts.added);
+                    best = best.map(|(_, kept, left)| (first.map_or(0.0, |f| f.excess(&contacts.added)), kept, left));
+                }
                 template = Some(contacts);
-                if template_added.is_some_and(|t| added <= t) {
+                if meets(&added, &template_added) {
                     break;
                 }
             }
@@ -370,15 +411,16 @@ impl DeformationTransfer {
         let bvh = guard.template_bvh.refitted(&points, &self.triangles);
         let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
         let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
+        let all: Vec<(u32, u32, f64)> = swept.into_iter().chain(unmoved).collect();
         let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
-        let mut total = 0.0;
-        for (a, b, l) in swept.into_iter().chain(unmoved) {
+        for &(a, b, _) in &all {
             partners.entry(a).or_default().push(b);
             partners.entry(b).or_default().push(a);
-            total += l;
         }
-        let added = total - guard.template_rest_pairs.iter().map(|p| p.2).sum::<f64>();
-        TemplateContacts { partners, added }
+        // Template and target share the topology, hence the pieces.
+        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
+        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest) }
     }
 
     /// The free vertices that went through the other surface of a new pair, with the target
@@ -541,7 +583,7 @@ impl DeformationTransfer {
 /// adds to the template's neutral.
 struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
-    added: f64,
+    added: AddedCurve,
 }
 
 impl TemplateContacts {
@@ -562,6 +604,11 @@ impl TemplateContacts {
 const REGION_RINGS: f64 = 3.0;
 const REGION_SPREAD: f64 = 3.0;
 
+/// Excess over the template's curve (in bbox diagonals) below which a shape meets the
+/// criterion: a tenth of the report's tolerance, so that float noise in the sums of a shape
+/// that moves crossing triangles without changing their crossing does not start the pass.
+const JUDGE_TOLERANCE: f64 = 1e-4;
+
 /// How deep behind an obstacle's plane (in the vertex's edge lengths) a vertex still counts as
 /// having gone through it.
 const MAX_DEPTH: f64 = 4.0;
@@ -577,4 +624,27 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
     let coordinate = |i: usize| dot(cross(sub(p[(i + 2) % 3], p[(i + 1) % 3]), sub(q, p[(i + 1) % 3])), normal) / area2;
     let smallest = coordinate(0).min(coordinate(1)).min(coordinate(2));
     Some((smallest, dot(normal, sub(q, p[0])) / area2.sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::AddedCurve;
+
+    #[test]
+    fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_gain_only() {
+        // Triangles 0, 1 in piece 0; 2 in piece 1. Rest: inside 0.5, between 0.25.
+        let piece = |t: u32| u32::from(t == 2);
+        let rest = AddedCurve::of([(0, 1, 0.5), (1, 2, 0.25)].into_iter(), piece, AddedCurve::default());
+        assert_eq!(rest, AddedCurve { inside: 0.5, between: 0.25 });
+        let added = AddedCurve::of([(0, 1, 0.75), (0, 2, 0.125)].into_iter(), piece, rest);
+        assert_eq!(added, AddedCurve { inside: 0.25, between: -0.125 });
+        // A template adding more inside and anything between: met.
+        assert_eq!(added.excess(&AddedCurve { inside: 0.5, between: -1.0 }), 0.0);
+        // Removing between does not pay for adding inside: the template adds none inside.
+        assert_eq!(added.excess(&AddedCurve { inside: -0.5, between: 1.0 }), 0.25);
+        // Where the template removes, the target need only add none (not remove as much).
+        let removes = AddedCurve { inside: -0.25, between: -0.5 };
+        assert_eq!(AddedCurve { inside: 0.0, between: -0.125 }.excess(&removes), 0.0);
+        assert_eq!(AddedCurve { inside: 0.125, between: 0.25 }.excess(&removes), 0.375);
+    }
 }
