@@ -56,8 +56,9 @@ pub struct CollisionParams {
     /// Distance kept from the other surface, as a fraction of the mean length of the edges at
     /// the vertex on the target's neutral (SPEC: 25%).
     pub margin: f64,
-    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal:
-    /// on dense meshes a fraction of an edge is too thin to keep a lip off the teeth.
+    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal
+    /// (a floor where edges are very short; larger floors hold vertices off where the true
+    /// shape comes closer: see the module's measurements in `transfer/mod.rs`).
     pub min_margin: f64,
     /// Re-solves per shape at most.
     pub max_iterations: usize,
@@ -68,7 +69,7 @@ pub struct CollisionParams {
 
 impl Default for CollisionParams {
     fn default() -> Self {
-        Self { margin: 0.25, min_margin: 0.008, max_iterations: 4, stiffness: 100.0 }
+        Self { margin: 0.25, min_margin: 0.001, max_iterations: 4, stiffness: 100.0 }
     }
 }
 
@@ -284,10 +285,15 @@ impl DeformationTransfer {
             if improved {
                 best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0));
             }
+            // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
+            // the teeth adds curve by sliding deeper along pairs that already cross.
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
+                .filter(|&&(a, b, l)| match guard.rest_pairs.binary_search(&(a, b)) {
+                    Err(_) => true,
+                    Ok(i) => l > guard.rest_lengths[i] * (1.0 + REST_GROWTH),
+                })
                 .map(|&(a, b, _)| (a, b))
-                .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
                 .collect();
             // Nothing new crosses, or no more curve than the template's own shape adds.
             if candidates.is_empty() || meets(&added, &template_added) {
@@ -309,6 +315,17 @@ impl DeformationTransfer {
             let new_pairs: Vec<(u32, u32)> = match &template {
                 Some(contacts) => candidates.into_iter().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
                 None => candidates,
+            };
+            // Only the part (inside one piece, between pieces) adding more than the template's
+            // is acted on: pushing the other part's pairs moves vertices for nothing and can
+            // add curve where the shape met the criterion.
+            let new_pairs: Vec<(u32, u32)> = match template_added {
+                Some(t) => {
+                    let over_inside = added.inside - t.inside.max(0.0) > 0.5 * tolerance;
+                    let over_between = added.between - t.between.max(0.0) > 0.5 * tolerance;
+                    new_pairs.into_iter().filter(|&(a, b)| if piece_of(a) == piece_of(b) { over_inside } else { over_between }).collect()
+                }
+                None => new_pairs,
             };
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
@@ -412,8 +429,12 @@ impl DeformationTransfer {
         let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
         let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
         let all: Vec<(u32, u32, f64)> = swept.into_iter().chain(unmoved).collect();
+        // The artist's own contacts are the pairs the shape crosses and its neutral does not:
+        // a pair crossing at the template's rest (skin resting in its teeth) says nothing
+        // about what the shape may add around it.
         let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
-        for &(a, b, _) in &all {
+        let at_rest = |a: u32, b: u32| guard.template_rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok();
+        for &(a, b, _) in all.iter().filter(|&&(a, b, _)| !at_rest(a, b)) {
             partners.entry(a).or_default().push(b);
             partners.entry(b).or_default().push(a);
         }
@@ -463,7 +484,13 @@ impl DeformationTransfer {
                     if !free[u] {
                         continue;
                     }
+                    let moved_by = length(sub(positions[u], self.target_neutral[u]));
                     let push = match obstacle_piece(u, obstacle) {
+                        // A corner that barely moves goes back to rest, where its triangle
+                        // crosses the static piece exactly as in the neutral.
+                        Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
+                            Some(sub(self.target_neutral[u], positions[u]))
+                        }
                         Some(piece) => self.push_off_piece(guard, positions, u, piece),
                         None => self.push_out(guard, positions, u, obstacle as usize, free),
                     };
@@ -598,6 +625,16 @@ impl TemplateContacts {
         })
     }
 }
+
+/// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
+/// than this fraction in the shape.
+const REST_GROWTH: f64 = 0.05;
+
+/// A corner of a pair against a static piece that moves at most this many of its edge lengths
+/// is held at rest instead of pushed to the surface plus the margin: the MakeHuman lids and
+/// lips already cross their eyeballs and teeth at rest, and a sub-millimetre drift there
+/// (the solve spreading a mouth shape up to the lids) adds centimetres of curve.
+const REST_SNAP: f64 = 0.5;
 
 /// How far the local re-solve reaches from a held vertex, in its edge lengths at least, and
 /// in multiples of the distance it is pushed.
