@@ -2,26 +2,33 @@
 //! a shape is solved, a result that adds more intersection curve to the target's neutral than
 //! the template's own shape adds to the template's has the vertices that went through another
 //! surface held on the side they were on at rest (plus a margin) and is re-solved around
-//! them; a few rounds at most, and the round adding least curve is kept.
+//! them; a few rounds at most, and the round with least excess over the template is kept.
 //!
 //! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
 //! triangles cross exactly as at rest) and its added curve compared with the template
 //! shape's (from the report's template numbers when given, else one sweep of the template
-//! shape). A shape adding no more is returned untouched, bit for bit: the criterion is "no
-//! more than the template", so the artist's own contacts (lips pressed together in
-//! mouthClose) stay, and self-transfer stays exact.
+//! shape), part by part: inside one piece and between pieces, a part where the template's
+//! shape removes curve allowing none ([`AddedCurve::excess`], issue 9's criterion). A shape
+//! adding no more is returned untouched, bit for bit: the criterion is "no more than the
+//! template", so the artist's own contacts (lips pressed together in mouthClose) stay, and
+//! self-transfer stays exact.
 //!
-//! **Which pairs.** Pairs sharing no vertex, crossing in the result, not at the target's rest,
-//! and not near a pair the template's shape crosses: some triangle sharing a corner with one
-//! crosses some triangle sharing a corner with the other in the template (the template's
-//! crossing triangles are listed once per shape, then each pair is a lookup). Only vertices
-//! the solve is free to move (moving, in a piece anchored by its static vertices) are held.
+//! **Which pairs.** Pairs of the part in excess only, sharing no vertex, crossing in the
+//! result, not at the target's rest (or at rest with over 5% more curve: skin resting in an
+//! eyeball or the teeth adds curve by sliding along pairs that already cross), and not near a
+//! pair the template's shape adds: some triangle sharing a corner with one crosses some
+//! triangle sharing a corner with the other in the template's shape and not at the
+//! template's rest (the template's crossing triangles are listed once per shape, then each
+//! pair is a lookup). Only vertices the solve is free to move (moving, in a piece anchored by
+//! its static vertices) are held.
 //!
 //! **Which vertices, and where to.** Against a piece that is static in the shape (teeth, an
 //! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
 //! pair offends when it is on the other side of that piece's surface than at rest, the side
 //! read at its closest point on the piece (`TriangleBvh::closest_point_where`); its target is
-//! that closest point plus the margin along the surface normal. Against a surface that moves
+//! that closest point plus the margin along the surface normal. A corner that moved at most
+//! half an edge goes back to rest instead, where its triangle crosses the piece as in the
+//! neutral. Against a surface that moves
 //! too (lip through lip), it offends when it is on the other side of the other triangle's
 //! plane than at rest; its target is pushed along that plane's normal to the rest side plus
 //! the margin, `t_u = x_u + (s m_u - h) n` (`s` the rest side, `h` the signed distance now),
@@ -37,7 +44,7 @@
 //! or 3x its push) are unknowns; the rest of the shape stays as solved (Dirichlet), so a
 //! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
 //! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
-//! the one adding least curve is kept: the pass never makes a shape worse by the criterion.
+//! the one with least excess over the template is kept: it never makes a shape worse.
 
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
