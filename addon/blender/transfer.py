@@ -298,23 +298,31 @@ def collision_traced(report):
 
 
 def added_beyond_template(report, row, key="length"):
-    """How much more intersection curve the shape adds to the target's neutral than it adds to
-    the template's, split into (inside one piece: lips or lids through each other, between
-    pieces: skin through a separate eyeball, lashes or teeth). `key="plain_length"` judges
-    plain transfer, `key="before_collisions_length"` the result before the collision pass."""
+    """How much more intersection curve the shape adds to the target's neutral than the
+    template's shape adds to the template's, split into (inside one piece: lips or lids
+    through each other, between pieces: skin through a separate eyeball, lashes or teeth),
+    each part zero or more. Issue 9's criterion, part by part: a part where the template's
+    shape removes some of its neutral's curve counts as adding none (the transfer must then
+    add none, not remove as much), and removing curve in one part does not pay for adding it
+    in the other. `key="plain_length"` judges plain transfer, `key="before_collisions_length"`
+    the result before the collision pass."""
     between_key = key.replace("length", "between_pieces")
     target_rest, template_rest = report["neutral_penetration"], report["template_neutral_penetration"]
-    between = (row[between_key] - target_rest["between_pieces"]) - (
-        row["template_between_pieces"] - template_rest["between_pieces"]
+    target_between = row[between_key] - target_rest["between_pieces"]
+    target_inside = row[key] - target_rest["length"] - target_between
+    template_between = row["template_between_pieces"] - template_rest["between_pieces"]
+    template_inside = row["template_length"] - template_rest["length"] - template_between
+    return (
+        max(target_inside - max(template_inside, 0.0), 0.0),
+        max(target_between - max(template_between, 0.0), 0.0),
     )
-    total = (row[key] - target_rest["length"]) - (row["template_length"] - template_rest["length"])
-    return total - between, between
 
 
 def worse_than_template(report, key="length", tolerance=1e-3):
     """Names of shapes that add more intersection curve to the target's neutral than they add
-    to the template's (beyond `tolerance` x the bbox diagonal); `key="plain_length"` judges
-    plain transfer, `key="before_collisions_length"` the result before the collision pass."""
+    to the template's (`added_beyond_template`, both parts together beyond `tolerance` x the
+    bbox diagonal); `key="plain_length"` judges plain transfer, `key="before_collisions_length"`
+    the result before the collision pass."""
     margin = tolerance * report["diagonal"]
     return [row["name"] for row in report["penetration"] if sum(added_beyond_template(report, row, key)) > margin]
 

@@ -2,26 +2,33 @@
 //! a shape is solved, a result that adds more intersection curve to the target's neutral than
 //! the template's own shape adds to the template's has the vertices that went through another
 //! surface held on the side they were on at rest (plus a margin) and is re-solved around
-//! them; a few rounds at most, and the round adding least curve is kept.
+//! them; a few rounds at most, and the round with least excess over the template is kept.
 //!
 //! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
 //! triangles cross exactly as at rest) and its added curve compared with the template
 //! shape's (from the report's template numbers when given, else one sweep of the template
-//! shape). A shape adding no more is returned untouched, bit for bit: the criterion is "no
-//! more than the template", so the artist's own contacts (lips pressed together in
-//! mouthClose) stay, and self-transfer stays exact.
+//! shape), part by part: inside one piece and between pieces, a part where the template's
+//! shape removes curve allowing none ([`AddedCurve::excess`], issue 9's criterion). A shape
+//! adding no more is returned untouched, bit for bit: the criterion is "no more than the
+//! template", so the artist's own contacts (lips pressed together in mouthClose) stay, and
+//! self-transfer stays exact.
 //!
-//! **Which pairs.** Pairs sharing no vertex, crossing in the result, not at the target's rest,
-//! and not near a pair the template's shape crosses: some triangle sharing a corner with one
-//! crosses some triangle sharing a corner with the other in the template (the template's
-//! crossing triangles are listed once per shape, then each pair is a lookup). Only vertices
-//! the solve is free to move (moving, in a piece anchored by its static vertices) are held.
+//! **Which pairs.** Pairs of the part in excess only, sharing no vertex, crossing in the
+//! result, not at the target's rest (or at rest with over 5% more curve: skin resting in an
+//! eyeball or the teeth adds curve by sliding along pairs that already cross), and not near a
+//! pair the template's shape adds: some triangle sharing a corner with one crosses some
+//! triangle sharing a corner with the other in the template's shape and not at the
+//! template's rest (the template's crossing triangles are listed once per shape, then each
+//! pair is a lookup). Only vertices the solve is free to move (moving, in a piece anchored by
+//! its static vertices) are held.
 //!
 //! **Which vertices, and where to.** Against a piece that is static in the shape (teeth, an
 //! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
 //! pair offends when it is on the other side of that piece's surface than at rest, the side
 //! read at its closest point on the piece (`TriangleBvh::closest_point_where`); its target is
-//! that closest point plus the margin along the surface normal. Against a surface that moves
+//! that closest point plus the margin along the surface normal. A corner that moved at most
+//! half an edge goes back to rest instead, where its triangle crosses the piece as in the
+//! neutral. Against a surface that moves
 //! too (lip through lip), it offends when it is on the other side of the other triangle's
 //! plane than at rest; its target is pushed along that plane's normal to the rest side plus
 //! the margin, `t_u = x_u + (s m_u - h) n` (`s` the rest side, `h` the signed distance now),
@@ -37,7 +44,7 @@
 //! or 3x its push) are unknowns; the rest of the shape stays as solved (Dirichlet), so a
 //! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
 //! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
-//! the one adding least curve is kept: the pass never makes a shape worse by the criterion.
+//! the one with least excess over the template is kept: it never makes a shape worse.
 
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
@@ -56,8 +63,9 @@ pub struct CollisionParams {
     /// Distance kept from the other surface, as a fraction of the mean length of the edges at
     /// the vertex on the target's neutral (SPEC: 25%).
     pub margin: f64,
-    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal:
-    /// on dense meshes a fraction of an edge is too thin to keep a lip off the teeth.
+    /// The least distance kept, as a fraction of the target neutral's bounding-box diagonal
+    /// (a floor where edges are very short; larger floors hold vertices off where the true
+    /// shape comes closer: see the module's measurements in `transfer/mod.rs`).
     pub min_margin: f64,
     /// Re-solves per shape at most.
     pub max_iterations: usize,
@@ -68,7 +76,7 @@ pub struct CollisionParams {
 
 impl Default for CollisionParams {
     fn default() -> Self {
-        Self { margin: 0.25, min_margin: 0.008, max_iterations: 4, stiffness: 100.0 }
+        Self { margin: 0.25, min_margin: 0.001, max_iterations: 4, stiffness: 100.0 }
     }
 }
 
@@ -89,6 +97,39 @@ pub struct CollisionOutcome {
     /// Whether the result is a re-solve; `false` when the plain solve was kept (bit for bit),
     /// because it was no worse than the template or no re-solve added less curve.
     pub applied: bool,
+}
+
+/// The intersection curve a shape adds to its neutral (its length in the shape minus at
+/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
+/// and between two pieces (skin through teeth, an eyeball, lashes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AddedCurve {
+    pub inside: f64,
+    pub between: f64,
+}
+
+impl AddedCurve {
+    /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
+    /// total `rest`, `piece` giving each triangle's piece.
+    fn of(pairs: impl Iterator<Item = (u32, u32, f64)>, piece: impl Fn(u32) -> u32, rest: AddedCurve) -> Self {
+        let mut added = AddedCurve { inside: -rest.inside, between: -rest.between };
+        for (a, b, l) in pairs {
+            if piece(a) == piece(b) {
+                added.inside += l;
+            } else {
+                added.between += l;
+            }
+        }
+        added
+    }
+
+    /// How much more this adds than the template's shape `template` adds, per part, a part
+    /// where the template removes some of its neutral's curve counting as adding none (issue
+    /// 9's criterion: where the template adds none, the transfer adds none), and removing in
+    /// one part not paying for adding in the other. Zero when the shape meets the criterion.
+    pub fn excess(&self, template: &AddedCurve) -> f64 {
+        (self.inside - template.inside.max(0.0)).max(0.0) + (self.between - template.between.max(0.0)).max(0.0)
+    }
 }
 
 /// What the pass needs of the two neutrals, computed once per transfer.
@@ -176,7 +217,7 @@ pub(super) struct ShapeSystem<'a> {
     pub pinned: &'a [bool],
     pub rhs: &'a [Vec3],
     /// The intersection curve the template's shape adds to its neutral, when known.
-    pub template_added: Option<f64>,
+    pub template_added: Option<AddedCurve>,
 }
 
 /// Where a vertex that went through must go: its target position (working frame).
@@ -204,15 +245,14 @@ impl DeformationTransfer {
             }
         }
         let mut outcome = CollisionOutcome::default();
-        // Curve of the rest pairs whose triangles both stay put: crossing exactly as at rest.
-        let unmoved_rest: f64 = guard
-            .rest_pairs
-            .iter()
-            .zip(&guard.rest_lengths)
-            .filter(|&(&(a, b), _)| !moved[a as usize] && !moved[b as usize])
-            .map(|(_, l)| l)
-            .sum();
-        let rest_total: f64 = guard.rest_lengths.iter().sum();
+        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        // The rest curve the sweeps see again: all of it but the rest pairs whose triangles
+        // both stay put (those cross exactly as at rest and are not swept).
+        let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
+        let swept_rest =
+            AddedCurve::of(rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]), piece_of, AddedCurve::default());
+        let tolerance = JUDGE_TOLERANCE * guard.diagonal;
+        let meets = |added: &AddedCurve, template: &Option<AddedCurve>| template.is_some_and(|t| added.excess(&t) <= tolerance);
         let mut template_added = shape.template_added;
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
@@ -220,9 +260,11 @@ impl DeformationTransfer {
         let mut last: Option<Vec<Vec3>> = None;
         let mut template: Option<TemplateContacts> = None;
         let plain = out.clone();
-        // The least curve added so far, the deltas that add it (empty: the plain solve) and
-        // the new pairs left in them.
+        // The least excess over the template so far (the least added curve while the
+        // template's is not known), the deltas that add it (empty: the plain solve) and the
+        // new pairs left in them.
         let mut best: Option<(f64, Vec<Vec3>, usize)> = None;
+        let mut first: Option<AddedCurve> = None;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             crossing = match &last {
@@ -243,31 +285,54 @@ impl DeformationTransfer {
                 }
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
-            let added = crossing.iter().map(|p| p.2).sum::<f64>() + unmoved_rest - rest_total;
-            let improved = best.as_ref().is_none_or(|(b, _, _)| added < *b);
+            let added = AddedCurve::of(crossing.iter().copied(), piece_of, swept_rest);
+            first.get_or_insert(added);
+            let score = |a: &AddedCurve| template_added.map_or(a.inside + a.between, |t| a.excess(&t));
+            let improved = best.as_ref().is_none_or(|(b, _, _)| score(&added) < *b);
             if improved {
-                best = Some((added, if round == 0 { Vec::new() } else { out.clone() }, 0));
+                best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0));
             }
+            // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
+            // the teeth adds curve by sliding deeper along pairs that already cross.
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
+                .filter(|&&(a, b, l)| match guard.rest_pairs.binary_search(&(a, b)) {
+                    Err(_) => true,
+                    Ok(i) => l > guard.rest_lengths[i] * (1.0 + REST_GROWTH),
+                })
                 .map(|&(a, b, _)| (a, b))
-                .filter(|pair| guard.rest_pairs.binary_search(pair).is_err())
                 .collect();
             // Nothing new crosses, or no more curve than the template's own shape adds.
-            if candidates.is_empty() || template_added.is_some_and(|t| added <= t) {
+            if candidates.is_empty() || meets(&added, &template_added) {
                 break;
             }
             if template.is_none() {
                 let contacts = self.template_contacts(guard, shape.delta, &moved);
-                template_added = Some(contacts.added);
+                if template_added.is_none() {
+                    // Only the plain solve was judged so far (by added curve): judge it by
+                    // its excess over the template.
+                    template_added = Some(contacts.added);
+                    best = best.map(|(_, kept, left)| (first.map_or(0.0, |f| f.excess(&contacts.added)), kept, left));
+                }
                 template = Some(contacts);
-                if template_added.is_some_and(|t| added <= t) {
+                if meets(&added, &template_added) {
                     break;
                 }
             }
             let new_pairs: Vec<(u32, u32)> = match &template {
                 Some(contacts) => candidates.into_iter().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
                 None => candidates,
+            };
+            // Only the part (inside one piece, between pieces) adding more than the template's
+            // is acted on: pushing the other part's pairs moves vertices for nothing and can
+            // add curve where the shape met the criterion.
+            let new_pairs: Vec<(u32, u32)> = match template_added {
+                Some(t) => {
+                    let over_inside = added.inside - t.inside.max(0.0) > 0.5 * tolerance;
+                    let over_between = added.between - t.between.max(0.0) > 0.5 * tolerance;
+                    new_pairs.into_iter().filter(|&(a, b)| if piece_of(a) == piece_of(b) { over_inside } else { over_between }).collect()
+                }
+                None => new_pairs,
             };
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
@@ -370,15 +435,20 @@ impl DeformationTransfer {
         let bvh = guard.template_bvh.refitted(&points, &self.triangles);
         let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
         let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
+        let all: Vec<(u32, u32, f64)> = swept.into_iter().chain(unmoved).collect();
+        // The artist's own contacts are the pairs the shape crosses and its neutral does not:
+        // a pair crossing at the template's rest (skin resting in its teeth) says nothing
+        // about what the shape may add around it.
         let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
-        let mut total = 0.0;
-        for (a, b, l) in swept.into_iter().chain(unmoved) {
+        let at_rest = |a: u32, b: u32| guard.template_rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok();
+        for &(a, b, _) in all.iter().filter(|&&(a, b, _)| !at_rest(a, b)) {
             partners.entry(a).or_default().push(b);
             partners.entry(b).or_default().push(a);
-            total += l;
         }
-        let added = total - guard.template_rest_pairs.iter().map(|p| p.2).sum::<f64>();
-        TemplateContacts { partners, added }
+        // Template and target share the topology, hence the pieces.
+        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
+        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest) }
     }
 
     /// The free vertices that went through the other surface of a new pair, with the target
@@ -421,7 +491,13 @@ impl DeformationTransfer {
                     if !free[u] {
                         continue;
                     }
+                    let moved_by = length(sub(positions[u], self.target_neutral[u]));
                     let push = match obstacle_piece(u, obstacle) {
+                        // A corner that barely moves goes back to rest, where its triangle
+                        // crosses the static piece exactly as in the neutral.
+                        Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
+                            Some(sub(self.target_neutral[u], positions[u]))
+                        }
                         Some(piece) => self.push_off_piece(guard, positions, u, piece),
                         None => self.push_out(guard, positions, u, obstacle as usize, free),
                     };
@@ -541,7 +617,7 @@ impl DeformationTransfer {
 /// adds to the template's neutral.
 struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
-    added: f64,
+    added: AddedCurve,
 }
 
 impl TemplateContacts {
@@ -557,10 +633,25 @@ impl TemplateContacts {
     }
 }
 
+/// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
+/// than this fraction in the shape.
+const REST_GROWTH: f64 = 0.05;
+
+/// A corner of a pair against a static piece that moves at most this many of its edge lengths
+/// is held at rest instead of pushed to the surface plus the margin: the MakeHuman lids and
+/// lips already cross their eyeballs and teeth at rest, and a sub-millimetre drift there
+/// (the solve spreading a mouth shape up to the lids) adds centimetres of curve.
+const REST_SNAP: f64 = 0.5;
+
 /// How far the local re-solve reaches from a held vertex, in its edge lengths at least, and
 /// in multiples of the distance it is pushed.
 const REGION_RINGS: f64 = 3.0;
 const REGION_SPREAD: f64 = 3.0;
+
+/// Excess over the template's curve (in bbox diagonals) below which a shape meets the
+/// criterion: a tenth of the report's tolerance, so that float noise in the sums of a shape
+/// that moves crossing triangles without changing their crossing does not start the pass.
+const JUDGE_TOLERANCE: f64 = 1e-4;
 
 /// How deep behind an obstacle's plane (in the vertex's edge lengths) a vertex still counts as
 /// having gone through it.
@@ -577,4 +668,27 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
     let coordinate = |i: usize| dot(cross(sub(p[(i + 2) % 3], p[(i + 1) % 3]), sub(q, p[(i + 1) % 3])), normal) / area2;
     let smallest = coordinate(0).min(coordinate(1)).min(coordinate(2));
     Some((smallest, dot(normal, sub(q, p[0])) / area2.sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::AddedCurve;
+
+    #[test]
+    fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_gain_only() {
+        // Triangles 0, 1 in piece 0; 2 in piece 1. Rest: inside 0.5, between 0.25.
+        let piece = |t: u32| u32::from(t == 2);
+        let rest = AddedCurve::of([(0, 1, 0.5), (1, 2, 0.25)].into_iter(), piece, AddedCurve::default());
+        assert_eq!(rest, AddedCurve { inside: 0.5, between: 0.25 });
+        let added = AddedCurve::of([(0, 1, 0.75), (0, 2, 0.125)].into_iter(), piece, rest);
+        assert_eq!(added, AddedCurve { inside: 0.25, between: -0.125 });
+        // A template adding more inside and anything between: met.
+        assert_eq!(added.excess(&AddedCurve { inside: 0.5, between: -1.0 }), 0.0);
+        // Removing between does not pay for adding inside: the template adds none inside.
+        assert_eq!(added.excess(&AddedCurve { inside: -0.5, between: 1.0 }), 0.25);
+        // Where the template removes, the target need only add none (not remove as much).
+        let removes = AddedCurve { inside: -0.25, between: -0.5 };
+        assert_eq!(AddedCurve { inside: 0.0, between: -0.125 }.excess(&removes), 0.0);
+        assert_eq!(AddedCurve { inside: 0.125, between: 0.25 }.excess(&removes), 0.375);
+    }
 }

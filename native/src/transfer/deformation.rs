@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
-use super::collisions::{CollisionGuard, CollisionOutcome, ShapeSystem};
+use super::collisions::{AddedCurve, CollisionGuard, CollisionOutcome, ShapeSystem};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     HatGradients, Vec3, IDENTITY, ZERO,
@@ -182,7 +182,7 @@ impl DeformationTransfer {
         &self,
         source_deltas: &[[f32; 3]],
         names: &[String],
-        template_added: Option<&[f64]>,
+        template_added: Option<&[AddedCurve]>,
         progress: &dyn Progress,
     ) -> ShapesmithResult<TransferResult> {
         let start = Instant::now();
@@ -316,7 +316,7 @@ impl DeformationTransfer {
         &self,
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
-        collisions: Option<Option<f64>>,
+        collisions: Option<Option<AddedCurve>>,
     ) -> ShapesmithResult<SolvedShape> {
         self.solve_shape_aiming(delta, gradient, None, collisions)
     }
@@ -327,7 +327,7 @@ impl DeformationTransfer {
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: Option<&[Vec3]>,
-        collisions: Option<Option<f64>>,
+        collisions: Option<Option<AddedCurve>>,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();

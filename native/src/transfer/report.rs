@@ -7,7 +7,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::geometry::penetration::PenetrationBaseline;
-use super::{CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
+use super::{AddedCurve, CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::progress::{NoProgress, Progress, Stage};
@@ -148,8 +148,12 @@ pub fn transfer_shapes(
         _ => {
             // The template's own numbers, when given, spare the collision pass a sweep of each
             // template shape it has to judge.
-            let template_added: Option<Vec<f64>> =
-                template_penetration.map(|t| t.shapes.iter().map(|s| s.length - t.neutral.length).collect());
+            let template_added: Option<Vec<AddedCurve>> = template_penetration.map(|t| {
+                let inside = |p: &Penetration| p.length - p.between_pieces;
+                let added =
+                    |s: &Penetration| AddedCurve { inside: inside(s) - inside(&t.neutral), between: s.between_pieces - t.neutral.between_pieces };
+                t.shapes.iter().map(added).collect()
+            });
             let out = dt.transfer_judged(source_deltas, names, template_added.as_deref(), &solving)?;
             seconds.solves = out.seconds;
             seconds.collisions = out.collision_seconds;

@@ -703,3 +703,44 @@ fn collision_pass_does_not_move_a_warped_target_away_from_its_ground_truth() {
     let (before, after) = (error(&without.deltas), error(&with.deltas));
     assert!(after <= 1.05 * before, "ground-truth error grew from {before:.3e} to {after:.3e}");
 }
+
+#[test]
+fn skin_resting_through_a_static_piece_adds_no_curve_where_the_template_adds_none() {
+    // The skin plane cuts through the teeth at rest (both meshes cross from the start: the
+    // MakeHuman lids and lips rest inside their eyeballs and teeth). A small rise of the skin
+    // over the teeth stays inside the template's tall teeth but pokes through the target's
+    // top, 0.02 above the skin: only the target's shape adds curve.
+    let (source, tris) = skin_over_teeth(0.2);
+    let (target, _) = skin_over_teeth(0.02);
+    let n = source.len();
+    let mut deltas = press_and_bump(&source);
+    for (v, p) in source.iter().enumerate().take(15 * 15) {
+        let rise = (-((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).exp();
+        deltas[v] = if rise > 1e-3 { [0.0, 0.0, 0.03 * rise] } else { [0.0; 3] };
+    }
+    let names = vec!["lipRise".to_string(), "cheekBump".to_string()];
+    let added = |neutral: &[[f32; 3]], delta: &[[f32; 3]]| {
+        let (rest, shape) = (measure_penetration(neutral, &tris), measure_penetration(&posed(neutral, delta), &tris));
+        (shape.length - shape.between_pieces - (rest.length - rest.between_pieces), shape.between_pieces - rest.between_pieces)
+    };
+    assert!(measure_penetration(&source, &tris).pairs > 0 && measure_penetration(&target, &tris).pairs > 0);
+    let (template_inside, template_between) = added(&source, &deltas[..n]);
+    let tolerance = 1e-3 * crate::rig::bbox_diagonal(&target);
+    assert!(template_inside.max(template_between) < tolerance, "{template_inside} {template_between}");
+    let without = DeformationTransfer::new(&source, &target, &tris, &plain()).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
+    assert!(added(&target, &without.deltas[..n]).1 > 10.0 * tolerance, "plain transfer should poke through the top");
+
+    let params = TransferParams { collisions: Some(CollisionParams::default()), ..plain() };
+    let with = DeformationTransfer::new(&source, &target, &tris, &params).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
+    let (inside, between) = added(&target, &with.deltas[..n]);
+    assert!(inside <= tolerance && between <= tolerance, "the pass left {inside} inside, {between} between");
+    // The skin over the teeth's top stays below it, and the teeth did not move.
+    for p in &posed(&target, &with.deltas[..n])[..15 * 15] {
+        if (0.32..=0.68).contains(&p[0]) && (0.32..=0.68).contains(&p[1]) {
+            assert!(p[2] < 0.02, "skin vertex above the teeth's top: {p:?}");
+        }
+    }
+    assert!(with.deltas[15 * 15..n].iter().all(|d| *d == [0.0; 3]));
+    assert_eq!(with.deltas[n..], without.deltas[n..]);
+    assert!(with.collisions.unwrap()[0].applied);
+}
