@@ -1,6 +1,6 @@
 """Renders the README's before/after picture of Transfer Shape Keys, headless (bpy Python):
 
-    python scripts/render_transfer.py [-- --target Target_OldMan --shape mouthClose --output docs/transfer_mouthClose.png]
+    python scripts/render_transfer.py [-- --target Target_Boy --shape mouthLeft --output docs/transfer_mouthLeft.png]
 
 The template's keys are transferred onto three copies of the target: plain deformation
 transfer, with virtual edges, and with virtual edges and the collision pass (the default);
@@ -24,7 +24,7 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 from bench_transfer import batch_cache  # noqa: E402
 
-SIZE = (300, 250)
+SIZE = (360, 300)
 
 
 def transferred_copy(modules, template, target, name, virtual_edges, collisions):
@@ -45,7 +45,7 @@ def paint_crossings(obj, shape, crossings):
     loop_totals = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", loop_totals)
     crossed_loop = np.repeat(faces, loop_totals)
-    colours = np.where(crossed_loop[:, None], (0.9, 0.05, 0.02, 1.0), (0.8, 0.8, 0.8, 1.0)).astype(np.float32)
+    colours = np.where(crossed_loop[:, None], (1.0, 0.0, 0.0, 1.0), (0.75, 0.75, 0.75, 1.0)).astype(np.float32)
     attribute = mesh.color_attributes.new("crossings", "FLOAT_COLOR", "CORNER")
     attribute.data.foreach_set("color", colours.ravel())
     mesh.color_attributes.active_color = attribute
@@ -99,7 +99,7 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="render_transfer.py --")
     parser.add_argument("--target", default="Target_OldMan")
-    parser.add_argument("--shape", default="mouthClose")
+    parser.add_argument("--shape", default="mouthPucker")
     parser.add_argument("--output", help="default: docs/transfer_<shape>.png")
     args = parser.parse_args(argv)
     output = os.path.abspath(args.output or os.path.join(SCRIPTS, "..", "docs", f"transfer_{args.shape}.png"))
