@@ -24,11 +24,19 @@
 //! other shape's region can meet; both sit where their own shape alone puts them) and a
 //! triangle both move against any other. Pairs whose [`MovingRegion`] boxes are apart are
 //! not tested at all (E = 0 exactly, see `regions`).
+//!
+//! The decision needs only $E_{\mathrm{between}}$, the sum over pairs of triangles in two
+//! different pieces, and every such pair has a triangle outside the largest piece (the
+//! skin): so each search starts from, or looks only among, the few triangles of the small
+//! pieces (eyes, teeth, tongue). Two shapes that move only the skin add curve between pieces
+//! only where a triangle both move meets a small piece, and none where only one moves; most
+//! pairs of a face are such, and cost a few box queries. The total E, which the report
+//! gives beside it, is measured in full only for the pairs that collide.
 
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles};
-use crate::geometry::bvh::{Aabb, TriangleBvh};
+use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::Vec3;
 use crate::geometry::penetration::{crossings, intersection_length};
 use crate::geometry::topology::connected_components;
@@ -46,32 +54,85 @@ pub struct Collision {
     pub between_pieces: f64,
 }
 
-/// Each involved shape's moved triangles posed by it alone: in any mix, a triangle that only
-/// A moves sits where A alone puts it.
-struct Posed {
-    by_shape: Vec<Option<PosedTriangles>>,
+/// The connected piece of each triangle. Triangles of two pieces never share a corner.
+struct Pieces {
+    of: Vec<u32>,
+    largest: u32,
 }
 
-/// The box of a triangle's corners at rest and posed by shape k.
-fn swept_box(rig: &RigView, regions: &[MovingRegion], k: usize, t: u32) -> Aabb {
-    let corners = rig.triangles[t as usize];
-    let (rest, posed) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
-    Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { posed.at(corners[i - 3]) }))
+impl Pieces {
+    fn new(rig: &RigView) -> Self {
+        let (label, count) = connected_components(rig.n_vertices(), rig.triangles);
+        let of: Vec<u32> = rig.triangles.iter().map(|t| label[t[0] as usize]).collect();
+        let mut size = vec![0usize; count];
+        of.iter().for_each(|&p| size[p as usize] += 1);
+        let largest = (0..count).max_by_key(|&p| (size[p], std::cmp::Reverse(p))).unwrap_or(0) as u32;
+        Self { of, largest }
+    }
+
+    /// Outside the largest piece.
+    fn small(&self, t: u32) -> bool {
+        self.of[t as usize] != self.largest
+    }
+
+    fn differ(&self, s: u32, t: u32) -> bool {
+        self.of[s as usize] != self.of[t as usize]
+    }
+}
+
+/// One shape's moved triangles posed by it alone (in any mix, a triangle that only A moves
+/// sits where A alone puts it), all of them and those outside the largest piece, each with
+/// its box over the rest pose and the posed one.
+struct Moved {
+    posed: PosedTriangles,
+    swept: Vec<Aabb>,
+    small: PosedTriangles,
+    small_swept: Vec<Aabb>,
+}
+
+impl Moved {
+    fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, k: usize) -> Self {
+        let (rest, pose) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
+        let swept = |t: &u32| {
+            let corners = rig.triangles[*t as usize];
+            Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { pose.at(corners[i - 3]) }))
+        };
+        let all = regions[k].triangles.clone();
+        let small: Vec<u32> = all.iter().copied().filter(|&t| pieces.small(t)).collect();
+        Self {
+            swept: all.iter().map(swept).collect(),
+            small_swept: small.iter().map(swept).collect(),
+            posed: PosedTriangles::new(all, rig.triangles, &pose, |p| p),
+            small: PosedTriangles::new(small, rig.triangles, &pose, |p| p),
+        }
+    }
+
+    /// The triangles a triangle (outside the largest piece or not) can cross in another
+    /// piece: all, or only those outside the largest piece.
+    fn partners(&self, from_small: bool) -> &PosedTriangles {
+        if from_small {
+            &self.posed
+        } else {
+            &self.small
+        }
+    }
 }
 
 fn grown(region: &MovingRegion, margin: f64) -> Aabb {
     Aabb::of_points(&[region.lo.map(|x| x - margin), region.hi.map(|x| x + margin)])
 }
 
-/// What the four poses of one pair share: the mesh at rest, the per-shape posed triangles,
-/// the pieces.
+/// What the four poses of every pair share: the mesh at rest (all of it, and the small
+/// pieces alone), the per-shape posed triangles, the pieces.
 struct Scene<'a> {
     rig: &'a RigView<'a>,
     regions: &'a [MovingRegion],
-    rest: Vec<Vec3>,
-    rest_bvh: TriangleBvh,
-    posed: Posed,
-    piece: Vec<u32>,
+    /// Every triangle at rest; position `j` is triangle `j`.
+    rest: PosedTriangles,
+    /// The triangles outside the largest piece, at rest.
+    rest_small: PosedTriangles,
+    moved: Vec<Option<Moved>>,
+    pieces: Pieces,
 }
 
 /// Crossing pairs `(s, t, length)`, `s < t`, in some order.
@@ -83,19 +144,131 @@ impl Scene<'_> {
         triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v))
     }
 
-    fn at_rest(&self, t: u32) -> [Vec3; 3] {
-        self.rig.triangles[t as usize].map(|v| self.rest[v as usize])
+    /// The triangles at rest that a triangle (outside the largest piece or not) can cross
+    /// in another piece.
+    fn rest_partners(&self, from_small: bool) -> &PosedTriangles {
+        if from_small {
+            &self.rest
+        } else {
+            &self.rest_small
+        }
     }
 
-    /// The crossings of shape k posed alone that involve a triangle it moves.
+    /// The crossings between pieces at rest that involve a triangle in `union`, each found
+    /// from its triangle outside the largest piece (the lower one when both are).
+    fn at_rest_between(&self, union: &[bool]) -> Crossings {
+        let (small, pieces) = (&self.rest_small, &self.pieces);
+        let mut found = Vec::new();
+        for (i, &s) in small.triangles.iter().enumerate() {
+            let corners = small.corners[i];
+            self.rest.for_each_overlap(&Aabb::of_points(&corners), |t| {
+                if pieces.differ(s, t) && (union[s as usize] || union[t as usize]) && (!pieces.small(t) || t > s) {
+                    found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
+                }
+            });
+        }
+        found
+    }
+
+    /// The crossings between pieces of shape k posed alone that involve a triangle it
+    /// moves. A pair of two moved triangles is found from the one in the largest piece, or
+    /// from the lower one when neither is.
+    fn alone_between(&self, k: usize) -> Crossings {
+        let (region, pieces, mut found) = (&self.regions[k], &self.pieces, Vec::new());
+        let Some(moved) = &self.moved[k] else { return found };
+        for (i, &s) in moved.posed.triangles.iter().enumerate() {
+            let (corners, query) = (moved.posed.corners[i], Aabb::of_points(&moved.posed.corners[i]));
+            let from_small = pieces.small(s);
+            let rest = self.rest_partners(from_small);
+            rest.for_each_overlap(&query, |j| {
+                let t = rest.triangles[j as usize];
+                if !region.contains(t) && pieces.differ(s, t) {
+                    found.extend(intersection_length(corners, rest.corners[j as usize]).map(|len| (s.min(t), s.max(t), len)));
+                }
+            });
+            let own = moved.partners(from_small);
+            own.for_each_overlap(&query, |j| {
+                let t = own.triangles[j as usize];
+                if pieces.differ(s, t) && (!from_small || (pieces.small(t) && t > s)) {
+                    found.extend(intersection_length(corners, own.corners[j as usize]).map(|len| (s.min(t), s.max(t), len)));
+                }
+            });
+        }
+        found
+    }
+
+    /// The length of the crossings between pieces of A + B that touch a triangle A moves and
+    /// one B moves: a triangle only A moves (whose swept box meets B's region) against one
+    /// only B moves, and a triangle both move against any other.
+    fn mixed_between(&self, a: usize, b: usize, margin: f64) -> f64 {
+        let (ra, rb, pieces) = (&self.regions[a], &self.regions[b], &self.pieces);
+        let (Some(ma), Some(mb)) = (&self.moved[a], &self.moved[b]) else { return 0.0 };
+        let mut total = 0.0;
+        let mut add = |corners: [Vec3; 3], other: [Vec3; 3]| total += intersection_length(corners, other).unwrap_or(0.0);
+        // A triangle only A moves against one only B moves, in another piece: one of them is
+        // outside the largest piece. When B moves nothing there, A's must be.
+        let near_b = grown(rb, margin);
+        let (a_set, a_swept) = if mb.small.triangles.is_empty() { (&ma.small, &ma.small_swept) } else { (&ma.posed, &ma.swept) };
+        for (i, &s) in a_set.triangles.iter().enumerate() {
+            if rb.contains(s) || !a_swept[i].overlaps(&near_b) {
+                continue;
+            }
+            let corners = a_set.corners[i];
+            let set = mb.partners(pieces.small(s));
+            set.for_each_overlap(&Aabb::of_points(&corners), |j| {
+                let t = set.triangles[j as usize];
+                if !ra.contains(t) && pieces.differ(s, t) {
+                    add(corners, set.corners[j as usize]);
+                }
+            });
+        }
+        let (fewer, other) = if ra.triangles.len() <= rb.triangles.len() { (ra, rb) } else { (rb, ra) };
+        let shared: Vec<u32> = fewer.triangles.iter().copied().filter(|&t| other.contains(t)).collect();
+        if shared.is_empty() {
+            return total;
+        }
+        let (triangles, pose) = (self.rig.triangles, Pose::of(self.rig, self.regions, &[a, b]));
+        let shared_small = PosedTriangles::new(shared.iter().copied().filter(|&t| pieces.small(t)).collect(), triangles, &pose, |p| p);
+        for &s in &shared {
+            let corners = triangles[s as usize].map(|v| pose.at(v));
+            let (query, from_small) = (Aabb::of_points(&corners), pieces.small(s));
+            let rest = self.rest_partners(from_small);
+            rest.for_each_overlap(&query, |j| {
+                let t = rest.triangles[j as usize];
+                if !ra.contains(t) && !rb.contains(t) && pieces.differ(s, t) {
+                    add(corners, rest.corners[j as usize]);
+                }
+            });
+            for (moved, not_in) in [(ma, rb), (mb, ra)] {
+                let set = moved.partners(from_small);
+                set.for_each_overlap(&query, |j| {
+                    let t = set.triangles[j as usize];
+                    if !not_in.contains(t) && pieces.differ(s, t) {
+                        add(corners, set.corners[j as usize]);
+                    }
+                });
+            }
+            // Two shared triangles: from the one in the largest piece, else the lower one.
+            shared_small.for_each_overlap(&query, |j| {
+                let t = shared_small.triangles[j as usize];
+                if pieces.differ(s, t) && (!from_small || t > s) {
+                    add(corners, shared_small.corners[j as usize]);
+                }
+            });
+        }
+        total
+    }
+
+    /// The crossings of shape k posed alone that involve a triangle it moves, in every piece.
     fn alone(&self, k: usize) -> Crossings {
         let (region, mut found) = (&self.regions[k], Vec::new());
-        let Some(posed) = &self.posed.by_shape[k] else { return found };
+        let Some(moved) = &self.moved[k] else { return found };
+        let posed = &moved.posed;
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
-            self.rest_bvh.for_each_overlap(&query, |t| {
+            self.rest.for_each_overlap(&query, |t| {
                 if !region.contains(t) && !self.shares_corner(s, t) {
-                    found.extend(intersection_length(corners, self.at_rest(t)).map(|len| (s.min(t), s.max(t), len)));
+                    found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
                 }
             });
             posed.for_each_overlap(&query, |j| {
@@ -108,30 +281,24 @@ impl Scene<'_> {
         found
     }
 
-    /// The length of the crossings of A + B that touch a triangle A moves and one B moves, and
-    /// its part between pieces: a triangle only A moves (whose swept box meets B's region)
-    /// against one only B moves, and a triangle both move against any other.
-    fn mixed(&self, a: usize, b: usize, swept: &[Vec<Aabb>], margin: f64) -> [f64; 2] {
+    /// The length of the crossings of A + B that touch a triangle A moves and one B moves, in
+    /// every piece: as [`Self::mixed_between`], without the restriction to two pieces.
+    fn mixed(&self, a: usize, b: usize, margin: f64) -> f64 {
         let (rig, triangles) = (self.rig, self.rig.triangles);
         let (ra, rb) = (&self.regions[a], &self.regions[b]);
-        let (Some(posed_a), Some(posed_b)) = (&self.posed.by_shape[a], &self.posed.by_shape[b]) else { return [0.0; 2] };
+        let (Some(ma), Some(mb)) = (&self.moved[a], &self.moved[b]) else { return 0.0 };
+        let (posed_a, posed_b) = (&ma.posed, &mb.posed);
         let only_a = |t: u32| ra.contains(t) && !rb.contains(t);
         let only_b = |t: u32| rb.contains(t) && !ra.contains(t);
-        let mut total = [0.0; 2];
+        let mut total = 0.0;
         let mut add = |s: u32, t: u32, corners: [Vec3; 3], other: [Vec3; 3]| {
             if !self.shares_corner(s, t) {
-                if let Some(len) = intersection_length(corners, other) {
-                    total[0] += len;
-                    if self.piece[s as usize] != self.piece[t as usize] {
-                        total[1] += len;
-                    }
-                }
+                total += intersection_length(corners, other).unwrap_or(0.0);
             }
         };
-        // Triangles only A moves sit where A alone puts them, those only B moves likewise.
         let near_b = grown(rb, margin);
         for (i, &s) in posed_a.triangles.iter().enumerate() {
-            if only_a(s) && swept[a][i].overlaps(&near_b) {
+            if only_a(s) && ma.swept[i].overlaps(&near_b) {
                 let corners = posed_a.corners[i];
                 posed_b.for_each_overlap(&Aabb::of_points(&corners), |j| {
                     let t = posed_b.triangles[j as usize];
@@ -148,9 +315,9 @@ impl Scene<'_> {
         let both = PosedTriangles::new(shared, triangles, &Pose::of(rig, self.regions, &[a, b]), |p| p);
         for (i, &s) in both.triangles.iter().enumerate() {
             let (corners, query) = (both.corners[i], Aabb::of_points(&both.corners[i]));
-            self.rest_bvh.for_each_overlap(&query, |t| {
+            self.rest.for_each_overlap(&query, |t| {
                 if !ra.contains(t) && !rb.contains(t) {
-                    add(s, t, corners, self.at_rest(t));
+                    add(s, t, corners, self.rest.corners[t as usize]);
                 }
             });
             for (set, only) in [(posed_a, &only_a as &dyn Fn(u32) -> bool), (posed_b, &only_b)] {
@@ -172,6 +339,11 @@ impl Scene<'_> {
     }
 }
 
+/// The part of `list` whose pairs touch a triangle of both regions.
+fn touching_both(list: &Crossings, ra: &MovingRegion, rb: &MovingRegion) -> f64 {
+    list.iter().filter(|&&(s, t, _)| (ra.contains(s) || ra.contains(t)) && (rb.contains(s) || rb.contains(t))).map(|c| c.2).sum()
+}
+
 /// The candidate pairs that collide: E(A, B) > `tolerance` x diagonal. `regions` holds the
 /// moving region of every shape named in `candidates`; pairs whose boxes (grown by `margin`
 /// x diagonal) are apart are skipped. Returns the collisions, in the order of `candidates`,
@@ -191,48 +363,55 @@ pub fn find_collisions(
         return (Vec::new(), 0);
     }
     let triangles = rig.triangles;
-    let rest: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
-    let rest_bvh = TriangleBvh::build(&rest, triangles);
-    let (label, _) = connected_components(rig.n_vertices(), triangles);
-    let piece: Vec<u32> = triangles.iter().map(|t| label[t[0] as usize]).collect();
+    let pieces = Pieces::new(rig);
+    let rest_pose = Pose::of(rig, regions, &[]);
+    let rest = PosedTriangles::new((0..triangles.len() as u32).collect(), triangles, &rest_pose, |p| p);
+    let small: Vec<u32> = (0..triangles.len() as u32).filter(|&t| pieces.small(t)).collect();
+    let rest_small = PosedTriangles::new(small, triangles, &rest_pose, |p| p);
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
-    let per_shape: Vec<(Vec<Aabb>, Option<PosedTriangles>)> = (0..rig.n_shapes())
-        .into_par_iter()
-        .map(|k| {
-            if !involved[k] {
-                return (Vec::new(), None);
-            }
-            let swept = regions[k].triangles.iter().map(|&t| swept_box(rig, regions, k, t)).collect();
-            let posed = PosedTriangles::new(regions[k].triangles.clone(), triangles, &Pose::of(rig, regions, &[k]), |p| p);
-            (swept, Some(posed))
-        })
-        .collect();
-    let (swept, by_shape): (Vec<Vec<Aabb>>, Vec<Option<PosedTriangles>>) = per_shape.into_iter().unzip();
+    let moved: Vec<Option<Moved>> =
+        (0..rig.n_shapes()).into_par_iter().map(|k| involved[k].then(|| Moved::new(rig, regions, &pieces, k))).collect();
     let union: Vec<bool> = (0..triangles.len() as u32).map(|t| regions.iter().any(|r| !r.triangles.is_empty() && r.contains(t))).collect();
-    let at_rest = crossings(&rest, triangles, &rest_bvh, Some(&union));
-    let scene = Scene { rig, regions, rest, rest_bvh, posed: Posed { by_shape }, piece };
-    let alone: Vec<Crossings> = (0..rig.n_shapes()).into_par_iter().map(|k| if involved[k] { scene.alone(k) } else { Vec::new() }).collect();
-    let collisions = tested
+    let scene = Scene { rig, regions, rest, rest_small, moved, pieces };
+    let at_rest = scene.at_rest_between(&union);
+    let alone: Vec<Crossings> =
+        (0..rig.n_shapes()).into_par_iter().map(|k| if involved[k] { scene.alone_between(k) } else { Vec::new() }).collect();
+    let between: Vec<((usize, usize), f64)> = tested
         .par_iter()
-        .filter_map(|&(a, b)| {
+        .map(|&(a, b)| {
             let (ra, rb) = (&regions[a], &regions[b]);
-            let touches_both = |&&(s, t, _): &&(u32, u32, f64)| (ra.contains(s) || ra.contains(t)) && (rb.contains(s) || rb.contains(t));
-            let sum = |list: &Crossings| {
-                let mut total = [0.0; 2];
-                for &(s, t, len) in list.iter().filter(touches_both) {
-                    total[0] += len;
-                    if scene.piece[s as usize] != scene.piece[t as usize] {
-                        total[1] += len;
-                    }
-                }
-                total
-            };
-            let mixed = scene.mixed(a, b, &swept, margin);
-            let (alone_a, alone_b, rest) = (sum(&alone[a]), sum(&alone[b]), sum(&at_rest));
-            let [added, between] = [0, 1].map(|i| (mixed[i] - alone_a[i] - alone_b[i] + rest[i]) / diagonal);
-            (between > tolerance).then_some(Collision { first: a, second: b, added, between_pieces: between })
+            let mixed = scene.mixed_between(a, b, margin);
+            let added = mixed - touching_both(&alone[a], ra, rb) - touching_both(&alone[b], ra, rb) + touching_both(&at_rest, ra, rb);
+            ((a, b), added / diagonal)
         })
+        .filter(|&(_, between)| between > tolerance)
         .collect();
-    (collisions, tested.len())
+    (total_curve(&scene, &between, margin, diagonal), tested.len())
+}
+
+/// The collisions with their total E (every piece) beside the part between pieces that
+/// decided them: each shape's crossings in full, and those at rest among the triangles the
+/// colliding shapes move.
+fn total_curve(scene: &Scene, between: &[((usize, usize), f64)], margin: f64, diagonal: f64) -> Vec<Collision> {
+    if between.is_empty() {
+        return Vec::new();
+    }
+    let (rig, regions) = (scene.rig, scene.regions);
+    let mut colliding = vec![false; rig.n_shapes()];
+    between.iter().for_each(|&((a, b), _)| (colliding[a], colliding[b]) = (true, true));
+    let alone: Vec<Crossings> = (0..rig.n_shapes()).into_par_iter().map(|k| if colliding[k] { scene.alone(k) } else { Vec::new() }).collect();
+    let union: Vec<bool> = (0..rig.triangles.len() as u32).map(|t| regions.iter().zip(&colliding).any(|(r, &c)| c && r.contains(t))).collect();
+    let rest: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
+    // `scene.rest` holds triangle t at position t: its hierarchy answers triangle indices.
+    let at_rest = crossings(&rest, rig.triangles, &scene.rest.bvh, Some(&union));
+    between
+        .par_iter()
+        .map(|&((a, b), between_pieces)| {
+            let (ra, rb) = (&regions[a], &regions[b]);
+            let added = scene.mixed(a, b, margin) - touching_both(&alone[a], ra, rb) - touching_both(&alone[b], ra, rb)
+                + touching_both(&at_rest, ra, rb);
+            Collision { first: a, second: b, added: added / diagonal, between_pieces }
+        })
+        .collect()
 }

@@ -15,7 +15,10 @@
 //! the triangles the two shapes move are posed (the rest are tested at rest) and a direction
 //! is tested only when the two can interact: A's and B's moving regions meet, or the front
 //! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
-//! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly.
+//! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly. Each shape's
+//! moved triangles are posed once, in one hierarchy that serves every direction it takes
+//! part in (a triangle only B moves sits where B alone puts it); per direction only the
+//! triangles both move are posed anew.
 
 use rayon::prelude::*;
 
@@ -119,9 +122,8 @@ impl Box2 {
 
 /// Shape h posed alone: where its active vertices are seen from, and what hides each.
 struct Alone {
-    /// h's moved triangles that can lie over any of its active vertices in any tested mix,
-    /// posed by h, in view coordinates.
-    posed: PosedTriangles,
+    /// Per active vertex, where it is in pose h, in view coordinates.
+    points: Vec<Vec3>,
     /// Per active vertex, the triangles that hide it in pose h.
     hiders: Vec<Vec<u32>>,
 }
@@ -154,61 +156,55 @@ impl Scene<'_> {
         });
     }
 
-    /// Pose h alone; `reach` covers h's active vertices in every mix to be tested.
-    fn alone(&self, h: usize, active: &[u32], reach: Box2) -> Alone {
+    /// Pose h alone; `posed` holds h's moved triangles in pose h.
+    fn alone(&self, h: usize, active: &[u32], posed: &PosedTriangles) -> Alone {
         let (rig, region) = (self.rig, &self.regions[h]);
         let pose = Pose::of(rig, self.regions, &[h]);
-        let near: Vec<u32> = region
-            .triangles
-            .iter()
-            .copied()
-            .filter(|&t| Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&reach))
-            .collect();
-        let posed = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
         let hiders = active
             .iter()
-            .map(|&v| {
-                let (q, mut found) = (self.view(&pose, v), Vec::new());
+            .zip(&points)
+            .map(|(&v, &q)| {
+                let mut found = Vec::new();
                 self.static_hiders(v, q, |t| region.contains(t), &mut found);
-                self.posed_hiders(&posed, v, q, |_| false, &mut found);
+                self.posed_hiders(posed, v, q, |_| false, &mut found);
                 found
             })
             .collect();
-        Alone { posed, hiders }
+        Alone { points, hiders }
     }
 
-    /// How many of h's active vertices are seen with `by` posed too. A vertex `by` does not
-    /// move (see `regions`) keeps its place: it is hidden by its hiders in pose h that `by` does not move, or
-    /// by a triangle `by` moves. One that `by` moves is traced afresh.
-    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, by_boxes: &[Box2]) -> usize {
+    /// How many of h's active vertices are seen with `by` posed too, `posed[k]` holding shape
+    /// k's moved triangles in pose k. A vertex `by` does not move (see `regions`) keeps its
+    /// place: it is hidden by its hiders in pose h that `by` does not move, or by a triangle
+    /// `by` moves: one only `by` moves sits where `by` alone puts it, one both move is posed
+    /// here. One that `by` moves is traced afresh.
+    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, posed: &[Option<PosedTriangles>]) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
+        let (Some(posed_h), Some(posed_by)) = (&posed[h], &posed[by]) else { return 0 };
         let pose = Pose::of(rig, self.regions, &[h, by]);
-        let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
-        let spot = Box2::of(points.iter().copied());
-        let near: Vec<u32> = rb
-            .triangles
-            .iter()
-            .zip(by_boxes)
-            .filter(|&(&t, b)| {
-                if rh.contains(t) {
-                    Box2::of(rig.triangles[t as usize].map(|v| self.view(&pose, v))).meets(&spot)
-                } else {
-                    b.meets(&spot)
-                }
-            })
-            .map(|p| *p.0)
-            .collect();
-        let moving = PosedTriangles::new(near, rig.triangles, &pose, |p| self.frame.map(p));
+        let (fewer, other) = if rh.triangles.len() <= rb.triangles.len() { (rh, rb) } else { (rb, rh) };
+        let shared: Vec<u32> = fewer.triangles.iter().copied().filter(|&t| other.contains(t)).collect();
+        let shared = PosedTriangles::new(shared, rig.triangles, &pose, |p| self.frame.map(p));
         (0..active.len())
             .filter(|&i| {
-                let (v, q, mut found) = (active[i], points[i], Vec::new());
-                if rb.moves(v) {
+                let (v, mut found) = (active[i], Vec::new());
+                let q = if rb.moves(v) {
+                    let q = self.view(&pose, v);
                     self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
-                    self.posed_hiders(&alone.posed, v, q, |t| rb.contains(t), &mut found);
+                    self.posed_hiders(posed_h, v, q, |t| rb.contains(t), &mut found);
+                    q
                 } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
                     return false;
+                } else {
+                    alone.points[i]
+                };
+                if found.is_empty() {
+                    self.posed_hiders(posed_by, v, q, |t| rh.contains(t), &mut found);
                 }
-                self.posed_hiders(&moving, v, q, |_| false, &mut found);
+                if found.is_empty() {
+                    self.posed_hiders(&shared, v, q, |_| false, &mut found);
+                }
                 found.is_empty()
             })
             .count()
@@ -235,27 +231,26 @@ pub fn find_occlusions(
     let mut involved = vec![false; k_count];
     candidates.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let rest_of = |v: u32| frame.map(rig.neutral[v as usize].map(f64::from));
-    // Front-view boxes: of each shape's active vertices in its pose, and of each moved
-    // triangle at rest and posed.
-    let boxes: Vec<(Box2, Box2, Vec<Box2>)> = (0..k_count)
+    // Front-view boxes: of each shape's active vertices in its pose, and of its moved
+    // triangles at rest and posed; and those triangles posed, in view coordinates.
+    let boxes: Vec<(Box2, Box2, Option<PosedTriangles>)> = (0..k_count)
         .into_par_iter()
         .map(|k| {
             if !involved[k] {
-                return (Box2::EMPTY, Box2::EMPTY, Vec::new());
+                return (Box2::EMPTY, Box2::EMPTY, None);
             }
             let pose = Pose::of(rig, regions, &[k]);
             let active_box = Box2::of(active[k].iter().map(|&v| frame.map(pose.at(v)))).grown(margin);
-            let posed: Vec<Box2> =
-                regions[k].triangles.iter().map(|&t| Box2::of(rig.triangles[t as usize].map(|v| frame.map(pose.at(v))))).collect();
-            let mut region_box = Box2::EMPTY;
-            for (&t, b) in regions[k].triangles.iter().zip(&posed) {
-                region_box.grow([b.lo[0], b.lo[1], 0.0]);
-                region_box.grow([b.hi[0], b.hi[1], 0.0]);
+            let posed = PosedTriangles::new(regions[k].triangles.clone(), rig.triangles, &pose, |p| frame.map(p));
+            let mut region_box = Box2::of(posed.corners.iter().flatten().copied());
+            for &t in &regions[k].triangles {
                 rig.triangles[t as usize].iter().for_each(|&v| region_box.grow(rest_of(v)));
             }
-            (active_box, region_box, posed)
+            (active_box, region_box, Some(posed))
         })
         .collect();
+    let (boxes, posed): (Vec<(Box2, Box2)>, Vec<Option<PosedTriangles>>) =
+        boxes.into_iter().map(|(active_box, region_box, posed)| ((active_box, region_box), posed)).unzip();
     let interacts = |h: usize, by: usize| regions[h].meets(&regions[by], margin) || boxes[h].0.meets(&boxes[by].1);
     let tested: Vec<(usize, usize)> =
         candidates.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).filter(|&(h, b)| interacts(h, b)).collect();
@@ -271,12 +266,8 @@ pub fn find_occlusions(
         .par_iter()
         .map(|&h| {
             let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
-            let mut reach = Box2::EMPTY;
-            for shapes in std::iter::once(vec![h]).chain(partners.iter().map(|&b| vec![h, b])) {
-                let pose = Pose::of(rig, regions, &shapes);
-                active[h].iter().for_each(|&v| reach.grow(scene.view(&pose, v)));
-            }
-            let alone = scene.alone(h, &active[h], reach.grown(margin));
+            let Some(posed_h) = &posed[h] else { return Vec::new() };
+            let alone = scene.alone(h, &active[h], posed_h);
             let seen_alone = alone.hiders.iter().filter(|h| h.is_empty()).count();
             if seen_alone == 0 {
                 return Vec::new();
@@ -284,7 +275,7 @@ pub fn find_occlusions(
             partners
                 .iter()
                 .filter_map(|&by| {
-                    let kept = scene.seen_with(h, by, &active[h], &alone, &boxes[by].2) as f64 / seen_alone as f64;
+                    let kept = scene.seen_with(h, by, &active[h], &alone, &posed) as f64 / seen_alone as f64;
                     (kept < keep).then_some(Occlusion { hidden: h, by, kept })
                 })
                 .collect()
