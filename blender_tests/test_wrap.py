@@ -170,11 +170,13 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
     barycentric_copy = np.einsum("vc,kvcx->kvx", barycentric, wrapped_deltas[:, triangles[triangle]])
     barycentric_error = moving_error(barycentric_copy, reference, diagonal)
     print(f"carry {carry_error:.2e}, nearest vertex {nearest_error:.2e}, barycentric {barycentric_error:.2e} of the diagonal")
-    # Measured: carry 1.95e-3, nearest vertex 2.43e-3, barycentric 2.61e-3 with the transfer's
-    # collision pass on (1.7e-3, 2.2e-3, 2.4e-3 without); the wrapped template's
-    # own keys are 1.2e-3 from the truth at the same vertices (the fit slides by ~1% of the
-    # diagonal between the pairs), a floor every copy shares.
-    assert carry_error < 2e-3, carry_error
+    # Measured: carry 1.36e-3, nearest vertex 1.55e-3, barycentric 1.49e-3 with the transfer's
+    # collision pass on (1.20e-3, 1.40e-3, 1.34e-3 without); before the bending stiffness and
+    # the pieces fitted onto the character's own, 1.95e-3, 2.43e-3, 2.61e-3. The rest is the
+    # skin fit's slide along the surface between the pairs (0.71% of the diagonal on the face),
+    # a floor every copy shares: with the true correspondence in place of the fit, the carry is
+    # 4.1e-4 from the truth (docs/wrap.md).
+    assert carry_error < 1.6e-3, carry_error
     assert carry_error < nearest_error and carry_error < barycentric_error, (carry_error, nearest_error, barycentric_error)
 
 
@@ -196,7 +198,7 @@ def test_another_motion_of_the_character_gives_the_same_keys_moved(sample, shape
     diagonal = np.linalg.norm(positions(second).max(0) - positions(second).min(0))
     error = np.linalg.norm(key_deltas(second, names) - moved, axis=2) / diagonal
     print(f"invariance: mean {error.mean():.2e}, max {error.max():.2e}")
-    # Measured: mean 1.5e-5, max 1.2e-2 (a few vertices where a closest-point tie breaks the
+    # Measured: mean 1.9e-5, max 3.6e-3 (a few vertices where a closest-point tie breaks the
     # other way in the fit).
     assert error.mean() < 1e-4 and error.max() < 2e-2, (error.mean(), error.max())
 

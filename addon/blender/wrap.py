@@ -330,4 +330,9 @@ def summary_lines(wrapped):
     lines.append(f"similarity: scale {similarity['scale']:.4g}, translation {[round(x, 4) for x in similarity['translation']]}")
     if report["pair_residuals"]:
         lines.append(f"pair residuals: max {100 * max(report['pair_residuals']):.3f}% of the diagonal")
+    if report["pieces"]:
+        lines.append(
+            f"pieces (eyes, teeth, ...): {report['pieces_fitted']} of {report['pieces']} fitted onto the character's own, "
+            "the others follow the skin"
+        )
     return lines + [f"warning: {w}" for w in report["warnings"]]

@@ -1,6 +1,8 @@
 //! Shapes of the wrapped template carried onto the character's own vertices: each character
 //! triangle samples the deformation gradient of the wrapped template's triangle under its
-//! centroid (closest point among the triangles facing the same way), and one screened
+//! centroid (closest point among the triangles facing the same way, on the same part: skin
+//! to skin, a piece to the template piece it matches, so the upper teeth never sample the
+//! lower teeth they touch), and one screened
 //! Poisson solve on the character's mesh integrates them (deformation transfer, Sumner &
 //! Popovic 2004, across topologies through a surface binding). SPEC section 5, "Carry to the
 //! character".
@@ -27,6 +29,8 @@ use crate::geometry::mat3::{add, edge_frame, inverse, length, mat_mul, mat_vec, 
 use crate::geometry::topology::connected_components;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
+
+use super::pieces::ANY_PART;
 
 /// Knobs of [`carry_shapes`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -73,14 +77,27 @@ pub fn bind(points: &[Vec3], surface: &TriangleBvh) -> Vec<SurfacePoint> {
 }
 
 /// Each point's closest point among the surface triangles whose unit normal is within the
-/// angle of the point's normal (`cos_max_angle`); the plain closest point when none is.
-fn bind_facing(points: &[Vec3], normals: &[Vec3], surface: &TriangleBvh, surface_normals: &[Vec3], cos_max_angle: f64) -> Vec<SurfacePoint> {
+/// angle of the point's normal (`cos_max_angle`) and that lie on the point's part
+/// (`point_part`, `triangle_part`: see [`super::pieces::parts`]); the plain closest point on
+/// that part when none faces the point's way, on any part when the part has none.
+fn bind_facing(
+    points: &[Vec3],
+    normals: &[Vec3],
+    point_part: &[u32],
+    surface: &TriangleBvh,
+    surface_normals: &[Vec3],
+    triangle_part: &[u32],
+    cos_max_angle: f64,
+) -> Vec<SurfacePoint> {
     points
         .par_iter()
         .zip(normals)
-        .map(|(p, n)| {
+        .zip(point_part)
+        .map(|((p, n), &part)| {
+            let same_part = |t: u32| part == ANY_PART || triangle_part[t as usize] == part;
             surface
-                .closest_point_where(p, f64::INFINITY, |t| crate::geometry::mat3::dot(*n, surface_normals[t as usize]) >= cos_max_angle)
+                .closest_point_where(p, f64::INFINITY, |t| same_part(t) && crate::geometry::mat3::dot(*n, surface_normals[t as usize]) >= cos_max_angle)
+                .or_else(|| surface.closest_point_where(p, f64::INFINITY, same_part))
                 .or_else(|| surface.closest_point(p, f64::INFINITY))
                 .expect("the surface has triangles (validated by the caller)")
         })
@@ -121,12 +138,16 @@ pub fn carry_shapes(
     let template_normals = triangle_normals(&template, template_triangles);
     let cos_max_angle = params.max_angle_degrees.to_radians().cos();
     let vertex_normals = crate::geometry::mat3::vertex_normals(&points, character_triangles);
-    let vertex_binding = bind_facing(&points, &vertex_normals, &surface, &template_normals, cos_max_angle);
+    let parts = super::pieces::parts(&template, template_triangles, &points, character_triangles);
+    let vertex_binding = bind_facing(&points, &vertex_normals, &parts.character_vertex, &surface, &template_normals, &parts.template_triangle, cos_max_angle);
     let centroids: Vec<Vec3> =
         character_triangles.iter().map(|t| t.iter().fold([0.0; 3], |acc, &v| add(acc, points[v as usize].map(|x| x / 3.0)))).collect();
     let character_normals = triangle_normals(&points, character_triangles);
     let triangle_binding: Vec<u32> =
-        bind_facing(&centroids, &character_normals, &surface, &template_normals, cos_max_angle).iter().map(|hit| hit.triangle).collect();
+        bind_facing(&centroids, &character_normals, &parts.character_triangle, &surface, &template_normals, &parts.template_triangle, cos_max_angle)
+            .iter()
+            .map(|hit| hit.triangle)
+            .collect();
     let operators: Vec<Option<HatGradients>> = character_triangles.iter().map(|t| HatGradients::new(t.map(|v| points[v as usize]))).collect();
     let mut entries = Vec::with_capacity(6 * character_triangles.len() + nc);
     for (t, op) in character_triangles.iter().zip(&operators) {

@@ -21,25 +21,32 @@
 //! | `H_{k,s}` (template delta gradient sampled on a character triangle) | `carry::Shape::delta_gradient` |
 //!
 //! # Deviations
-//! - **Displacements, not per-vertex affine maps.** Amberg et al. solve for a 3x4 affine map
-//!   per vertex (4N x 4N system, stiffness `|(M (x) G) X|^2`). Here the unknowns are the
-//!   skin's displacements (N x N, three right-hand sides) with the membrane stiffness
-//!   `alpha sum_(i,j) |d_i - d_j|^2`: the limit of Amberg's energy with the linear parts held
-//!   at the identity (Allen, Curless & Popovic 2003's smoothness term on translations only).
-//!   The system is 16 times smaller with the same sparsity, so each stiffness step factorises
-//!   in a fraction of the time; the price is that local rotations cost stiffness, which the
-//!   similarity alignment before the fit and the stiffness schedule absorb for faces (the
-//!   template and character differ by identity, not by pose).
+//! - **Displacements with a bending stiffness, not per-vertex affine maps.** Amberg et al.
+//!   solve for a 3x4 affine map per vertex (4N x 4N system, stiffness `|(M (x) G) X|^2`).
+//!   Here the unknowns are the skin's displacements (N x N, three right-hand sides) and the
+//!   stiffness is the bending energy `alpha |L d|^2` (`L` the template's uniform Laplacian),
+//!   which like Amberg's costs nothing for a translation and little for a smooth stretch.
+//!   Measured on a decimated MakeHuman identity (`blender_tests/test_wrap.py`'s case): the
+//!   closest-point term only pulls along the normal, so where the template lands along the
+//!   surface is the stiffness's choice. Started from the true correspondence, one step at
+//!   `alpha = 0.5` slid the face 0.33% of the diagonal away from it with the membrane
+//!   `alpha sum_(i,j) |d_i - d_j|^2` (which wants the displacement constant) but 0.10% with
+//!   the bending term; from the alignment, the bending fit lands 0.71% from the truth on the
+//!   face against 0.80% (and 0.05% from the surface against 0.16%). Amberg's affine
+//!   stiffness (implemented and measured, `gamma = 1` on the normalised mesh) gave 0.84% and
+//!   took 2.5 times as long, so it was not kept.
 //! - **One factorisation per stiffness step, weights frozen within the step.** Amberg et al.
 //!   recompute the weights `w_i` with every closest-point iteration, which changes the
 //!   matrix. Here `w_i` is decided at the start of each step; a vertex whose closest point is
 //!   rejected later in the same step is held where it is (its target is its current
 //!   position) rather than released, so the factor stays valid.
-//! - **Pieces follow the skin.** Every template piece other than the skin (the largest
-//!   connected component) moves by the similarity (Umeyama) that best maps the skin vertices
-//!   around it from their aligned to their fitted positions. Fitting a piece to the
-//!   character's piece of the same kind is not done.
-//! - **Only the character's largest piece is fitted to.** The character's eyes, teeth or
+//! - **Pieces follow the skin, then fit the character's own.** Every template piece other
+//!   than the skin (the largest connected component) moves by the similarity (Umeyama) that
+//!   best maps the skin vertices around it from their aligned to their fitted positions; a
+//!   piece whose centre and size then match a character piece's (one to one) is fitted onto
+//!   it by a similarity ICP (`pieces`). The pairing is automatic (place and size), not by the
+//!   user's pairs.
+//! - **Only the character's largest piece is fitted to by the skin.** The character's eyes, teeth or
 //!   lashes, if any, would otherwise catch the template's eyelids and lips.
 //! - **The carry is screened towards the barycentric copy.** Pure gradient integration
 //!   (SPEC) carries every error of a sampled gradient to everything between it and the static
@@ -61,6 +68,7 @@
 mod align;
 mod carry;
 mod nricp;
+mod pieces;
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -78,6 +86,7 @@ use crate::invalid;
 use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
 use nricp::{fit_skin, Landmark, TargetSurface};
+use pieces::{carry_pieces, fit_pieces};
 
 /// Knobs of the non-rigid fit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -143,6 +152,11 @@ pub struct WrapReport {
     pub aligned_pair_residuals: Vec<f64>,
     pub pair_residuals: Vec<f64>,
     pub fit: FitStats,
+    /// Template pieces other than the skin (eyes, teeth, tongue, lashes), and how many of them
+    /// were fitted onto a character piece of the same place and size (the others follow the
+    /// skin around them).
+    pub pieces: usize,
+    pub pieces_fitted: usize,
     /// Character bbox diagonal (character units).
     pub diagonal: f64,
     pub template_vertices: usize,
@@ -259,12 +273,16 @@ pub fn wrap_template(
             corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: hit.barycentric, target: *q })
         })
         .collect();
+    let (mut template_pieces, mut pieces_fitted) = (0, 0);
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
     } else {
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
         let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &surface, &params.fit, diagonal, &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
+        let mut is_character_skin = vec![false; character.len()];
+        character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
+        (template_pieces, pieces_fitted) = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
         (fitted, stats)
     };
     let distances: Vec<f64> = template_skin
@@ -281,6 +299,8 @@ pub fn wrap_template(
         aligned_pair_residuals,
         pair_residuals: residual(&fitted),
         fit,
+        pieces: template_pieces,
+        pieces_fitted,
         diagonal,
         template_vertices: template.len(),
         skin_vertices: template_skin.len(),
@@ -333,52 +353,21 @@ fn validate_mesh(points: &[[f32; 3]], triangles: &[[u32; 3]], what: &str) -> Sha
 
 /// The vertices (sorted) of the piece with the most vertices.
 fn largest_piece(n: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let on_skin = skin_flags(n, triangles);
+    (0..n as u32).filter(|&v| on_skin[v as usize]).collect()
+}
+
+/// Whether each vertex lies on the mesh's largest piece (by vertices), its skin.
+fn skin_flags(n: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
     let (label, count) = connected_components(n, triangles);
     let mut sizes = vec![0usize; count];
     label.iter().for_each(|&l| sizes[l as usize] += 1);
     let biggest = (0..count).max_by_key(|&l| sizes[l]).unwrap_or(0) as u32;
-    (0..n as u32).filter(|&v| label[v as usize] == biggest).collect()
+    label.iter().map(|&l| l == biggest).collect()
 }
 
 fn pieces_triangles(triangles: &[[u32; 3]], vertices: &[u32]) -> Vec<[u32; 3]> {
     let mut keep = vec![false; vertices.last().map_or(0, |&v| v as usize + 1)];
     vertices.iter().for_each(|&v| keep[v as usize] = true);
     triangles.iter().filter(|t| keep.get(t[0] as usize).copied().unwrap_or(false)).copied().collect()
-}
-
-/// Moves every non-skin piece by the similarity that maps the skin vertices around it (within
-/// twice its radius of its centre, widened until there are enough) from aligned to fitted.
-fn carry_pieces(aligned: &[Vec3], fitted: &mut [Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> ShapesmithResult<()> {
-    let (label, count) = connected_components(aligned.len(), triangles);
-    let skin: Vec<u32> = (0..aligned.len() as u32).filter(|&v| is_skin[v as usize]).collect();
-    let skin_points: Vec<[f32; 3]> = skin.iter().map(|&v| aligned[v as usize].map(|x| x as f32)).collect();
-    let tree = crate::geometry::neighbours::PointTree::new(&skin_points);
-    let mut members = vec![Vec::new(); count];
-    for v in 0..aligned.len() {
-        if !is_skin[v] {
-            members[label[v] as usize].push(v);
-        }
-    }
-    for piece in members.into_iter().filter(|m| !m.is_empty()) {
-        let centre = piece.iter().fold([0.0; 3], |acc, &v| add(acc, aligned[v].map(|x| x / piece.len() as f64)));
-        let radius = piece.iter().map(|&v| length(sub(aligned[v], centre))).fold(0.0, f64::max);
-        let mut reach = 2.0 * radius.max(1e-9);
-        let mut around = tree.within(centre, reach);
-        while around.len() < 12 && around.len() < skin.len() {
-            reach *= 2.0;
-            around = tree.within(centre, reach);
-        }
-        let from: Vec<Vec3> = around.iter().map(|&(i, _)| aligned[skin[i] as usize]).collect();
-        let to: Vec<Vec3> = around.iter().map(|&(i, _)| fitted[skin[i] as usize]).collect();
-        let motion = similarity_from_pairs(&from, &to).or_else(|_| {
-            // Skin around the piece on one line: translate by its mean motion.
-            let n = from.len().max(1) as f64;
-            let shift = from.iter().zip(&to).fold([0.0; 3], |acc, (a, b)| add(acc, sub(*b, *a).map(|x| x / n)));
-            Ok::<_, crate::error::ShapesmithError>(Similarity { translation: shift, ..Similarity::IDENTITY })
-        })?;
-        for &v in &piece {
-            fitted[v] = motion.apply(aligned[v]);
-        }
-    }
-    Ok(())
 }

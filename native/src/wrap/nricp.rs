@@ -4,11 +4,13 @@
 //! few closest-point iterations back-substitute into that factor.
 //!
 //! Energy of one step, over the skin's displacements `d = x - x_rest` (Eq. (12) of Amberg et
-//! al. with the linear parts of their per-vertex affine maps held at the identity):
-//! $$ E(d) = \sum_i w_i |x^{rest}_i + d_i - u_i|^2 + \alpha \sum_{(i,j)} |d_i - d_j|^2
-//!         + \beta \sum_l |B_l (x^{rest} + d) - q_l|^2 $$
-//! `u_i` the closest character point, `w_i` 1 or 0 (rejected), `B_l` the barycentric row of
-//! landmark `l` on the template, `q_l` its character point.
+//! al. with their stiffness term replaced by a bending energy on the displacements, see the
+//! module's Deviations):
+//! $$ E(d) = \sum_i w_i |x^{rest}_i + d_i - u_i|^2 + \alpha \sum_i \Big| \frac{1}{|N(i)|}
+//!           \sum_{j \in N(i)} d_j - d_i \Big|^2 + \beta \sum_l |B_l (x^{rest} + d) - q_l|^2 $$
+//! `u_i` the closest character point, `w_i` 1 or 0 (rejected), `N(i)` the template neighbours
+//! of skin vertex `i` (the uniform Laplacian `L`, so the stiffness block is `alpha L^T L`),
+//! `B_l` the barycentric row of landmark `l` on the template, `q_l` its character point.
 
 use rayon::prelude::*;
 
@@ -119,13 +121,13 @@ pub fn fit_skin(
     // A tiny pull towards the rest shape keeps the system definite when every vertex of the
     // skin is rejected; it is far below every other weight.
     let ridge = 1e-8;
-    // `W + alpha K + beta B^T B`; its pattern is the same at every step, so it is ordered once.
+    let bending = bending_entries(n, &edges);
+    // `W + alpha L^T L + beta B^T B`; its pattern is the same at every step, so it is ordered
+    // once.
     let assemble = |weights: &[f64], alpha: f64, beta: f64| {
-        let mut entries = Vec::with_capacity(n + 3 * edges.len() + 6 * landmarks.len());
+        let mut entries = Vec::with_capacity(n + bending.len() + 6 * landmarks.len());
         entries.extend((0..n).map(|i| (i, i, weights[i] + ridge)));
-        for &(a, b) in &edges {
-            entries.extend([(a, a, alpha), (b, b, alpha), (a, b, -alpha)]);
-        }
+        entries.extend(bending.iter().map(|&(a, b, value)| (a, b, alpha * value)));
         for l in landmarks {
             for r in 0..3 {
                 for c in 0..=r {
@@ -188,6 +190,33 @@ pub fn fit_skin(
     Ok((positions, stats))
 }
 
+/// The lower triangle of `L^T L`, `L` the uniform Laplacian of the graph (`(L d)_i` = the mean
+/// of `d` over `i`'s neighbours minus `d_i`), as `(row, column, value)` with each off-diagonal
+/// pair once: row `i` of `L` couples `i` and its neighbours, so `L^T L` reaches two rings.
+fn bending_entries(n: usize, edges: &[(usize, usize)]) -> Vec<(usize, usize, f64)> {
+    let mut neighbours = vec![Vec::new(); n];
+    for &(a, b) in edges {
+        neighbours[a].push(b);
+        neighbours[b].push(a);
+    }
+    let mut entries = Vec::new();
+    for (i, around) in neighbours.iter().enumerate() {
+        if around.is_empty() {
+            continue;
+        }
+        let share = 1.0 / around.len() as f64;
+        let row: Vec<(usize, f64)> = std::iter::once((i, -1.0)).chain(around.iter().map(|&j| (j, share))).collect();
+        for &(a, la) in &row {
+            for &(b, lb) in &row {
+                if a >= b {
+                    entries.push((a, b, la * lb));
+                }
+            }
+        }
+    }
+    entries
+}
+
 /// Each skin vertex's accepted closest point on the character: within `max_distance`, the
 /// surface normal within the angle of the template's vertex normal, not on the boundary.
 fn closest_points(
@@ -207,4 +236,42 @@ fn closest_points(
             (compatible && !surface.on_boundary(&hit)).then_some(hit)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bending_entries;
+
+    /// `L^T L` from the entries against the dense product on a small graph (a square with a
+    /// diagonal and a pendant vertex): every entry, both triangles summed once.
+    #[test]
+    fn bending_entries_are_the_dense_laplacian_squared() {
+        let n = 5;
+        let edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 2), (3, 4)];
+        let mut laplacian = vec![vec![0.0; n]; n];
+        let mut degree = vec![0.0; n];
+        for &(a, b) in &edges {
+            degree[a] += 1.0;
+            degree[b] += 1.0;
+        }
+        for &(a, b) in &edges {
+            laplacian[a][b] = 1.0 / degree[a];
+            laplacian[b][a] = 1.0 / degree[b];
+        }
+        (0..n).for_each(|i| laplacian[i][i] = -1.0);
+        let mut assembled = vec![vec![0.0; n]; n];
+        for (row, column, value) in bending_entries(n, &edges) {
+            assert!(row >= column);
+            assembled[row][column] += value;
+            if row != column {
+                assembled[column][row] += value;
+            }
+        }
+        for r in 0..n {
+            for c in 0..n {
+                let dense: f64 = (0..n).map(|i| laplacian[i][r] * laplacian[i][c]).sum();
+                assert!((assembled[r][c] - dense).abs() < 1e-12, "({r}, {c}): {} vs {dense}", assembled[r][c]);
+            }
+        }
+    }
 }
