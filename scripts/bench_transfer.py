@@ -11,6 +11,10 @@
 2. Timings on the bundled rig, on a 4x denser subdivision of it (19k vertices) and on a
    25k-vertex version whose face, where the shapes move, is cut once more: native seconds
    split into setup, virtual edges, solves, collision pass and the penetration report.
+   `--timings-only` skips part 1, `--heads` picks the timed heads, `--save-arrays DIR` writes
+   their arrays for `cargo run --release --example time_transfer -- DIR/<head>`, which times
+   the same native call outside Blender (two builds of it run alternately give before/after
+   ratios in one run).
 The warp ground truth of personalisation is scripts/bench_personalise.py.
 """
 
@@ -29,6 +33,7 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 
 FACE_EDGES = 4100  # edges cut again in the 25k timing mesh (19,337 -> 25,272 vertices)
+HEADS = ("bundled", "4x denser", "25k, denser face")  # the timed heads: the sample's, subdivided, and its face cut again
 
 
 def added_summary(transfer_module, report):
@@ -274,6 +279,16 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
     }
 
 
+def save_arrays(rig, target_neutral, folder):
+    """The template's neutral, deltas and triangles and the target's neutral as raw
+    little-endian files (float32, uint32), what `native/examples/time_transfer.rs` reads."""
+    os.makedirs(folder, exist_ok=True)
+    np.ascontiguousarray(rig.neutral, dtype="<f4").tofile(os.path.join(folder, "source.f32"))
+    np.ascontiguousarray(rig.deltas, dtype="<f4").tofile(os.path.join(folder, "deltas.f32"))
+    np.ascontiguousarray(rig.triangles, dtype="<u4").tofile(os.path.join(folder, "triangles.u32"))
+    np.ascontiguousarray(target_neutral, dtype="<f4").tofile(os.path.join(folder, "target.f32"))
+
+
 def print_summary(indent, summary):
     print(
         indent + "; ".join(
@@ -287,7 +302,7 @@ def print_report(result):
         "\n== Penetration on the identities (curve added to each neutral beyond what the template's shape adds to its "
         "own, positive parts summed over the shapes)"
     )
-    for name, row in result["penetration"].items():
+    for name, row in result.get("penetration", {}).items():
         print(f"  {name}: {row['virtual_edges']} virtual edges")
         print_summary("    ", row["summary"])
         for shape, extra in row["worse_explained"].items():
@@ -297,13 +312,13 @@ def print_report(result):
                 + "; ".join(f"{pair} (+{count})" for pair, count in extra["piece_pairs"])
             )
     print("\n== Virtual-edge weight with the collision pass (shapes worse than the template after the pass / added m)")
-    for weight, row in result["edge_weight_sweep"].items():
+    for weight, row in result.get("edge_weight_sweep", {}).items():
         print(
             f"  w_ve {weight:>5s}: "
             + "; ".join(f"{name} {v['result']['worse']} / {v['result']['added_curve']:.4f}" for name, v in row.items())
         )
     print("\n== Timings (best of 3, seconds; ratios to reading the rig from Blender, and to the bundled head)")
-    bundled = result["timings"]["bundled"]
+    bundled = result["timings"].get("bundled")
     for name, row in result["timings"].items():
         t, plain, reported = row["transfer"], row["transfer_without_collision_pass"], row["with_report"]
         print(
@@ -319,17 +334,30 @@ def print_report(result):
             f"    cheap metric vs full sweep on {check['shapes']} shapes: largest difference {check['length']:.2e} m, "
             f"{check['pairs']} pairs"
         )
-        print(
-            f"    reading {row['read']:.3f} s; transfer x{t['wall'] / row['read']:.1f} of reading; "
-            f"x{t['wall'] / bundled['transfer']['wall']:.1f} the bundled head's time "
-            f"for x{row['vertices'] / bundled['vertices']:.1f} its vertices"
+        scale = (
+            f"; x{t['wall'] / bundled['transfer']['wall']:.1f} the bundled head's time "
+            f"for x{row['vertices'] / bundled['vertices']:.1f} its vertices" if bundled else ""
         )
+        print(f"    reading {row['read']:.3f} s; transfer x{t['wall'] / row['read']:.1f} of reading{scale}")
 
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_transfer.py --")
     parser.add_argument("--json", default=os.path.join(batch_cache(), "bench", "transfer.json"))
+    parser.add_argument(
+        "--timings-only", action="store_true",
+        help="only the timings (no penetration study on the identities, no weight sweep)",
+    )
+    parser.add_argument(
+        "--heads", nargs="+", choices=HEADS, default=list(HEADS),
+        help="the heads to time (default: all)",
+    )
+    parser.add_argument(
+        "--save-arrays", metavar="DIR",
+        help="also write each timed head's arrays to DIR/<head>/ for the native timing example "
+        "(cargo run --release --example time_transfer -- DIR/<head>)",
+    )
     args = parser.parse_args(argv)
     shapesmith = batch.load_shapesmith()
     from importlib import import_module
@@ -343,20 +371,21 @@ def main():
     template = bpy.data.objects["Template"]
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
-    result = {
-        "penetration": penetration_benchmark(transfer_module, landmarks_module, rig, template, targets),
-        "edge_weight_sweep": edge_weight_sweep(transfer_module, template, targets),
-        "timings": {"bundled": timing_benchmark(nat, mesh_arrays, transfer_module, template, targets[0], rest_positions)},
-    }
-    dense_template, dense_target = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")
-    result["timings"]["4x denser"] = timing_benchmark(
-        nat, mesh_arrays, transfer_module, dense_template, dense_target, rest_positions
-    )
-    face_template = subdivided(template, "TemplateDenseFace", FACE_EDGES)
-    face_target = subdivided(targets[0], "TargetDenseFace", FACE_EDGES, template=template)
-    result["timings"]["25k, denser face"] = timing_benchmark(
-        nat, mesh_arrays, transfer_module, face_template, face_target, rest_positions
-    )
+    result = {"timings": {}}
+    if not args.timings_only:
+        result["penetration"] = penetration_benchmark(transfer_module, landmarks_module, rig, template, targets)
+        result["edge_weight_sweep"] = edge_weight_sweep(transfer_module, template, targets)
+    for head in args.heads:
+        if head == "bundled":
+            pair = template, targets[0]
+        elif head == "4x denser":
+            pair = subdivided(template, "TemplateDense"), subdivided(targets[0], "TargetDense")
+        else:
+            face_template = subdivided(template, "TemplateDenseFace", FACE_EDGES)
+            pair = face_template, subdivided(targets[0], "TargetDenseFace", FACE_EDGES, template=template)
+        result["timings"][head] = timing_benchmark(nat, mesh_arrays, transfer_module, *pair, rest_positions)
+        if args.save_arrays:
+            save_arrays(mesh_arrays.read_rig(pair[0]), rest_positions(pair[1]), os.path.join(args.save_arrays, head))
     print_report(result)
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:

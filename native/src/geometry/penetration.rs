@@ -109,10 +109,14 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 }
 
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
-/// over `points`. With `moved`, only pairs with at least one moved triangle are tested.
+/// over `points`. With `moved`, only pairs with at least one moved triangle are tested. Each
+/// pair is tested lower index first, as a sweep of every pair would, so the lengths are the
+/// same to the bit whatever `moved` is.
 pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
+    // The normals of the triangles a test can involve, each computed once instead of per pair.
+    let normals: Vec<Vec3> = (0..triangles.len()).into_par_iter().map(|t| normal(corners(t))).collect();
     let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
         .into_par_iter()
         .map(|a| {
@@ -126,8 +130,9 @@ pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, mov
                 if (b <= a && is_moved(b)) || a == b || triangles[a].iter().any(|v| triangles[b].contains(v)) {
                     return;
                 }
-                if let Some(len) = intersection_length(corners(a), corners(b)) {
-                    found.push((a.min(b) as u32, a.max(b) as u32, len));
+                let (lo, hi) = (a.min(b), a.max(b));
+                if let Some(len) = crossing_length(corners(lo), normals[lo], corners(hi), normals[hi]) {
+                    found.push((lo as u32, hi as u32, len));
                 }
             });
             found
@@ -141,26 +146,45 @@ pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, mov
 /// The length of the segment where two triangles cross, or `None` when they do not cross
 /// (or are coplanar).
 pub fn intersection_length(a: [Vec3; 3], b: [Vec3; 3]) -> Option<f64> {
-    let na = cross(sub(a[1], a[0]), sub(a[2], a[0]));
-    let nb = cross(sub(b[1], b[0]), sub(b[2], b[0]));
+    crossing_length(a, normal(a), b, normal(b))
+}
+
+/// The unnormalised normal `(p1 - p0) x (p2 - p0)` that [`intersection_length`] uses.
+fn normal(t: [Vec3; 3]) -> Vec3 {
+    cross(sub(t[1], t[0]), sub(t[2], t[0]))
+}
+
+/// [`intersection_length`] with both normals given. The cheap rejections (one triangle
+/// strictly on one side of the other's plane) come first; a crossing is computed with the
+/// same arithmetic in any order, so the length is the same to the bit.
+fn crossing_length(a: [Vec3; 3], na: Vec3, b: [Vec3; 3], nb: Vec3) -> Option<f64> {
+    let a_side = a.map(|p| dot(nb, sub(p, b[0])));
+    if one_side(a_side) {
+        return None;
+    }
+    let b_side = b.map(|p| dot(na, sub(p, a[0])));
+    if one_side(b_side) {
+        return None;
+    }
     let line = cross(na, nb);
     let line_len = length(line);
     if line_len <= 1e-14 * length(na) * length(nb) {
         return None;
     }
-    let (a_lo, a_hi) = plane_cut(a, nb, b[0], line)?;
-    let (b_lo, b_hi) = plane_cut(b, na, a[0], line)?;
+    let (a_lo, a_hi) = plane_cut(a, a_side, line)?;
+    let (b_lo, b_hi) = plane_cut(b, b_side, line)?;
     let overlap = (a_hi.min(b_hi) - a_lo.max(b_lo)) / line_len;
     (overlap > 0.0).then_some(overlap)
 }
 
-/// Where triangle `t` cuts the plane through `origin` with normal `normal`, as an interval
-/// of the projection onto `line`; `None` when all corners lie strictly on one side.
-fn plane_cut(t: [Vec3; 3], normal: Vec3, origin: Vec3, line: Vec3) -> Option<(f64, f64)> {
-    let side = t.map(|p| dot(normal, sub(p, origin)));
-    if side.iter().all(|&s| s > 0.0) || side.iter().all(|&s| s < 0.0) {
-        return None;
-    }
+/// Whether all three corners lie strictly on one side of a plane (`side`: their heights).
+fn one_side(side: [f64; 3]) -> bool {
+    side.iter().all(|&s| s > 0.0) || side.iter().all(|&s| s < 0.0)
+}
+
+/// Where triangle `t`, whose corners lie at heights `side` over a plane, cuts that plane, as
+/// an interval of the projection onto `line` (on the plane).
+fn plane_cut(t: [Vec3; 3], side: [f64; 3], line: Vec3) -> Option<(f64, f64)> {
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
     let mut take = |p: Vec3| {
@@ -302,6 +326,55 @@ mod tests {
             assert!((cheap.length - full.length).abs() < 1e-9, "seed {seed}: {cheap:?} vs {full:?}");
             assert!((cheap.between_pieces - full.between_pieces).abs() < 1e-9, "seed {seed}");
         }
+    }
+
+    #[test]
+    fn moved_sweep_gives_the_all_pairs_lengths_to_the_bit() {
+        // A crumpled grid and a soup; pairs with a moved triangle, found through the
+        // hierarchy, must be exactly those of testing every pair, with the same lengths.
+        let mut crossing_pairs = 0;
+        for seed in 0..8u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(700 + seed);
+            let w = 10usize;
+            let mut pts: Vec<Vec3> = (0..w * w)
+                .map(|v| {
+                    let (x, y) = ((v % w) as f64 / w as f64, (v / w) as f64 / w as f64);
+                    [x, y, 0.3 * (6.0 * x + rng.random::<f64>()).sin() * (4.0 * y).cos()]
+                })
+                .collect();
+            let mut tris: Vec<[u32; 3]> = Vec::new();
+            for y in 0..w - 1 {
+                for x in 0..w - 1 {
+                    let v = (y * w + x) as u32;
+                    tris.push([v, v + 1, v + w as u32 + 1]);
+                    tris.push([v, v + w as u32 + 1, v + w as u32]);
+                }
+            }
+            for _ in 0..25 {
+                let start = pts.len() as u32;
+                let centre: [f64; 3] = [rng.random(), rng.random(), rng.random::<f64>() - 0.5];
+                pts.extend((0..3).map(|_| [0, 1, 2].map(|a| centre[a] + 0.25 * (rng.random::<f64>() - 0.5))));
+                tris.push([start, start + 1, start + 2]);
+            }
+            let mut every = Vec::new();
+            for a in 0..tris.len() {
+                for b in a + 1..tris.len() {
+                    if tris[a].iter().any(|v| tris[b].contains(v)) {
+                        continue;
+                    }
+                    if let Some(len) = intersection_length(tris[a].map(|v| pts[v as usize]), tris[b].map(|v| pts[v as usize])) {
+                        every.push((a as u32, b as u32, len));
+                    }
+                }
+            }
+            crossing_pairs += every.len();
+            let bvh = TriangleBvh::build(&pts, &tris);
+            assert_eq!(crossings(&pts, &tris, &bvh, None), every, "seed {seed}");
+            let moved: Vec<bool> = (0..tris.len()).map(|_| rng.random::<f64>() < 0.3).collect();
+            let kept: Vec<_> = every.iter().copied().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect();
+            assert_eq!(crossings(&pts, &tris, &bvh, Some(&moved)), kept, "seed {seed}: moved");
+        }
+        assert!(crossing_pairs > 10, "the random meshes should cross themselves: {crossing_pairs} pairs");
     }
 
     #[test]

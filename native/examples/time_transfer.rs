@@ -1,0 +1,68 @@
+//! Times `transfer_shapes` (virtual edges, collision pass, penetration report) outside
+//! Blender, on the arrays `scripts/bench_transfer.py -- --save-arrays DIR` writes:
+//!
+//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS]
+//!
+//! Prints the best of RUNS (default 3) runs' native seconds split as the bench reports them
+//! (setup, virtual edges, solves, collision pass, report), the seconds of the template's own
+//! per-shape numbers (measured once per template), and a checksum of the results (summed
+//! intersection length and pairs, shapes the pass changed) so that two builds run one after
+//! the other can be compared for both speed and sameness.
+
+use std::time::Instant;
+
+use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, StageSeconds, TransferShapesParams};
+use shapesmith_native::NoProgress;
+
+fn read(path: &str) -> Vec<[u32; 3]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
+    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
+}
+
+fn points(path: &str) -> Vec<[f32; 3]> {
+    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
+}
+
+fn main() {
+    let dir = std::env::args().nth(1).expect("usage: time_transfer DIR [RUNS]");
+    let runs: usize = std::env::args().nth(2).map_or(3, |r| r.parse().expect("RUNS is a count"));
+    let source = points(&format!("{dir}/source.f32"));
+    let target = points(&format!("{dir}/target.f32"));
+    let deltas = points(&format!("{dir}/deltas.f32"));
+    let triangles = read(&format!("{dir}/triangles.u32"));
+    let names: Vec<String> = (0..deltas.len() / source.len()).map(|k| format!("shape {k}")).collect();
+    let started = Instant::now();
+    let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
+    let template_seconds = started.elapsed().as_secs_f64();
+    let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
+    let mut best: Option<(f64, StageSeconds)> = None;
+    let mut checksum = (0.0, 0, 0);
+    for _ in 0..runs {
+        let started = Instant::now();
+        let (_, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
+            .expect("transfer");
+        let wall = started.elapsed().as_secs_f64();
+        let rows = &report.penetration;
+        checksum = (
+            rows.iter().map(|r| r.length).sum::<f64>(),
+            rows.iter().map(|r| r.pairs).sum::<usize>(),
+            rows.iter().filter(|r| r.collisions.is_some_and(|c| c.applied)).count(),
+        );
+        if best.as_ref().is_none_or(|b| wall < b.0) {
+            best = Some((wall, report.seconds));
+        }
+    }
+    let (wall, s) = best.expect("at least one run");
+    println!(
+        "{} vertices, {} shapes: wall {wall:.3} s; setup {:.3}, virtual edges {:.3}, solves {:.3}, collision pass {:.3}, \
+         report {:.3}; template once {template_seconds:.3}",
+        source.len(),
+        names.len(),
+        s.factorisation,
+        s.virtual_edges,
+        s.solves,
+        s.collisions,
+        s.penetration
+    );
+    println!("checksum: length {:.9}, pairs {}, shapes the pass changed {}", checksum.0, checksum.1, checksum.2);
+}
