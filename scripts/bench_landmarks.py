@@ -352,9 +352,6 @@ def main():
     results["comparison"] = comparison
 
     speed(results, landmarks, template, dense)
-    if args.speed_only:
-        write_json(args.json, results)
-        return
 
     # Pictures: the cover, the conventional layout, the conditioned layout at 34 and its curve.
     landmarks.build_layout(template, documents[(template.name, "cover", 0.5)], bpy.context.scene)
