@@ -282,37 +282,41 @@ mod tests {
         assert!((fast.length - full.length).abs() < 1e-9);
     }
 
+    /// A `w` x `w` grid crumpled by a random sine of `amplitude` (one connected piece, shared
+    /// corners) plus `soup` random triangles of size `size` (pieces of their own).
+    fn crumpled_grid_and_soup(rng: &mut impl Rng, w: usize, amplitude: f64, soup: usize, size: f64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let mut pts: Vec<Vec3> = (0..w * w)
+            .map(|v| {
+                let (x, y) = ((v % w) as f64 / w as f64, (v / w) as f64 / w as f64);
+                [x, y, amplitude * (7.0 * x + rng.random::<f64>()).sin() * (5.0 * y).cos()]
+            })
+            .collect();
+        let mut tris: Vec<[u32; 3]> = Vec::new();
+        for y in 0..w - 1 {
+            for x in 0..w - 1 {
+                let v = (y * w + x) as u32;
+                tris.push([v, v + 1, v + w as u32 + 1]);
+                tris.push([v, v + w as u32 + 1, v + w as u32]);
+            }
+        }
+        for _ in 0..soup {
+            let start = pts.len() as u32;
+            let centre: Vec3 = [rng.random(), rng.random(), rng.random::<f64>() - 0.5];
+            pts.extend((0..3).map(|_| [0, 1, 2].map(|a| centre[a] + size * (rng.random::<f64>() - 0.5))));
+            tris.push([start, start + 1, start + 2]);
+        }
+        (pts, tris)
+    }
+
     #[test]
     fn cheap_metric_equals_a_full_sweep_on_random_meshes() {
-        // Random crumpled grids (one connected piece, shared corners) plus a random soup
-        // (pieces of their own); each shape moves a random subset of vertices by a random
-        // amount. Re-testing only triangles with a moved corner must give exactly the full
+        // Random crumpled grids and soups; each shape moves a random subset of vertices by a
+        // random amount. Re-testing only triangles with a moved corner must give exactly the full
         // sweep's pairs, length and split by piece.
         for seed in 0..12u64 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed);
-            let w = 9usize;
-            let mut pts: Vec<[f32; 3]> = (0..w * w)
-                .map(|v| {
-                    let (x, y) = ((v % w) as f32 / w as f32, (v / w) as f32 / w as f32);
-                    [x, y, 0.4 * (7.0 * x + rng.random::<f32>()).sin() * (5.0 * y).cos()]
-                })
-                .collect();
-            let mut tris: Vec<[u32; 3]> = Vec::new();
-            for y in 0..w - 1 {
-                for x in 0..w - 1 {
-                    let v = (y * w + x) as u32;
-                    tris.push([v, v + 1, v + w as u32 + 1]);
-                    tris.push([v, v + w as u32 + 1, v + w as u32]);
-                }
-            }
-            for _ in 0..30 {
-                let start = pts.len() as u32;
-                let centre: [f32; 3] = [rng.random(), rng.random(), rng.random::<f32>() - 0.5];
-                for _ in 0..3 {
-                    pts.push([0, 1, 2].map(|a| centre[a] + 0.3 * (rng.random::<f32>() - 0.5)));
-                }
-                tris.push([start, start + 1, start + 2]);
-            }
+            let (pts, tris) = crumpled_grid_and_soup(&mut rng, 9, 0.4, 30, 0.3);
+            let pts: Vec<[f32; 3]> = pts.iter().map(|p| p.map(|x| x as f32)).collect();
             let baseline = PenetrationBaseline::new(&pts, &tris);
             assert_eq!(baseline.neutral(), measure_penetration(&pts, &tris));
             let share = rng.random::<f64>();
@@ -335,27 +339,7 @@ mod tests {
         let mut crossing_pairs = 0;
         for seed in 0..8u64 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(700 + seed);
-            let w = 10usize;
-            let mut pts: Vec<Vec3> = (0..w * w)
-                .map(|v| {
-                    let (x, y) = ((v % w) as f64 / w as f64, (v / w) as f64 / w as f64);
-                    [x, y, 0.3 * (6.0 * x + rng.random::<f64>()).sin() * (4.0 * y).cos()]
-                })
-                .collect();
-            let mut tris: Vec<[u32; 3]> = Vec::new();
-            for y in 0..w - 1 {
-                for x in 0..w - 1 {
-                    let v = (y * w + x) as u32;
-                    tris.push([v, v + 1, v + w as u32 + 1]);
-                    tris.push([v, v + w as u32 + 1, v + w as u32]);
-                }
-            }
-            for _ in 0..25 {
-                let start = pts.len() as u32;
-                let centre: [f64; 3] = [rng.random(), rng.random(), rng.random::<f64>() - 0.5];
-                pts.extend((0..3).map(|_| [0, 1, 2].map(|a| centre[a] + 0.25 * (rng.random::<f64>() - 0.5))));
-                tris.push([start, start + 1, start + 2]);
-            }
+            let (pts, tris) = crumpled_grid_and_soup(&mut rng, 10, 0.3, 25, 0.25);
             let mut every = Vec::new();
             for a in 0..tris.len() {
                 for b in a + 1..tris.len() {
