@@ -190,11 +190,7 @@ pub fn adaptive_multi_cover(
     let mut out = MultiCover { landmarks: Vec::new(), statuses: Vec::new(), seconds_solve: 0.0 };
     let widely_shared = |v: u32| relation[v as usize].len() as f64 > settings.share_limit * n_shapes as f64;
     for round in 0..settings.max_per_shape {
-        // Not at round 0: the first round's visibility measurement reports its own progress
-        // (before this stage's range), which a report at the start of this one would hide.
-        if round > 0 {
-            progress.checkpoint(round as f64 / settings.max_per_shape as f64)?;
-        }
+        progress.checkpoint(round as f64 / settings.max_per_shape as f64)?;
         let asks = |k: usize| match landmarks_of.get(&k) {
             None => true,
             Some(held) => held.len() < settings.max_per_shape && held.iter().all(|&v| widely_shared(v)),
