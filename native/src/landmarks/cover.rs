@@ -86,60 +86,6 @@ pub fn vertex_cost(covered: &[(usize, f64)], visibility: f64, alpha: f64, gamma:
     1.0 + gamma * q
 }
 
-/// Worst-case visibilities `l[n]`, measured on demand: the cover asks for `l[n]` only where
-/// it decides which column of a coverage set the reduction keeps ([`settle`]).
-pub trait Visibilities {
-    /// `l[n]` once measured ([`Visibilities::is_exact`]), else an upper bound of it.
-    fn level(&self, n: usize) -> f64;
-    fn is_exact(&self, n: usize) -> bool;
-    /// Measures `vertices` exactly.
-    fn measure(&mut self, vertices: &[u32]) -> ShapesmithResult<()>;
-}
-
-/// Visibilities all measured beforehand.
-pub struct Measured<'a>(pub &'a [f64]);
-
-impl Visibilities for Measured<'_> {
-    fn level(&self, n: usize) -> f64 {
-        self.0[n]
-    }
-
-    fn is_exact(&self, _: usize) -> bool {
-        true
-    }
-
-    fn measure(&mut self, _: &[u32]) -> ShapesmithResult<()> {
-        Ok(())
-    }
-}
-
-/// The vertices to measure before [`reduce`] keeps, of each coverage set, the column it
-/// would keep with every visibility measured. A column's cost falls as visibility rises, so
-/// an upper bound of `l[n]` gives a lower bound of the cost, and of the column's key (cost,
-/// then preference, then vertex). A set is settled when its least key is exact: every other
-/// column's true key is at least its bound, and keys differ (by vertex), so none can win.
-/// Otherwise, when some column of the set is exact, every unmeasured column whose key bound
-/// is below the least exact key is measured (after which the set is settled); when none is,
-/// the column of least key. So a round measures at most twice. `exact(n)`: whether column
-/// `n`'s cost is exact.
-pub fn settle(columns: &[Column], exact: impl Fn(u32) -> bool) -> Vec<u32> {
-    let mut sets: BTreeMap<&[usize], Vec<&Column>> = BTreeMap::new();
-    for column in columns.iter().filter(|c| !c.shapes.is_empty()) {
-        sets.entry(&column.shapes).or_default().push(column);
-    }
-    let mut needed = Vec::new();
-    for set in sets.values_mut() {
-        set.sort_by(|a, b| a.cost.total_cmp(&b.cost).then(b.preference.total_cmp(&a.preference)).then(a.vertex.cmp(&b.vertex)));
-        match set.iter().position(|c| exact(c.vertex)) {
-            Some(0) => {}
-            Some(first_exact) => needed.extend(set[..first_exact].iter().map(|c| c.vertex)),
-            None => needed.push(set[0].vertex),
-        }
-    }
-    needed.sort_unstable();
-    needed
-}
-
 #[derive(Clone, Debug)]
 pub struct MultiCoverSettings {
     pub alpha: f64,
@@ -169,14 +115,13 @@ pub struct MultiCover {
 /// asks for more.
 ///
 /// `relation[n]` lists the shapes vertex n is a candidate for, with `r_k[n]`; `visibility`
-/// gives `l[n]` where `relation[n]` is not empty, measured only where a round's reduction
-/// needs it ([`settle`]); `positions` are the neutral's, for the radius; with `partners`,
-/// every chosen vertex brings its mirror partner into the layout (symmetric layouts, Sec.
-/// 3.3.1).
+/// is `l[n]` (only read where `relation[n]` is not empty); `positions` are the neutral's,
+/// for the radius; with `partners`, every chosen vertex brings its mirror partner into the
+/// layout (symmetric layouts, Sec. 3.3.1).
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_multi_cover(
     relation: &[Vec<(usize, f64)>],
-    visibility: &mut dyn Visibilities,
+    visibility: &[f64],
     n_shapes: usize,
     partners: Option<&[Option<u32>]>,
     positions: &[[f32; 3]],
@@ -195,33 +140,20 @@ pub fn adaptive_multi_cover(
             None => true,
             Some(held) => held.len() < settings.max_per_shape && held.iter().all(|&v| widely_shared(v)),
         };
-        let covered: Vec<(u32, Vec<(usize, f64)>)> = (0..n_vertices)
+        let columns: Vec<Column> = (0..n_vertices)
             .filter(|&n| !excluded[n])
-            .map(|n| (n as u32, relation[n].iter().copied().filter(|&(k, _)| asks(k)).collect::<Vec<_>>()))
-            .filter(|(_, covered)| !covered.is_empty())
-            .collect();
-        if covered.is_empty() {
-            break;
-        }
-        let columns_now = |visibility: &dyn Visibilities| -> Vec<Column> {
-            covered
-                .iter()
-                .map(|(n, covered)| Column {
-                    vertex: *n,
+            .map(|n| {
+                let covered: Vec<(usize, f64)> = relation[n].iter().copied().filter(|&(k, _)| asks(k)).collect();
+                Column {
+                    vertex: n as u32,
                     shapes: covered.iter().map(|c| c.0).collect(),
-                    cost: vertex_cost(covered, visibility.level(*n as usize), settings.alpha, settings.gamma),
+                    cost: vertex_cost(&covered, visibility[n], settings.alpha, settings.gamma),
                     preference: covered.iter().map(|c| c.1).sum(),
-                })
-                .collect()
-        };
-        let mut columns = columns_now(visibility);
-        loop {
-            let needed = settle(&columns, |v| visibility.is_exact(v as usize));
-            if needed.is_empty() {
-                break;
-            }
-            visibility.measure(&needed)?;
-            columns = columns_now(visibility);
+                }
+            })
+            .collect();
+        if columns.iter().all(|c| c.shapes.is_empty()) {
+            break;
         }
         let started = Instant::now();
         let cover = solve_cover(&columns, &settings.ilp)?;
@@ -298,59 +230,6 @@ mod tests {
         }
     }
 
-    /// Settling with upper bounds of the visibility (measuring what `settle` asks until it
-    /// asks nothing) keeps the columns the reduction keeps with every visibility measured,
-    /// on random columns with many shared coverage sets and ties, in at most two rounds.
-    #[test]
-    fn settled_bounds_reduce_like_measured_visibilities() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
-        let mut saved = 0;
-        for trial in 0..300 {
-            let n = rng.random_range(1..40);
-            let shapes: Vec<Vec<usize>> = (0..n).map(|_| (0..3).filter(|_| rng.random_bool(0.5)).collect()).collect();
-            let displacement: Vec<f64> = (0..n).map(|_| rng.random_range(0.5..1.0)).collect();
-            // Visibilities in 1/8 steps (ties), each bounded by one at least as high.
-            let level: Vec<f64> = (0..n).map(|_| rng.random_range(0..=8) as f64 / 8.0).collect();
-            let bound: Vec<f64> = level.iter().map(|&l| if rng.random_bool(0.3) { l } else { (l + rng.random_range(0..=4) as f64 / 8.0).min(1.0) }).collect();
-            let columns = |visibility: &dyn Fn(usize) -> f64| -> Vec<Column> {
-                (0..n)
-                    .map(|v| {
-                        let covered: Vec<(usize, f64)> = shapes[v].iter().map(|&k| (k, displacement[v])).collect();
-                        Column {
-                            vertex: v as u32,
-                            shapes: shapes[v].clone(),
-                            cost: vertex_cost(&covered, visibility(v), 0.5, 0.5),
-                            preference: if rng_free_tie(v) { 1.0 } else { displacement[v] },
-                        }
-                    })
-                    .collect()
-            };
-            let want = reduce(&columns(&|v| level[v]));
-            let mut exact = vec![false; n];
-            let mut rounds = 0;
-            loop {
-                let current = columns(&|v| if exact[v] { level[v] } else { bound[v] });
-                let needed = settle(&current, |v| exact[v as usize]);
-                if needed.is_empty() {
-                    assert_eq!(reduce(&current), want, "trial {trial}");
-                    break;
-                }
-                assert!(needed.iter().all(|&v| !exact[v as usize]));
-                needed.iter().for_each(|&v| exact[v as usize] = true);
-                rounds += 1;
-            }
-            assert!(rounds <= 2, "trial {trial}: {rounds} rounds");
-            saved += exact.iter().filter(|&&e| !e).count();
-        }
-        assert!(saved > 1000, "the bounds should spare measurements: {saved}");
-    }
-
-    /// Every third vertex shares its preference with the others of its kind (ties on cost and
-    /// preference, decided by vertex).
-    fn rng_free_tie(v: usize) -> bool {
-        v % 3 == 0
-    }
-
     #[test]
     fn reduction_keeps_the_cheapest_then_the_preferred() {
         let column = |vertex, shapes: Vec<usize>, cost, preference| Column { vertex, shapes, cost, preference };
@@ -393,7 +272,7 @@ mod tests {
             ilp: IlpOptions::default(),
         };
         let visibility = vec![1.0; 40];
-        let result = adaptive_multi_cover(&relation, &mut Measured(&visibility), 12, None, &points, &settings, &NoProgress).unwrap();
+        let result = adaptive_multi_cover(&relation, &visibility, 12, None, &points, &settings, &NoProgress).unwrap();
         assert_eq!(result.statuses, vec![SolveStatus::Optimal; 2]);
         let first: Vec<u32> = result.landmarks.iter().filter(|l| l.1 == 0).map(|l| l.0).collect();
         let second: Vec<u32> = result.landmarks.iter().filter(|l| l.1 == 1).map(|l| l.0).collect();
@@ -404,7 +283,7 @@ mod tests {
         assert_eq!(second, (0..5).map(|k| 4 * k + 2).collect::<Vec<u32>>());
 
         let single = MultiCoverSettings { max_per_shape: 1, ..settings };
-        let result = adaptive_multi_cover(&relation, &mut Measured(&visibility), 12, None, &points, &single, &NoProgress).unwrap();
+        let result = adaptive_multi_cover(&relation, &visibility, 12, None, &points, &single, &NoProgress).unwrap();
         assert_eq!(result.landmarks.len(), 10);
     }
 }

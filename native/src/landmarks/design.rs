@@ -33,7 +33,6 @@ use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::error::ShapesmithResult;
 use crate::geometry::neighbours::PointTree;
 
 /// The prior precision of a weight: `1 / Var(U[0, 1]) = 12`.
@@ -208,49 +207,20 @@ fn log_det_spd(m: &Mat<f64>) -> f64 {
     (0..m.nrows()).map(|j| 2.0 * l[(j, j)].ln()).sum()
 }
 
-/// Whether a pool unit is seen well enough to be added (the pool's visibility rule), asked
-/// only of the units a greedy step could pick: tracing costs far more than a gain.
-pub trait Screen {
-    /// The answer, when known without tracing.
-    fn known(&self, unit: usize) -> Option<bool>;
-    /// Traces `units` (none known), after which [`Screen::known`] answers them.
-    fn trace(&mut self, units: &[usize]) -> ShapesmithResult<()>;
-}
-
-/// Every unit passes (no visibility rule).
-pub struct PassAll;
-
-impl Screen for PassAll {
-    fn known(&self, _: usize) -> Option<bool> {
-        Some(true)
-    }
-
-    fn trace(&mut self, _: &[usize]) -> ShapesmithResult<()> {
-        Ok(())
-    }
-}
-
-/// Units traced at once when a step meets an unscreened one: the next best by gain, so that
-/// later steps (whose best units change little) rarely trace again.
-pub const SCREEN_BATCH: usize = 2048;
-
 /// Greedy design from the posterior of the `initial` rows: each step adds the allowed unit
-/// that passes `screen` with the largest gain (lowest index on a tie) and records the
-/// predicted RMS error `sqrt(tr(W P))` after it. A unit's gain does not depend on the other
-/// units, so a step walks the allowed units by gain and screens them in that order until one
-/// passes: the choice of screening every unit first. `blocked_by(u)` lists the units choosing
-/// `u` rules out (the radius rule; `u` itself is always ruled out); `continue_after(landmarks
-/// added, predicted)` says whether to go on (a unit of 6 rows adds two landmarks). Stops when
-/// no unit is allowed or the caller says so.
+/// with the largest gain (lowest index on a tie) and records the predicted RMS error
+/// `sqrt(tr(W P))` after it. `blocked_by(u)` lists the units choosing `u` rules out (the
+/// radius rule; `u` itself is always ruled out); `continue_after(landmarks added,
+/// predicted)` says whether to go on (a unit of 6 rows adds two landmarks). Stops when no
+/// unit is allowed or the caller says so.
 pub fn greedy(
     problem: &DesignProblem,
     initial: &Posterior,
     allowed: &[bool],
     blocked_by: impl Fn(usize) -> Vec<usize>,
     criterion: Criterion,
-    screen: &mut dyn Screen,
     mut continue_after: impl FnMut(usize, f64) -> bool,
-) -> ShapesmithResult<Vec<Step>> {
+) -> Vec<Step> {
     let k = problem.k;
     let mut offsets = vec![0];
     for unit in &problem.units {
@@ -276,20 +246,10 @@ pub fn greedy(
             break;
         }
         let gain = gains(problem, stacked, &offsets, &posterior, criterion, &allowed);
-        let mut order: Vec<usize> = (0..gain.len()).filter(|&u| allowed[u]).collect();
-        order.sort_by(|&a, &b| gain[b].total_cmp(&gain[a]).then(a.cmp(&b)));
-        let mut best = None;
-        for (i, &u) in order.iter().enumerate() {
-            if screen.known(u).is_none() {
-                let batch: Vec<usize> = order[i..].iter().copied().filter(|&v| screen.known(v).is_none()).take(SCREEN_BATCH).collect();
-                screen.trace(&batch)?;
-            }
-            if screen.known(u) == Some(true) {
-                best = Some(u);
-                break;
-            }
-            allowed[u] = false;
-        }
+        let best = (0..gain.len()).filter(|&u| allowed[u]).fold(None, |best: Option<usize>, u| match best {
+            Some(b) if gain[b] >= gain[u] => Some(b),
+            _ => Some(u),
+        });
         let Some(best) = best else { break };
         posterior.add(&problem.units[best], problem.noise_variance);
         allowed[best] = false;
@@ -303,7 +263,7 @@ pub fn greedy(
             break;
         }
     }
-    Ok(steps)
+    steps
 }
 
 /// `W = D^T D / N` over the live shapes (K x K, row-major), from column-major blocks of the
@@ -406,7 +366,7 @@ pub struct DesignOutcome {
 /// shows where more landmarks stop paying; the layout takes its prefix up to `landmarks`
 /// (one fewer when the next step is a mirror pair) or to the first step that reaches the
 /// target, whichever comes first.
-pub fn extend_layout(input: &DesignInput, settings: &DesignSettings, screen: &mut dyn Screen) -> ShapesmithResult<DesignOutcome> {
+pub fn extend_layout(input: &DesignInput, settings: &DesignSettings) -> DesignOutcome {
     let k = input.deltas.len();
     let sigma = settings.noise * input.diagonal;
     let noise_variance = sigma * sigma;
@@ -449,9 +409,9 @@ pub fn extend_layout(input: &DesignInput, settings: &DesignSettings, screen: &mu
     // Compared as reported (fractions of the diagonal), so that a target read off the curve
     // stops exactly at its point.
     let target = settings.target_error;
-    let steps = greedy(&problem, &initial, &allowed, |u| near(&input.pool[u]), settings.criterion, screen, |added, predicted| {
+    let steps = greedy(&problem, &initial, &allowed, |u| near(&input.pool[u]), settings.criterion, |added, predicted| {
         input.cover.len() + added < horizon || target.is_some_and(|t| predicted / input.diagonal > t)
-    })?;
+    });
 
     let mut added = Vec::new();
     let mut stop = DesignStop::PoolExhausted;
@@ -479,7 +439,7 @@ pub fn extend_layout(input: &DesignInput, settings: &DesignSettings, screen: &mu
             stop = DesignStop::Count;
         }
     }
-    Ok(DesignOutcome { added, curve, stop })
+    DesignOutcome { added, curve, stop }
 }
 
 #[cfg(test)]

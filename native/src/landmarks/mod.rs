@@ -34,7 +34,6 @@ pub mod bvls;
 pub mod candidates;
 pub mod cover;
 pub mod design;
-pub mod on_demand;
 pub mod score;
 pub mod visibility;
 
@@ -52,9 +51,8 @@ use candidates::{candidate_relation, mutual_partners};
 use cover::{adaptive_multi_cover, MultiCoverSettings};
 use design::{error_weight, extend_layout, predicted_error, DesignInput, DesignSettings};
 pub use design::{Criterion, CurvePoint, DesignStop};
-use on_demand::{OnDemand, PoolScreen};
-use cover::Visibilities;
-use visibility::Sampling;
+use visibility::{worst_case_visibility, Need, Sampling, Seen};
+use crate::progress::NoProgress;
 
 pub use score::{score_layout, LayoutScore, ScoreParams};
 
@@ -302,27 +300,55 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         vec![false; rig.n_vertices()]
     };
 
-    // Visibility (module `on_demand`): every candidate and its mirror partner is bounded by
-    // its neutral visibility and measured through every pose only where the cover's cost
-    // needs it; a unit of the design's pool is only asked whether it reaches
-    // `pool_visibility`, and only when a greedy step could pick it.
+    // Visibility: exact for every candidate and its mirror partner (the cost uses it); for
+    // the rest of the pool and its partners only whether it reaches `pool_visibility`.
+    let mut needs: Vec<Option<Need>> = vec![None; rig.n_vertices()];
+    for n in (0..rig.n_vertices()).filter(|&n| pool[n]) {
+        let partner = partners.as_ref().and_then(|p| p[n]);
+        for v in std::iter::once(n).chain(partner.map(|m| m as usize)) {
+            needs[v].get_or_insert(Need::AtLeast(params.pool_visibility));
+        }
+    }
+    for n in (0..rig.n_vertices()).filter(|&n| !relation[n].is_empty()) {
+        needs[n] = Some(Need::Exact);
+        if let Some(m) = partners.as_ref().and_then(|p| p[n]) {
+            needs[m as usize] = Some(Need::Exact);
+        }
+    }
+    let (vertices, vertex_needs): (Vec<u32>, Vec<Need>) =
+        needs.iter().enumerate().filter_map(|(n, need)| need.map(|need| (n as u32, need))).unzip();
     let sampling = match &params.cameras {
         Some(cameras) => Sampling::Cameras(cameras),
         None => Sampling::Hemisphere { rays: params.rays, seed: params.seed },
     };
-    let candidates: Vec<u32> = (0..rig.n_vertices() as u32).filter(|&n| !relation[n as usize].is_empty()).collect();
-    let pool_vertices: Vec<u32> = (0..rig.n_vertices() as u32).filter(|&n| pool[n as usize]).collect();
-    // Exhaustive (to time the saving) and with a minimum visibility, every candidate is
-    // measured at once: the minimum drops candidates, which the bound cannot tell.
-    let exhaustive = !params.reuse_visibility || params.min_visibility > 0.0;
-    let bounded: Vec<u32> = if params.reuse_visibility { candidates.clone() } else { candidates.iter().chain(&pool_vertices).copied().collect() };
-    let mut visibility = OnDemand::new(rig, &live, &sampling, params.reuse_visibility, partners.as_deref(), &bounded, exhaustive, progress)?;
-    // The pool's questions go with the cover's first measurement; the greedy traces a unit
-    // itself only if none came.
-    visibility.ask_at_least(&pool_vertices, params.pool_visibility);
+    let started = Instant::now();
+    let stage = Stage { inner: progress, start: 0.0, span: 0.8 };
+    let exhaustive: Vec<Need>;
+    let vertex_needs = if params.reuse_visibility {
+        &vertex_needs
+    } else {
+        exhaustive = vec![Need::Exact; vertices.len()];
+        &exhaustive
+    };
+    let measured = worst_case_visibility(rig, &live, &vertices, vertex_needs, &sampling, params.reuse_visibility, &stage)?;
+    layout.seconds_visibility = started.elapsed().as_secs_f64();
+    layout.rays_cast = measured.rays_cast;
+    layout.rays_reused = measured.rays_reused;
+    layout.visibility_vertices = vertices.len();
+    let mut seen: Vec<Option<Seen>> = vec![None; rig.n_vertices()];
+    for (&v, &s) in vertices.iter().zip(&measured.worst) {
+        seen[v as usize] = Some(s);
+    }
+    // `l[n]` where measured, NaN (not computed) elsewhere: the cover reads it only for
+    // candidates, all measured.
+    let mut visibility: Vec<f64> = seen.iter().map(|s| s.and_then(|s| s.exact()).unwrap_or(f64::NAN)).collect();
+    let effective: Vec<f64> = match &partners {
+        None => visibility.clone(),
+        Some(p) => (0..rig.n_vertices()).map(|n| p[n].map_or(visibility[n], |m| visibility[n].min(visibility[m as usize]))).collect(),
+    };
     if params.min_visibility > 0.0 {
         for (n, shapes) in relation.iter_mut().enumerate() {
-            if !shapes.is_empty() && visibility.level(n) < params.min_visibility {
+            if effective[n] < params.min_visibility {
                 shapes.clear();
             }
         }
@@ -349,7 +375,7 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     };
     let chosen = adaptive_multi_cover(
         &relation,
-        &mut visibility,
+        &effective,
         live.len(),
         partners.as_deref(),
         rig.neutral,
@@ -362,7 +388,6 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     layout.seconds_solve = chosen.seconds_solve;
     let mut placed: Vec<(u32, usize, Option<usize>)> = chosen.landmarks.iter().map(|&(v, round)| (v, round, None)).collect();
     let started = Instant::now();
-    let traced_before = visibility.seconds;
     let deltas: Vec<&[[f32; 3]]> = live.iter().map(|&k| rig.delta(k)).collect();
     let cover: Vec<u32> = placed.iter().map(|p| p.0).collect();
     if let Some(m) = params.landmarks.filter(|&m| m < cover.len()) {
@@ -375,9 +400,11 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     }
     if designing {
         let taken: std::collections::HashSet<u32> = cover.iter().copied().collect();
+        let visible = |v: usize| seen[v].and_then(|s| s.at_least(params.pool_visibility)) == Some(true);
         let units: Vec<Vec<u32>> = (0..rig.n_vertices() as u32)
             .filter(|&n| pool[n as usize] && !taken.contains(&n))
             .map(|n| std::iter::once(n).chain(partners.as_ref().and_then(|p| p[n as usize])).collect::<Vec<u32>>())
+            .filter(|unit| unit.iter().all(|&v| visible(v as usize)))
             .collect();
         let input = DesignInput {
             deltas,
@@ -394,8 +421,7 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
             noise: params.noise,
             curve_to: params.curve_to,
         };
-        let mut screen = PoolScreen { visibility: &mut visibility, units: &input.pool, threshold: params.pool_visibility };
-        let outcome = extend_layout(&input, &design_settings, &mut screen)?;
+        let outcome = extend_layout(&input, &design_settings);
         for (step, vertices) in outcome.added.iter().enumerate() {
             placed.extend(vertices.iter().map(|&v| (v, layout.rounds, Some(step + 1))));
         }
@@ -407,19 +433,22 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         let sigma = params.noise * rig.bbox_diagonal();
         layout.predicted_error = predicted_error(&deltas, &weight, &cover, sigma * sigma) / rig.bbox_diagonal();
     }
-    // Without the tracing the pool's screen did (counted as visibility).
-    layout.seconds_design = started.elapsed().as_secs_f64() - (visibility.seconds - traced_before);
+    layout.seconds_design = started.elapsed().as_secs_f64();
     placed.sort();
-    // Added landmarks from the pool were only asked a threshold: measure them now (the same
-    // rays, so the value is the one a full computation gives).
-    let unmeasured: Vec<u32> = placed.iter().map(|p| p.0).filter(|&v| !visibility.is_exact(v as usize)).collect();
+    // Added landmarks from the pool were only measured against the threshold: measure them
+    // now (the same rays, so the value is the one a full computation gives).
+    let started = Instant::now();
+    let unmeasured: Vec<u32> = placed.iter().map(|p| p.0).filter(|&v| visibility[v as usize].is_nan()).collect();
     if !unmeasured.is_empty() {
-        visibility.measure(&unmeasured)?;
+        let needs = vec![Need::Exact; unmeasured.len()];
+        let late = worst_case_visibility(rig, &live, &unmeasured, &needs, &sampling, params.reuse_visibility, &NoProgress)?;
+        layout.rays_cast += late.rays_cast;
+        layout.rays_reused += late.rays_reused;
+        for (&v, s) in unmeasured.iter().zip(&late.worst) {
+            visibility[v as usize] = s.exact().unwrap_or(f64::NAN);
+        }
     }
-    layout.seconds_visibility = visibility.seconds;
-    layout.rays_cast = visibility.rays_cast;
-    layout.rays_reused = visibility.rays_reused;
-    layout.visibility_vertices = visibility.traced();
+    layout.seconds_visibility += started.elapsed().as_secs_f64();
     let maxima: Vec<f64> = (0..rig.n_shapes()).map(|k| rig.max_displacement(k)).collect();
     layout.landmarks = placed
         .iter()
@@ -433,7 +462,7 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
                 position: rig.neutral[vertex as usize].map(f64::from),
                 shapes: strengths.iter().filter(|s| s.1 >= params.epsilon).map(|s| s.0).collect(),
                 strongest: strengths[0].0,
-                visibility: visibility.exact_level(vertex as usize).unwrap_or(f64::NAN),
+                visibility: visibility[vertex as usize],
                 round,
                 added,
             }

@@ -317,24 +317,3 @@ fn predicted_error_correlates_with_measured_error() {
     let correlation = cov / (vx * vy).sqrt();
     assert!(correlation > 0.8, "correlation of log errors {correlation}: {pairs:?}");
 }
-
-/// Measuring visibility on demand (neutral bounds, the cover's `settle`, the pool's screen)
-/// gives the layout of measuring every candidate and pool vertex through every pose, on a
-/// rig whose pit (jawOpen) hides some candidates in some poses, with and without symmetry,
-/// backup rounds and a design; and it traces fewer rays.
-#[test]
-fn on_demand_visibility_gives_the_exhaustive_layout() {
-    for symmetric in [false, true] {
-        for max_per_shape in [1, 2] {
-            for landmarks in [None, Some(16)] {
-                let lazy = LandmarkParams { symmetric, max_per_shape, landmarks, rays: 24, radius: 0.05, ..LandmarkParams::default() };
-                let full = LandmarkParams { reuse_visibility: false, ..lazy.clone() };
-                let (a, b) = (run(&BUMPS, &lazy).unwrap(), run(&BUMPS, &full).unwrap());
-                assert_eq!(a.landmarks, b.landmarks, "symmetric {symmetric}, {max_per_shape} per shape, {landmarks:?}");
-                assert_eq!(a.curve, b.curve);
-                assert!(a.rays_cast < b.rays_cast, "{} vs {}", a.rays_cast, b.rays_cast);
-                assert!(a.landmarks.iter().all(|l| l.visibility.is_finite()));
-            }
-        }
-    }
-}

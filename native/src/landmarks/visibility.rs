@@ -113,120 +113,85 @@ pub fn worst_case_visibility(
     reuse: bool,
     progress: &dyn Progress,
 ) -> ShapesmithResult<Visibility> {
-    Scene::new(rig, shapes).measure(vertices, needs, sampling, reuse, true, progress)
-}
-
-/// What measurements over the same rig and poses share: the neutral pose and each shape's
-/// moving region (built by the first measurement that reuses rays), so that measuring a few
-/// more vertices later costs their rays and each pose's refit, not the builds again.
-pub struct Scene<'a> {
-    rig: &'a RigView<'a>,
-    shapes: &'a [usize],
-    neutral: PosedMesh,
-    regions: Vec<Option<MovingRegion>>,
-}
-
-impl<'a> Scene<'a> {
-    pub fn new(rig: &'a RigView<'a>, shapes: &'a [usize]) -> Self {
-        Self { rig, shapes, neutral: PosedMesh::new(rig, None, None), regions: shapes.iter().map(|_| None).collect() }
-    }
-
-    /// [`worst_case_visibility`] of `vertices` over this scene's poses, or over the neutral
-    /// alone without `shaped` (an upper bound of the worst case).
-    pub fn measure(
-        &mut self,
-        vertices: &[u32],
-        needs: &[Need],
-        sampling: &Sampling,
-        reuse: bool,
-        shaped: bool,
-        progress: &dyn Progress,
-    ) -> ShapesmithResult<Visibility> {
-        let rig = self.rig;
-        let shapes = if shaped { self.shapes } else { &[] };
-        let nudge = NUDGE_FRACTION * rig.bbox_diagonal();
-        let total = sampling.rays_per_vertex();
-        let (mut rays_cast, mut rays_reused) = (0u64, 0u64);
-        let poses = shapes.len() + 1;
-        progress.checkpoint(0.0)?;
-        let neutral = &self.neutral;
-        // The neutral pose keeps each vertex's rays and the outcomes it traced.
-        let mut tracks: Vec<Track> = vertices
-            .par_iter()
-            .zip(needs)
-            .map(|(&v, &need)| {
-                let (origin, rays) = neutral.rays(v, nudge, sampling);
-                let mut rest = RaysAtRest { origin, rays: rays.collect(), known: vec![0; total.div_ceil(64)], escaped: vec![0; total.div_ceil(64)] };
-                let mut track = Track { vertex: v, level: 1.0, threshold: None, below: false, cast: 0, reused: 0, rest: RaysAtRest::default() };
-                if let Need::AtLeast(t) = need {
-                    track.level = t;
-                    track.threshold = Some(t);
-                }
-                let seen = (0..total).map(|i| rest.neutral_outcome(i, &neutral.bvh, &mut track.cast));
-                let level = pose_visibility(track.level, total, track.threshold.is_none(), seen);
-                track.settle(level);
-                track.rest = rest;
-                track
-            })
-            .collect();
-        // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
-        // the boxes stay tight, and a refit costs far less than a build.
-        let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.binary)));
-        let mut next = posed(0);
-        for (i, &shape) in shapes.iter().enumerate() {
-            progress.checkpoint((i + 1) as f64 / poses as f64)?;
-            let Some(mesh) = next.take() else { break };
-            if reuse && self.regions[i].is_none() {
-                self.regions[i] = Some(MovingRegion::new(rig, shape, &neutral.points, &mesh.points, nudge));
+    let nudge = NUDGE_FRACTION * rig.bbox_diagonal();
+    let total = sampling.rays_per_vertex();
+    let (mut rays_cast, mut rays_reused) = (0u64, 0u64);
+    let poses = shapes.len() + 1;
+    progress.checkpoint(0.0)?;
+    let neutral = PosedMesh::new(rig, None, None);
+    // The neutral pose keeps each vertex's rays and the outcomes it traced.
+    let mut tracks: Vec<Track> = vertices
+        .par_iter()
+        .zip(needs)
+        .map(|(&v, &need)| {
+            let (origin, rays) = neutral.rays(v, nudge, sampling);
+            let mut rest = RaysAtRest { origin, rays: rays.collect(), known: vec![0; total.div_ceil(64)], escaped: vec![0; total.div_ceil(64)] };
+            let mut track = Track { vertex: v, level: 1.0, threshold: None, below: false, cast: 0, reused: 0, rest: RaysAtRest::default() };
+            if let Need::AtLeast(t) = need {
+                track.level = t;
+                track.threshold = Some(t);
             }
-            let region = self.regions[i].as_ref().filter(|_| reuse);
-            let ((), prepared) = rayon::join(
-                || {
-                    tracks.par_iter_mut().filter(|t| !t.done()).for_each(|track| {
-                        let v = track.vertex;
-                        let exact_below = track.threshold.is_none();
-                        let level = match region {
-                            Some(region) if region.is_static(v) => {
-                                if region.behind(&track.rest.origin, &neutral.normals[v as usize]) {
-                                    track.reused += total as u64;
-                                    return;
-                                }
-                                let Track { rest, cast, reused, level, .. } = track;
-                                let seen = (0..total).map(|r| region.outcome(r, rest, &mesh.bvh, &neutral.bvh, cast, reused));
-                                pose_visibility(*level, total, exact_below, seen)
+            let seen = (0..total).map(|i| rest.neutral_outcome(i, &neutral.bvh, &mut track.cast));
+            let level = pose_visibility(track.level, total, track.threshold.is_none(), seen);
+            track.settle(level);
+            track.rest = rest;
+            track
+        })
+        .collect();
+    // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
+    // the boxes stay tight, and a refit costs far less than a build.
+    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.binary)));
+    let mut next = posed(0);
+    for (i, &shape) in shapes.iter().enumerate() {
+        progress.checkpoint((i + 1) as f64 / poses as f64)?;
+        let Some(mesh) = next.take() else { break };
+        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points, nudge));
+        let ((), prepared) = rayon::join(
+            || {
+                tracks.par_iter_mut().filter(|t| !t.done()).for_each(|track| {
+                    let v = track.vertex;
+                    let exact_below = track.threshold.is_none();
+                    let level = match &region {
+                        Some(region) if region.is_static(v) => {
+                            if region.behind(&track.rest.origin, &neutral.normals[v as usize]) {
+                                track.reused += total as u64;
+                                return;
                             }
-                            _ => {
-                                let (origin, rays) = mesh.rays(v, nudge, sampling);
-                                let cast = &mut track.cast;
-                                let seen = rays.map(|ray| {
-                                    *cast += 1;
-                                    ray.2 && !mesh.bvh.any_hit(&origin, &ray.0, ray.1)
-                                });
-                                pose_visibility(track.level, total, exact_below, seen)
-                            }
-                        };
-                        track.settle(level);
-                    })
-                },
-                || posed(i + 1),
-            );
-            next = prepared;
-        }
-        let worst = tracks
-            .iter()
-            .map(|t| {
-                rays_cast += t.cast;
-                rays_reused += t.reused;
-                match t.threshold {
-                    None => Seen::Exact(t.level),
-                    Some(threshold) if t.below => Seen::Below(threshold),
-                    Some(threshold) => Seen::AtLeast(threshold),
-                }
-            })
-            .collect();
-        progress.checkpoint(1.0)?;
-        Ok(Visibility { worst, rays_cast, rays_reused })
+                            let Track { rest, cast, reused, level, .. } = track;
+                            let seen = (0..total).map(|r| region.outcome(r, rest, &mesh.bvh, &neutral.bvh, cast, reused));
+                            pose_visibility(*level, total, exact_below, seen)
+                        }
+                        _ => {
+                            let (origin, rays) = mesh.rays(v, nudge, sampling);
+                            let cast = &mut track.cast;
+                            let seen = rays.map(|ray| {
+                                *cast += 1;
+                                ray.2 && !mesh.bvh.any_hit(&origin, &ray.0, ray.1)
+                            });
+                            pose_visibility(track.level, total, exact_below, seen)
+                        }
+                    };
+                    track.settle(level);
+                })
+            },
+            || posed(i + 1),
+        );
+        next = prepared;
     }
+    let worst = tracks
+        .iter()
+        .map(|t| {
+            rays_cast += t.cast;
+            rays_reused += t.reused;
+            match t.threshold {
+                None => Seen::Exact(t.level),
+                Some(threshold) if t.below => Seen::Below(threshold),
+                Some(threshold) => Seen::AtLeast(threshold),
+            }
+        })
+        .collect();
+    progress.checkpoint(1.0)?;
+    Ok(Visibility { worst, rays_cast, rays_reused })
 }
 
 impl Sampling<'_> {
