@@ -42,9 +42,7 @@ def paint_crossings(obj, shape, crossings):
     not at rest (the neutral's own crossings at the lashes stay grey); returns their count."""
     mesh = obj.data
     faces = crossings.crossing_faces(obj, shape)
-    loop_totals = np.empty(len(mesh.polygons), dtype=np.int32)
-    mesh.polygons.foreach_get("loop_total", loop_totals)
-    crossed_loop = np.repeat(faces, loop_totals)
+    crossed_loop = crossings.face_corners(mesh, faces)
     colours = np.where(crossed_loop[:, None], (1.0, 0.0, 0.0, 1.0), (0.75, 0.75, 0.75, 1.0)).astype(np.float32)
     attribute = mesh.color_attributes.new("crossings", "FLOAT_COLOR", "CORNER")
     attribute.data.foreach_set("color", colours.ravel())

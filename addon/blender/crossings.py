@@ -28,6 +28,13 @@ def crossing_faces(obj, shape_name):
     return faces
 
 
+def face_corners(mesh, faces):
+    """Bool per face corner (loop) of `mesh`: True on the corners of the faces `faces` marks."""
+    loop_totals = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", loop_totals)
+    return np.repeat(faces, loop_totals)
+
+
 def show_crossings(obj, shape_name):
     """Shows the key `shape_name` alone on `obj` and selects exactly its crossing faces (and
     their vertices), so Edit Mode or a face-select overlay points at what to fix. Returns the
@@ -39,10 +46,8 @@ def show_crossings(obj, shape_name):
     obj.show_only_shape_key = True
     corners = np.empty(len(mesh.loops), dtype=np.int32)
     mesh.loops.foreach_get("vertex_index", corners)
-    loop_totals = np.empty(len(mesh.polygons), dtype=np.int32)
-    mesh.polygons.foreach_get("loop_total", loop_totals)
     vertices = np.zeros(len(mesh.vertices), dtype=bool)
-    vertices[corners[np.repeat(faces, loop_totals)]] = True
+    vertices[corners[face_corners(mesh, faces)]] = True
     mesh.vertices.foreach_set("select", vertices)
     mesh.edges.foreach_set("select", np.zeros(len(mesh.edges), dtype=bool))
     mesh.polygons.foreach_set("select", faces)

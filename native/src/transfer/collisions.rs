@@ -224,6 +224,11 @@ pub(super) struct ShapeSystem<'a> {
 type Targets = BTreeMap<usize, Vec3>;
 
 impl DeformationTransfer {
+    /// The connected piece triangle `t` belongs to (that of any of its corners).
+    fn triangle_piece(&self, t: u32) -> u32 {
+        self.piece[self.triangles[t as usize][0] as usize]
+    }
+
     /// Runs the pass on the solved deltas `out` (working frame) of one shape; `factor` tells
     /// which vertices the shape's solve was free to move.
     pub(super) fn collision_pass(
@@ -245,7 +250,7 @@ impl DeformationTransfer {
             }
         }
         let mut outcome = CollisionOutcome::default();
-        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        let piece_of = |t: u32| self.triangle_piece(t);
         // The rest curve the sweeps see again: all of it but the rest pairs whose triangles
         // both stay put (those cross exactly as at rest and are not swept).
         let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
@@ -446,7 +451,7 @@ impl DeformationTransfer {
             partners.entry(b).or_default().push(a);
         }
         // Template and target share the topology, hence the pieces.
-        let piece_of = |t: u32| self.piece[self.triangles[t as usize][0] as usize];
+        let piece_of = |t: u32| self.triangle_piece(t);
         let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
         TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest) }
     }
@@ -481,7 +486,7 @@ impl DeformationTransfer {
             }
         };
         let obstacle_piece = |u: usize, t: u32| {
-            let p = self.piece[self.triangles[t as usize][0] as usize];
+            let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
         };
         for &(a, b) in pairs {
@@ -534,7 +539,7 @@ impl DeformationTransfer {
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
     fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32) -> Option<Vec3> {
-        let in_piece = |t: u32| self.piece[self.triangles[t as usize][0] as usize] == piece;
+        let in_piece = |t: u32| self.triangle_piece(t) == piece;
         let side_at = |q: Vec3| -> Option<(f64, Vec3, Vec3)> {
             let hit = guard.bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
             let normal = self.surface_normal(guard, hit.triangle, &hit.barycentric)?;
