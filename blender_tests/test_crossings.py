@@ -1,12 +1,14 @@
-"""Show Crossings: on a small mesh built here, the faces a shape key pushes through another
-part of the mesh (and only those, not the neutral's own crossings) are selected, the key is
-shown alone, and a bad request changes nothing."""
+"""Show Crossings and batch `crossings`: on a small mesh built here, the faces a shape key
+pushes through another part of the mesh (and only those, not the neutral's own crossings) are
+selected or listed, the key is shown alone, and a bad request changes nothing."""
+
+import json
 
 import bpy
 import numpy as np
 import pytest
 
-from conftest import make_active
+from conftest import file_digest, make_active, run_batch
 
 
 def build_sheets():
@@ -65,3 +67,36 @@ def test_the_most_crossing_shape_of_a_transfer_has_a_few_faces_to_show(sample):
     assert bpy.ops.shapesmith.show_crossings(shape=longest.name) == {"FINISHED"}
     faces = np.array([p.select for p in target.data.polygons])
     assert 0 < faces.sum() < len(faces) // 10, (longest.name, faces.sum())
+
+
+def test_batch_lists_each_keys_crossing_faces_and_saves_the_selection(sample, tmp_path):
+    """The batch counterpart lists the same faces as the button, per key, and with --select
+    saves a copy showing that key alone with its faces selected; the input file is unchanged."""
+    build_sheets()
+    source = str(tmp_path / "sheets.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=source, copy=True)
+    digest = file_digest(source)
+    out, saved = tmp_path / "crossings.json", str(tmp_path / "selected.blend")
+    proc = run_batch("crossings", "--input", source, "--object", "Sheets", "--select", "through",
+                     "--json", str(out), "--output", saved, check=True)
+    assert "1 of 2 keys add crossings" in proc.stdout
+    report = json.loads(out.read_text())
+    assert report["faces_total"] == 3
+    assert report["shapes"] == {"through": {"count": 2, "faces": [0, 1]}, "clear": {"count": 0, "faces": []}}
+    assert file_digest(source) == digest
+    bpy.ops.wm.open_mainfile(filepath=saved)
+    obj = bpy.data.objects["Sheets"]
+    assert selected_faces(obj) == [0, 1] and obj.active_shape_key.name == "through" and obj.show_only_shape_key
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--object", "Sheets", "--shapes", "through,nope"), "has no shape key 'nope'"),
+    (("--object", "Nope"), "no object named 'Nope'"),
+    (("--object", "Sheets", "--select", "through"), "--select SHAPE and --output OUT.blend go together"),
+])
+def test_batch_refuses_bad_requests_with_one_line(sample, tmp_path, args, message):
+    build_sheets()
+    source = str(tmp_path / "sheets.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=source, copy=True)
+    proc = run_batch("crossings", "--input", source, *args)
+    assert proc.returncode == 2 and message in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
