@@ -7,6 +7,10 @@ the native time with them off, to show what they cost), and the parts of the pos
 
     python scripts/bench_pack.py [-- --repeats 5 --json OUT]     (bpy wheel, extension installed)
 
+`--save-arrays DIR` also writes each rig's arrays to DIR/<rig>/ for
+`cargo run --release --example time_pack -- DIR/<rig>`, which times the same native call
+outside Blender (a profiler can then see it alone).
+
 Target: all expressions of a ~26k-vertex head with its shapes, the new conflicts included, in
 under 50 ms of native time (2 cores); reported beside the time to read the deltas from Blender.
 """
@@ -17,6 +21,7 @@ import os
 import sys
 import time
 
+import numpy as np
 import bpy
 import bmesh  # after bpy: the bpy wheel provides it
 
@@ -51,6 +56,15 @@ def denser_copy(obj, label, cuts, extra_vertices=0):
     return dense
 
 
+def save_arrays(rig, folder):
+    """The rig's neutral, deltas and triangles as raw little-endian files (float32, uint32),
+    what `native/examples/time_pack.rs` reads."""
+    os.makedirs(folder, exist_ok=True)
+    np.ascontiguousarray(rig.neutral, dtype="<f4").tofile(os.path.join(folder, "neutral.f32"))
+    np.ascontiguousarray(rig.deltas, dtype="<f4").tofile(os.path.join(folder, "deltas.f32"))
+    np.ascontiguousarray(rig.triangles, dtype="<u4").tofile(os.path.join(folder, "triangles.u32"))
+
+
 def measure(packing, obj, repeats):
     """Best-of-`repeats` seconds of reading, native packing (conflicts on, and off) and
     storing, the poseability parts of the fastest run, and the results (on, off)."""
@@ -75,6 +89,7 @@ def main():
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--sample", help="a sample.blend (default: the cached one, built when missing)")
     parser.add_argument("--json", help="write the measurements here")
+    parser.add_argument("--save-arrays", metavar="DIR", help="also write each rig's arrays to DIR/<rig>/ (see above)")
     args = parser.parse_args(argv)
 
     shapesmith = load_shapesmith()
@@ -93,6 +108,8 @@ def main():
     for label, obj in copies.items():
         report, without, seconds, parts = measure(packing, obj, args.repeats)
         rig = shapesmith.blender.mesh_arrays.read_rig(obj)
+        if args.save_arrays:
+            save_arrays(rig, os.path.join(args.save_arrays, label))
         greedy = shapesmith.native.module().pack_greedy(rig.neutral, rig.deltas, rig.triangles, rig.names)
         rows[label] = {
             "vertices": len(obj.data.vertices),

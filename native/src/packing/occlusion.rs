@@ -86,6 +86,8 @@ struct Scene<'a> {
     rest: Vec<Vec3>,
     rest_bvh: TriangleBvh,
     epsilon: f64,
+    /// Per shape, the front-view box of its moved triangles at rest and in its pose.
+    reach: Vec<Box2>,
 }
 
 /// A front-view box (x, y); empty when `lo > hi`.
@@ -113,6 +115,11 @@ impl Box2 {
 
     fn grown(self, margin: f64) -> Self {
         Self { lo: self.lo.map(|x| x - margin), hi: self.hi.map(|x| x + margin) }
+    }
+
+    /// Whether the front-view point `p` lies in the box (edges included).
+    fn holds(&self, p: Vec3) -> bool {
+        (0..2).all(|a| self.lo[a] <= p[a] && p[a] <= self.hi[a])
     }
 
     fn meets(&self, other: &Box2) -> bool {
@@ -175,39 +182,69 @@ impl Scene<'_> {
     }
 
     /// How many of h's active vertices are seen with `by` posed too, `posed[k]` holding shape
-    /// k's moved triangles in pose k. A vertex `by` does not move (see `regions`) keeps its
-    /// place: it is hidden by its hiders in pose h that `by` does not move, or by a triangle
-    /// `by` moves: one only `by` moves sits where `by` alone puts it, one both move is posed
-    /// here. One that `by` moves is traced afresh.
-    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, posed: &[Option<PosedTriangles>]) -> usize {
+    /// k's moved triangles in pose k; once the count makes `enough` true the rest are not
+    /// traced (any count it accepts decides the direction). A vertex `by` does not move (see
+    /// `regions`) keeps its place: it is hidden by its hiders in pose h that `by` does not
+    /// move, or by a triangle `by` moves: one only `by` moves sits where `by` alone puts it,
+    /// one both move is posed here. One that `by` moves is traced afresh.
+    ///
+    /// Only the vertices inside `by`'s reach in the front view (the box of the triangles it
+    /// moves, at rest and posed by it, and of those both move, posed by both) are traced: a
+    /// triangle hides only points inside its own box, so a vertex outside, which `by` does
+    /// not move, is seen exactly when every one of its hiders in pose h is one `by` moves
+    /// away. The triangles both move are posed, and a hierarchy built over them, only when
+    /// some vertex needs them.
+    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, posed: &[Option<PosedTriangles>], enough: impl Fn(usize) -> bool) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
         let (Some(posed_h), Some(posed_by)) = (&posed[h], &posed[by]) else { return 0 };
         let pose = Pose::of(rig, self.regions, &[h, by]);
         let (fewer, other) = if rh.triangles.len() <= rb.triangles.len() { (rh, rb) } else { (rb, rh) };
         let shared: Vec<u32> = fewer.triangles.iter().copied().filter(|&t| other.contains(t)).collect();
+        let mut reach = self.reach[by];
+        shared.iter().flat_map(|&t| rig.triangles[t as usize]).for_each(|v| reach.grow(self.view(&pose, v)));
+        let reach = reach.grown(self.epsilon);
+        let mut count = 0;
+        let mut near = Vec::new();
+        for (i, &v) in active.iter().enumerate() {
+            if rb.moves(v) || reach.holds(alone.points[i]) {
+                near.push(i);
+            } else if alone.hiders[i].iter().all(|&t| rb.contains(t)) {
+                count += 1;
+                if enough(count) {
+                    return count;
+                }
+            }
+        }
+        if near.is_empty() {
+            return count;
+        }
         let shared = PosedTriangles::new(shared, rig.triangles, &pose, |p| self.frame.map(p));
-        (0..active.len())
-            .filter(|&i| {
-                let (v, mut found) = (active[i], Vec::new());
-                let q = if rb.moves(v) {
-                    let q = self.view(&pose, v);
-                    self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
-                    self.posed_hiders(posed_h, v, q, |t| rb.contains(t), &mut found);
-                    q
-                } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
-                    return false;
-                } else {
-                    alone.points[i]
-                };
-                if found.is_empty() {
-                    self.posed_hiders(posed_by, v, q, |t| rh.contains(t), &mut found);
+        for i in near {
+            let (v, mut found) = (active[i], Vec::new());
+            let q = if rb.moves(v) {
+                let q = self.view(&pose, v);
+                self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
+                self.posed_hiders(posed_h, v, q, |t| rb.contains(t), &mut found);
+                q
+            } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
+                continue;
+            } else {
+                alone.points[i]
+            };
+            if found.is_empty() {
+                self.posed_hiders(posed_by, v, q, |t| rh.contains(t), &mut found);
+            }
+            if found.is_empty() {
+                self.posed_hiders(&shared, v, q, |_| false, &mut found);
+            }
+            if found.is_empty() {
+                count += 1;
+                if enough(count) {
+                    return count;
                 }
-                if found.is_empty() {
-                    self.posed_hiders(&shared, v, q, |_| false, &mut found);
-                }
-                found.is_empty()
-            })
-            .count()
+            }
+        }
+        count
     }
 }
 
@@ -258,7 +295,8 @@ pub fn find_occlusions(
         return Some((Vec::new(), 0));
     }
     let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
-    let scene = Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal };
+    let reach = boxes.iter().map(|b| b.1).collect();
+    let scene = Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal, reach };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
     hidden_shapes.dedup();
@@ -275,7 +313,8 @@ pub fn find_occlusions(
             partners
                 .iter()
                 .filter_map(|&by| {
-                    let kept = scene.seen_with(h, by, &active[h], &alone, &posed) as f64 / seen_alone as f64;
+                    let share = |count: usize| count as f64 / seen_alone as f64;
+                    let kept = share(scene.seen_with(h, by, &active[h], &alone, &posed, |count| share(count) >= keep));
                     (kept < keep).then_some(Occlusion { hidden: h, by, kept })
                 })
                 .collect()
