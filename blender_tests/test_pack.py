@@ -379,7 +379,8 @@ def test_batch_pack_writes_json_csv_sheet_and_a_packed_copy(sample_path, tmp_pat
     report = json.loads(open(out["pack.json"]).read())
     for key in ("expressions", "inert", "pairs", "antagonists", "params", "seconds", "weights", "fewest"):
         assert key in report
-    assert set(report["seconds"]) == {"read", "native", "write"}
+    assert set(report["seconds"]) == {"read", "cache_key", "native", "write"}
+    assert "conflicts_cache" not in report and report["poseability"]["pairs_reused"] == 0
     assert report["params"]["mu"] == pytest.approx(0.3) and report["params"]["symmetric"] is True
     groups = [e["shapes"] for e in report["expressions"]]
     assert all(e["optimal"] for e in report["expressions"])
@@ -399,6 +400,13 @@ def test_batch_pack_writes_json_csv_sheet_and_a_packed_copy(sample_path, tmp_pat
     ]
     image = bpy.data.images.load(out["sheet.png"])
     assert image.size[0] > 0 and image.size[1] > 0
+
+    # The packed copy carries the collision and occlusion results: packing it again reuses them.
+    again = run_batch("pack", "--input", out["packed.blend"], "--object", "Template", "--fewest", "--json", out["pack.json"], check=True)
+    second = json.loads(open(out["pack.json"]).read())
+    assert second["poseability"]["pairs_reused"] > 500 and second["poseability"]["collision_pairs_tested"] == 0
+    assert [e["shapes"] for e in second["expressions"]] == groups and second["conflicts"] == report["conflicts"]
+    assert "pairs reused from the results stored on the object" in again.stdout
 
 
 def test_batch_pack_flags_change_the_result(sample_path, tmp_path):
@@ -466,3 +474,42 @@ def test_progress_reaches_the_caller_and_stopping_keeps_the_previous_result(samp
     with pytest.raises(shapesmith.native.module().CancelledError):
         shapesmith.blender.packing.pack_object(template, progress=lambda fraction: fraction < 0.5)
     assert shapesmith.blender.packing.stored_report(template) == first
+
+
+def test_conflicts_are_reused_until_the_rig_or_their_settings_change(sample, shapesmith):
+    """The collision and occlusion results are stored on the object and reused by the next
+    packing of the same rig with the same mu, tolerance and keep share: the same conflicts
+    and expressions with no pair tested again; other options reuse them too; a changed shape
+    key or tolerance tests again."""
+    packing = shapesmith.blender.packing
+    template = make_active(bpy.data.objects["Template"])
+    assert packing.CONFLICTS_PROPERTY not in template
+    cold = pack(template)
+    cold_report = packing.stored_report(template)
+    assert packing.CONFLICTS_PROPERTY in template
+    options = packing.packing_options(template)
+    warm = packing.pack_object(template, **options)
+    assert warm["poseability"]["reused"] and warm["poseability"]["collision_pairs_tested"] == 0
+    assert warm["poseability"]["occlusion_directions_tested"] == 0 and warm["poseability"]["pairs_reused"] > 500
+    fresh = packing.pack_object(template, reuse_conflicts=False, **options)
+    assert fresh["poseability"]["collision_pairs_tested"] > 500 and fresh["poseability"]["pairs_reused"] == 0
+    for key in ("collisions", "occlusions", "conflicts"):
+        assert warm[key] == fresh[key], key
+    assert [e["shapes"] for e in warm["expressions"]] == [e["shapes"] for e in cold_report["expressions"]] == members(cold)
+
+    # Options the tests do not depend on: the stored results still serve, and the answer is
+    # the one a cold packing gives.
+    excluded = dict(options, exclude=["mouthClose"], antagonist_cosine=-0.9)
+    warm = packing.pack_object(template, **excluded)
+    fresh = packing.pack_object(template, reuse_conflicts=False, **excluded)
+    assert warm["poseability"]["reused"] and warm["poseability"]["pairs_reused"] > 0
+    assert warm["collisions"] == fresh["collisions"] and warm["occlusions"] == fresh["occlusions"]
+    assert [e["shapes"] for e in warm["expressions"]] == [e["shapes"] for e in fresh["expressions"]]
+
+    # A new tolerance, or an edited shape key, tests every pair again.
+    changed = packing.pack_object(template, **dict(options, collision_tolerance=0.2))
+    assert not changed["poseability"]["reused"] and changed["poseability"]["collision_pairs_tested"] > 500
+    key = template.data.shape_keys.key_blocks["jawOpen"]
+    key.data[0].co.z += 0.01
+    edited = packing.pack_object(template, **options)
+    assert not edited["poseability"]["reused"] and edited["poseability"]["pairs_reused"] == 0

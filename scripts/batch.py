@@ -253,6 +253,7 @@ def run_pack(args):
     if args.output:
         save_copy(args.output)
     report.update(input=os.path.abspath(args.input), object=args.object)
+    report.pop("conflicts_cache")  # stored on the object (and in --output); opaque to readers
     report["seconds"]["write"] = time.perf_counter() - started
     write_json(args.json, report)
 

@@ -3,6 +3,7 @@ them. `pack_object` reads and solves without writing anything; `store_packing` i
 place that writes the result onto the object."""
 
 import csv
+import hashlib
 import json
 import time
 
@@ -10,6 +11,35 @@ import numpy as np
 
 from .. import native
 from .mesh_arrays import MeshDataError, check_mesh, read_positions, read_rig
+
+# The collision and occlusion results of the last packing, on the object (saved with the file,
+# undone with it; the leading underscore keeps it out of the Custom Properties panel).
+CONFLICTS_PROPERTY = "_shapesmith_pack_conflicts"
+
+# What the poseability results depend on besides the rig (SPEC section 1): the other
+# options change which pairs are tested, never a pair's answer.
+CONFLICT_SETTINGS = ("mu", "collision_tolerance", "occlusion_keep", "camera_direction")
+
+
+def conflicts_key(rig, params):
+    """A hash of the rig's arrays and names and the settings the poseability results depend
+    on: stored results are reused only under the same key."""
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (rig.neutral, rig.deltas, rig.triangles):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    digest.update(json.dumps([rig.names, [params.get(name) for name in CONFLICT_SETTINGS]]).encode())
+    return digest.hexdigest()
+
+
+def cached_conflicts(obj, key):
+    """The poseability results stored on `obj` under `key` (a JSON string for the native
+    `known`), or None."""
+    try:
+        stored = json.loads(obj.get(CONFLICTS_PROPERTY, ""))
+    except (TypeError, ValueError):
+        return None
+    return stored.get("known") if isinstance(stored, dict) and stored.get("key") == key else None
+
 
 def packing_options(obj, axis=0, time_limit=None):
     """The keyword arguments of `pack_object` from the settings stored on `obj`: parameters,
@@ -56,9 +86,16 @@ def _check_named_pairs(pairs, what):
             raise MeshDataError(f"{what}: entry {index + 1} is missing a shape key name: fill it in or remove it")
 
 
-def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, progress=None, **params):
+def pack_object(
+    obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, progress=None, reuse_conflicts=True, **params
+):
     """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
     returns its report with timings and shape-key warnings added. Writes nothing.
+
+    With `reuse_conflicts`, the collision and occlusion results an earlier packing stored on
+    the object (`store_packing`) are reused when the rig and their settings are unchanged
+    (`conflicts_key`): only pairs they did not decide are tested. The report's
+    `conflicts_cache` is what `store_packing` stores next.
 
     `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
     antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
@@ -84,6 +121,9 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
     if symmetric and pairs is not None:
         _check_named_pairs(pairs, "symmetric pairs")
     read = time.perf_counter()
+    key = conflicts_key(rig, params)
+    known = cached_conflicts(obj, key) if reuse_conflicts else None
+    hashed = time.perf_counter()
     report = native.module().pack_expressions(
         rig.neutral,
         deltas,
@@ -94,10 +134,13 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
         symmetric=symmetric,
         pairs=pairs if symmetric else None,
         time_limit=time_limit,
+        known=known,
         progress=progress,
         **params,
     )
     solved = time.perf_counter()
+    report["conflicts_cache"] = {"key": key, "known": report["poseability"].pop("known")}
+    report["poseability"]["reused"] = known is not None
     if not report["expressions"] and not report["unplaced"]:
         raise MeshDataError(
             f"nothing to pack on '{obj.name}': every shape key is inert or excluded "
@@ -106,7 +149,7 @@ def pack_object(obj, target=None, max_expressions=None, pairs=None, symmetric=Tr
     report["names"] = names
     report["target"] = target.name if target is not None else None
     report["warnings"] = rig.warnings
-    report["seconds"] = {"read": read - started, "native": solved - read}
+    report["seconds"] = {"read": read - started, "cache_key": hashed - read, "native": solved - hashed}
     return report
 
 
@@ -155,6 +198,7 @@ def store_packing(obj, report):
     result.params_json = json.dumps(dict(report["params"], target=report.get("target")))
     result.regions_json = json.dumps(report["regions"], separators=(",", ":"))
     result.done = True
+    obj[CONFLICTS_PROPERTY] = json.dumps(report["conflicts_cache"], separators=(",", ":"))
     obj.shapesmith.pack.active_expression = 0
 
 
@@ -341,4 +385,7 @@ def summary_lines(report):
     lines.append("collisions kept apart: " + (", ".join("/".join(c["shapes"]) for c in report["collisions"]) or "none"))
     occlusions = [f"{o['hidden']} hidden by {o['by']}" for o in report["occlusions"]]
     lines.append("occlusions kept apart: " + (", ".join(occlusions) or "none"))
+    reused = report.get("poseability", {}).get("pairs_reused", 0)
+    if reused:
+        lines.append(f"collision and occlusion tests: {reused} pairs reused from the results stored on the object")
     return lines + [f"warning: {w}" for w in report.get("warnings", ())]

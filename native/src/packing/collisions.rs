@@ -33,6 +33,8 @@
 //! pairs of a face are such, and cost a few box queries. The total E, which the report
 //! gives beside it, is measured in full only for the pairs that collide.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles};
@@ -82,9 +84,13 @@ impl Pieces {
 
 /// One shape's moved triangles posed by it alone (in any mix, a triangle that only A moves
 /// sits where A alone puts it), all of them and those outside the largest piece, each with
-/// its box over the rest pose and the posed one.
+/// its box over the rest pose and the posed one. The hierarchy over all of them is built on
+/// first use ([`Moved::posed`]): the decision queries it only from triangles outside the
+/// largest piece, which most shapes of a face never come near.
 struct Moved {
-    posed: PosedTriangles,
+    triangles: Vec<u32>,
+    corners: Vec<[Vec3; 3]>,
+    posed: OnceLock<PosedTriangles>,
     swept: Vec<Aabb>,
     small: PosedTriangles,
     small_swept: Vec<Aabb>,
@@ -102,16 +108,23 @@ impl Moved {
         Self {
             swept: all.iter().map(swept).collect(),
             small_swept: small.iter().map(swept).collect(),
-            posed: PosedTriangles::new(all, rig.triangles, &pose, |p| p),
+            corners: all.iter().map(|&t| rig.triangles[t as usize].map(|v| pose.at(v))).collect(),
+            triangles: all,
+            posed: OnceLock::new(),
             small: PosedTriangles::new(small, rig.triangles, &pose, |p| p),
         }
+    }
+
+    /// All the moved triangles, posed, in a hierarchy.
+    fn posed(&self) -> &PosedTriangles {
+        self.posed.get_or_init(|| PosedTriangles::from_corners(self.triangles.clone(), self.corners.clone()))
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another
     /// piece: all, or only those outside the largest piece.
     fn partners(&self, from_small: bool) -> &PosedTriangles {
         if from_small {
-            &self.posed
+            self.posed()
         } else {
             &self.small
         }
@@ -176,8 +189,8 @@ impl Scene<'_> {
     fn alone_between(&self, k: usize) -> Crossings {
         let (region, pieces, mut found) = (&self.regions[k], &self.pieces, Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        for (i, &s) in moved.posed.triangles.iter().enumerate() {
-            let (corners, query) = (moved.posed.corners[i], Aabb::of_points(&moved.posed.corners[i]));
+        for (i, &s) in moved.triangles.iter().enumerate() {
+            let (corners, query) = (moved.corners[i], Aabb::of_points(&moved.corners[i]));
             let from_small = pieces.small(s);
             let rest = self.rest_partners(from_small);
             rest.for_each_overlap(&query, |j| {
@@ -208,12 +221,16 @@ impl Scene<'_> {
         // A triangle only A moves against one only B moves, in another piece: one of them is
         // outside the largest piece. When B moves nothing there, A's must be.
         let near_b = grown(rb, margin);
-        let (a_set, a_swept) = if mb.small.triangles.is_empty() { (&ma.small, &ma.small_swept) } else { (&ma.posed, &ma.swept) };
-        for (i, &s) in a_set.triangles.iter().enumerate() {
+        let (a_triangles, a_corners, a_swept) = if mb.small.triangles.is_empty() {
+            (&ma.small.triangles, &ma.small.corners, &ma.small_swept)
+        } else {
+            (&ma.triangles, &ma.corners, &ma.swept)
+        };
+        for (i, &s) in a_triangles.iter().enumerate() {
             if rb.contains(s) || !a_swept[i].overlaps(&near_b) {
                 continue;
             }
-            let corners = a_set.corners[i];
+            let corners = a_corners[i];
             let set = mb.partners(pieces.small(s));
             set.for_each_overlap(&Aabb::of_points(&corners), |j| {
                 let t = set.triangles[j as usize];
@@ -263,7 +280,7 @@ impl Scene<'_> {
     fn alone(&self, k: usize) -> Crossings {
         let (region, mut found) = (&self.regions[k], Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        let posed = &moved.posed;
+        let posed = moved.posed();
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
             self.rest.for_each_overlap(&query, |t| {
@@ -287,7 +304,7 @@ impl Scene<'_> {
         let (rig, triangles) = (self.rig, self.rig.triangles);
         let (ra, rb) = (&self.regions[a], &self.regions[b]);
         let (Some(ma), Some(mb)) = (&self.moved[a], &self.moved[b]) else { return 0.0 };
-        let (posed_a, posed_b) = (&ma.posed, &mb.posed);
+        let (posed_a, posed_b) = (ma.posed(), mb.posed());
         let only_a = |t: u32| ra.contains(t) && !rb.contains(t);
         let only_b = |t: u32| rb.contains(t) && !ra.contains(t);
         let mut total = 0.0;

@@ -113,6 +113,11 @@ pub struct PackingParams {
     /// From the face towards the camera, in the mesh's coordinates (the reference sheet's
     /// front camera: -Y for a face looking down -Y).
     pub camera_direction: [f64; 3],
+    /// Collision and occlusion results of an earlier packing of the same rig with the same
+    /// `mu`, tolerance, keep share and camera ([`PoseabilityReport::known`]): the pairs they
+    /// decided are not tested again. The caller keeps them (the add-on on the object, keyed
+    /// by a hash of the rig and those settings); the other options do not change them.
+    pub known: Option<KnownPoseability>,
 }
 
 /// Box margin, as a fraction of the diagonal, under which two moving regions count as able
@@ -148,6 +153,7 @@ impl Default for PackingParams {
             occlusion_conflicts: true,
             occlusion_keep: 0.5,
             camera_direction: [0.0, -1.0, 0.0],
+            known: None,
         }
     }
 }
@@ -170,6 +176,26 @@ pub struct PoseabilityReport {
     pub seconds_regions: f64,
     pub seconds_collisions: f64,
     pub seconds_occlusions: f64,
+    /// Candidate pairs whose tests were taken from [`PackingParams::known`] instead of run.
+    pub pairs_reused: usize,
+    /// Everything decided so far, given and new: what a later packing of the same rig
+    /// passes back as [`PackingParams::known`].
+    pub known: KnownPoseability,
+}
+
+/// The poseability tests decide each pair of shapes on its own: whether two shapes collide
+/// depends on the rig and the tolerance, whether one hides the other on the rig, `mu`, the
+/// keep share and the camera, never on which other pairs are tested. So the pairs decided
+/// once are kept, and a later packing tests only the candidates not among them (another
+/// exclusion, antagonist cosine or refinement changes the candidates, not the answers).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct KnownPoseability {
+    /// Pairs `(i, j)`, i < j, whose collision test ran (found colliding or not).
+    pub collision_tested: Vec<(usize, usize)>,
+    pub collisions: Vec<Collision>,
+    /// Pairs `(i, j)`, i < j, whose occlusion test ran, in both directions.
+    pub occlusion_tested: Vec<(usize, usize)>,
+    pub occlusions: Vec<Occlusion>,
 }
 
 /// One reference expression $x_j$: the shapes posed at full weight together.

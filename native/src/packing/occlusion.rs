@@ -17,8 +17,12 @@
 //! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
 //! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly. Each shape's
 //! moved triangles are posed once, in one hierarchy that serves every direction it takes
-//! part in (a triangle only B moves sits where B alone puts it); per direction only the
-//! triangles both move are posed anew.
+//! part in (a triangle only B moves sits where B alone puts it), built when a direction first
+//! needs it; per direction only the triangles both move are posed anew, and only A's vertices
+//! inside B's reach in the front view are traced (outside it nothing B moves can cover them),
+//! until the count seen decides the direction.
+
+use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
@@ -86,6 +90,11 @@ struct Scene<'a> {
     rest: Vec<Vec3>,
     rest_bvh: TriangleBvh,
     epsilon: f64,
+    /// Per shape, the front-view box of its moved triangles at rest and in its pose.
+    reach: Vec<Box2>,
+    /// Per shape, its moved triangles in its pose, in view coordinates, built on first use
+    /// ([`Scene::posed`]): many shapes are only ever a partner whose reach no vertex enters.
+    posed: Vec<OnceLock<PosedTriangles>>,
 }
 
 /// A front-view box (x, y); empty when `lo > hi`.
@@ -115,6 +124,11 @@ impl Box2 {
         Self { lo: self.lo.map(|x| x - margin), hi: self.hi.map(|x| x + margin) }
     }
 
+    /// Whether the front-view point `p` lies in the box (edges included).
+    fn holds(&self, p: Vec3) -> bool {
+        (0..2).all(|a| self.lo[a] <= p[a] && p[a] <= self.hi[a])
+    }
+
     fn meets(&self, other: &Box2) -> bool {
         (0..2).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
     }
@@ -129,6 +143,13 @@ struct Alone {
 }
 
 impl Scene<'_> {
+    fn posed(&self, k: usize) -> &PosedTriangles {
+        self.posed[k].get_or_init(|| {
+            let pose = Pose::of(self.rig, self.regions, &[k]);
+            PosedTriangles::new(self.regions[k].triangles.clone(), self.rig.triangles, &pose, |p| self.frame.map(p))
+        })
+    }
+
     fn view(&self, pose: &Pose, v: u32) -> Vec3 {
         self.frame.map(pose.at(v))
     }
@@ -156,8 +177,9 @@ impl Scene<'_> {
         });
     }
 
-    /// Pose h alone; `posed` holds h's moved triangles in pose h.
-    fn alone(&self, h: usize, active: &[u32], posed: &PosedTriangles) -> Alone {
+    /// Pose h alone.
+    fn alone(&self, h: usize, active: &[u32]) -> Alone {
+        let posed = self.posed(h);
         let (rig, region) = (self.rig, &self.regions[h]);
         let pose = Pose::of(rig, self.regions, &[h]);
         let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
@@ -174,40 +196,68 @@ impl Scene<'_> {
         Alone { points, hiders }
     }
 
-    /// How many of h's active vertices are seen with `by` posed too, `posed[k]` holding shape
-    /// k's moved triangles in pose k. A vertex `by` does not move (see `regions`) keeps its
-    /// place: it is hidden by its hiders in pose h that `by` does not move, or by a triangle
-    /// `by` moves: one only `by` moves sits where `by` alone puts it, one both move is posed
-    /// here. One that `by` moves is traced afresh.
-    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, posed: &[Option<PosedTriangles>]) -> usize {
+    /// How many of h's active vertices are seen with `by` posed too; once the count makes `enough` true the rest are not
+    /// traced (any count it accepts decides the direction). A vertex `by` does not move (see
+    /// `regions`) keeps its place: it is hidden by its hiders in pose h that `by` does not
+    /// move, or by a triangle `by` moves: one only `by` moves sits where `by` alone puts it,
+    /// one both move is posed here. One that `by` moves is traced afresh.
+    ///
+    /// Only the vertices inside `by`'s reach in the front view (the box of the triangles it
+    /// moves, at rest and posed by it, and of those both move, posed by both) are traced: a
+    /// triangle hides only points inside its own box, so a vertex outside, which `by` does
+    /// not move, is seen exactly when every one of its hiders in pose h is one `by` moves
+    /// away. The triangles both move are posed, and a hierarchy built over them, only when
+    /// some vertex needs them.
+    fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, enough: impl Fn(usize) -> bool) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
-        let (Some(posed_h), Some(posed_by)) = (&posed[h], &posed[by]) else { return 0 };
         let pose = Pose::of(rig, self.regions, &[h, by]);
         let (fewer, other) = if rh.triangles.len() <= rb.triangles.len() { (rh, rb) } else { (rb, rh) };
         let shared: Vec<u32> = fewer.triangles.iter().copied().filter(|&t| other.contains(t)).collect();
+        let mut reach = self.reach[by];
+        shared.iter().flat_map(|&t| rig.triangles[t as usize]).for_each(|v| reach.grow(self.view(&pose, v)));
+        let reach = reach.grown(self.epsilon);
+        let mut count = 0;
+        let mut near = Vec::new();
+        for (i, &v) in active.iter().enumerate() {
+            if rb.moves(v) || reach.holds(alone.points[i]) {
+                near.push(i);
+            } else if alone.hiders[i].iter().all(|&t| rb.contains(t)) {
+                count += 1;
+                if enough(count) {
+                    return count;
+                }
+            }
+        }
+        if near.is_empty() {
+            return count;
+        }
         let shared = PosedTriangles::new(shared, rig.triangles, &pose, |p| self.frame.map(p));
-        (0..active.len())
-            .filter(|&i| {
-                let (v, mut found) = (active[i], Vec::new());
-                let q = if rb.moves(v) {
-                    let q = self.view(&pose, v);
-                    self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
-                    self.posed_hiders(posed_h, v, q, |t| rb.contains(t), &mut found);
-                    q
-                } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
-                    return false;
-                } else {
-                    alone.points[i]
-                };
-                if found.is_empty() {
-                    self.posed_hiders(posed_by, v, q, |t| rh.contains(t), &mut found);
+        for i in near {
+            let (v, mut found) = (active[i], Vec::new());
+            let q = if rb.moves(v) {
+                let q = self.view(&pose, v);
+                self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
+                self.posed_hiders(self.posed(h), v, q, |t| rb.contains(t), &mut found);
+                q
+            } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
+                continue;
+            } else {
+                alone.points[i]
+            };
+            if found.is_empty() {
+                self.posed_hiders(self.posed(by), v, q, |t| rh.contains(t), &mut found);
+            }
+            if found.is_empty() {
+                self.posed_hiders(&shared, v, q, |_| false, &mut found);
+            }
+            if found.is_empty() {
+                count += 1;
+                if enough(count) {
+                    return count;
                 }
-                if found.is_empty() {
-                    self.posed_hiders(&shared, v, q, |_| false, &mut found);
-                }
-                found.is_empty()
-            })
-            .count()
+            }
+        }
+        count
     }
 }
 
@@ -232,25 +282,25 @@ pub fn find_occlusions(
     candidates.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let rest_of = |v: u32| frame.map(rig.neutral[v as usize].map(f64::from));
     // Front-view boxes: of each shape's active vertices in its pose, and of its moved
-    // triangles at rest and posed; and those triangles posed, in view coordinates.
-    let boxes: Vec<(Box2, Box2, Option<PosedTriangles>)> = (0..k_count)
+    // triangles at rest and posed.
+    let boxes: Vec<(Box2, Box2)> = (0..k_count)
         .into_par_iter()
         .map(|k| {
             if !involved[k] {
-                return (Box2::EMPTY, Box2::EMPTY, None);
+                return (Box2::EMPTY, Box2::EMPTY);
             }
             let pose = Pose::of(rig, regions, &[k]);
             let active_box = Box2::of(active[k].iter().map(|&v| frame.map(pose.at(v)))).grown(margin);
-            let posed = PosedTriangles::new(regions[k].triangles.clone(), rig.triangles, &pose, |p| frame.map(p));
-            let mut region_box = Box2::of(posed.corners.iter().flatten().copied());
+            let mut region_box = Box2::EMPTY;
             for &t in &regions[k].triangles {
-                rig.triangles[t as usize].iter().for_each(|&v| region_box.grow(rest_of(v)));
+                rig.triangles[t as usize].iter().for_each(|&v| {
+                    region_box.grow(rest_of(v));
+                    region_box.grow(frame.map(pose.at(v)));
+                });
             }
-            (active_box, region_box, Some(posed))
+            (active_box, region_box)
         })
         .collect();
-    let (boxes, posed): (Vec<(Box2, Box2)>, Vec<Option<PosedTriangles>>) =
-        boxes.into_iter().map(|(active_box, region_box, posed)| ((active_box, region_box), posed)).unzip();
     let interacts = |h: usize, by: usize| regions[h].meets(&regions[by], margin) || boxes[h].0.meets(&boxes[by].1);
     let tested: Vec<(usize, usize)> =
         candidates.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).filter(|&(h, b)| interacts(h, b)).collect();
@@ -258,7 +308,10 @@ pub fn find_occlusions(
         return Some((Vec::new(), 0));
     }
     let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
-    let scene = Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal };
+    let reach = boxes.iter().map(|b| b.1).collect();
+    let posed = (0..k_count).map(|_| OnceLock::new()).collect();
+    let scene =
+        Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal, reach, posed };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
     hidden_shapes.dedup();
@@ -266,8 +319,7 @@ pub fn find_occlusions(
         .par_iter()
         .map(|&h| {
             let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
-            let Some(posed_h) = &posed[h] else { return Vec::new() };
-            let alone = scene.alone(h, &active[h], posed_h);
+            let alone = scene.alone(h, &active[h]);
             let seen_alone = alone.hiders.iter().filter(|h| h.is_empty()).count();
             if seen_alone == 0 {
                 return Vec::new();
@@ -275,7 +327,8 @@ pub fn find_occlusions(
             partners
                 .iter()
                 .filter_map(|&by| {
-                    let kept = scene.seen_with(h, by, &active[h], &alone, &posed) as f64 / seen_alone as f64;
+                    let share = |count: usize| count as f64 / seen_alone as f64;
+                    let kept = share(scene.seen_with(h, by, &active[h], &alone, |count| share(count) >= keep));
                     (kept < keep).then_some(Occlusion { hidden: h, by, kept })
                 })
                 .collect()

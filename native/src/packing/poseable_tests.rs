@@ -339,3 +339,67 @@ fn unusable_poseability_settings_are_rejected_with_a_reason() {
         }
     }
 }
+
+/// Packing again with an earlier packing's results ([`PackingParams::known`]) gives the same
+/// conflicts, to the bit and in the same order, and the same expressions, testing only the
+/// pairs the results do not decide: all of them given, none tested; a random part given (as
+/// after a change of the candidates), the rest tested; results naming shapes the rig lacks
+/// are refused.
+#[test]
+fn known_results_are_reused_and_give_the_same_packing() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let (mut reused_some, mut conflicts) = (0, 0);
+    for trial in 0..24 {
+        let k_count = rng.random_range(3..=8);
+        let inst = two_sheets(&mut rng, k_count, trial % 3 == 2);
+        let rig = inst.rig();
+        let params = PackingParams {
+            camera_direction: [0.0, 0.0, 1.0],
+            collision_tolerance: [1e-6, 0.02][trial % 2],
+            pairs: Some(Vec::new()),
+            ..PackingParams::default()
+        };
+        let cold = pack_expressions(&rig, None, &params, &NoProgress).unwrap();
+        let known = cold.poseability.known.clone();
+        let same = |warm: &Packing| {
+            assert_eq!(warm.poseability.collisions, cold.poseability.collisions, "trial {trial}");
+            assert_eq!(warm.poseability.occlusions, cold.poseability.occlusions, "trial {trial}");
+            assert_eq!(warm.expressions.iter().map(|e| &e.shapes).collect::<Vec<_>>(), cold.expressions.iter().map(|e| &e.shapes).collect::<Vec<_>>());
+            assert_eq!(warm.conflicts, cold.conflicts);
+        };
+        let all = PackingParams { known: Some(known.clone()), ..params.clone() };
+        let warm = pack_expressions(&rig, None, &all, &NoProgress).unwrap();
+        same(&warm);
+        assert_eq!((warm.poseability.collision_pairs_tested, warm.poseability.occlusion_directions_tested), (0, 0));
+        assert_eq!(warm.poseability.pairs_reused, known.collision_tested.len());
+
+        // Half the decided pairs forgotten: those are tested again, and the answers agree.
+        let keep = |list: &[(usize, usize)], rng: &mut ChaCha8Rng| list.iter().copied().filter(|_| rng.random_bool(0.5)).collect::<Vec<_>>();
+        let collision_tested = keep(&known.collision_tested, &mut rng);
+        let occlusion_tested = keep(&known.occlusion_tested, &mut rng);
+        let part = KnownPoseability {
+            collisions: known.collisions.iter().copied().filter(|c| collision_tested.contains(&(c.first, c.second))).collect(),
+            occlusions: known
+                .occlusions
+                .iter()
+                .copied()
+                .filter(|o| occlusion_tested.contains(&(o.hidden.min(o.by), o.hidden.max(o.by))))
+                .collect(),
+            collision_tested,
+            occlusion_tested,
+        };
+        let warm = pack_expressions(&rig, None, &PackingParams { known: Some(part), ..params.clone() }, &NoProgress).unwrap();
+        same(&warm);
+        assert_eq!(warm.poseability.known.collision_tested.len(), known.collision_tested.len());
+        reused_some += usize::from(warm.poseability.pairs_reused > 0 && warm.poseability.pairs_reused < known.collision_tested.len());
+        conflicts += cold.poseability.collisions.len() + cold.poseability.occlusions.len();
+    }
+    assert!(reused_some > 5 && conflicts > 5, "too few to tell: {reused_some} partly reused, {conflicts} conflicts");
+
+    let inst = eye();
+    let stale = KnownPoseability { collision_tested: vec![(0, 7)], ..KnownPoseability::default() };
+    match pack_expressions(&inst.rig(), None, &PackingParams { known: Some(stale), ..PackingParams::default() }, &NoProgress) {
+        Err(crate::error::ShapesmithError::InvalidInput(m)) => assert!(m.contains("do not belong"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+}

@@ -135,6 +135,11 @@ impl PosedTriangles {
     pub fn new(triangles: Vec<u32>, all: &[[u32; 3]], pose: &Pose, transform: impl Fn(Vec3) -> Vec3) -> Self {
         let corners: Vec<[Vec3; 3]> =
             triangles.iter().map(|&t| all[t as usize].map(|v| transform(pose.at(v)))).collect();
+        Self::from_corners(triangles, corners)
+    }
+
+    /// The hierarchy over `triangles` whose corners, already posed, are `corners`.
+    pub fn from_corners(triangles: Vec<u32>, corners: Vec<[Vec3; 3]>) -> Self {
         let flat: Vec<Vec3> = corners.iter().flatten().copied().collect();
         let local: Vec<[u32; 3]> = (0..corners.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
         Self { bvh: crate::geometry::bvh::TriangleBvh::build(&flat, &local), triangles, corners }

@@ -2,6 +2,7 @@
 //! validation, binary blendshapes, importance, symmetric pairs, antagonists, collisions,
 //! occlusions and the conflict graph.
 
+use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
 use super::collisions::find_collisions;
@@ -9,7 +10,9 @@ use super::conflicts::{overlapping, validate_shape_pairs, ConflictGraph, ShapeRe
 use super::occlusion::find_occlusions;
 use super::regions::moving_regions;
 use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
-use super::{PackingParams, PoseabilityReport, INTERACTION_MARGIN};
+use super::collisions::Collision;
+use super::occlusion::Occlusion;
+use super::{KnownPoseability, PackingParams, PoseabilityReport, INTERACTION_MARGIN};
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::mirror::{find_symmetry_given, MirrorMap, SymmetryParams};
 use crate::invalid;
@@ -157,31 +160,80 @@ fn poseability(
     if candidates.is_empty() || !(params.collision_conflicts || params.occlusion_conflicts) {
         return Ok(report);
     }
+    let mut known = params.known.clone().unwrap_or_default();
+    validate_known(&known, k_count)?;
+    let missing = |decided: &[(usize, usize)], pairs: &[(usize, usize)]| -> Vec<(usize, usize)> {
+        let decided: HashSet<(usize, usize)> = decided.iter().copied().collect();
+        pairs.iter().copied().filter(|p| !decided.contains(p)).collect()
+    };
+    let collision_missing = if params.collision_conflicts { missing(&known.collision_tested, &candidates) } else { Vec::new() };
     let started = Instant::now();
     let mut wanted = vec![false; k_count];
-    candidates.iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
+    collision_missing.iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
+    if params.occlusion_conflicts {
+        // The occlusion candidates are not known before the collisions are: any shape that
+        // might be tested.
+        missing(&known.occlusion_tested, &candidates).iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
+    }
     let regions = moving_regions(rig, &wanted);
     report.seconds_regions = started.elapsed().as_secs_f64();
     progress.checkpoint(0.05)?;
-    let mut rest = candidates;
+    let position: HashMap<(usize, usize), usize> = candidates.iter().enumerate().map(|(i, &p)| (p, i)).collect();
+    let mut rest = candidates.clone();
     if params.collision_conflicts {
         let started = Instant::now();
-        let (found, tested) = find_collisions(rig, &regions, &rest, params.collision_tolerance, INTERACTION_MARGIN);
-        rest.retain(|&(i, j)| !found.iter().any(|c| (c.first, c.second) == (i, j)));
-        (report.collisions, report.collision_pairs_tested) = (found, tested);
+        let (found, tested) = find_collisions(rig, &regions, &collision_missing, params.collision_tolerance, INTERACTION_MARGIN);
+        known.collision_tested.extend(&collision_missing);
+        known.collisions.extend(&found);
+        // In the order of the candidates, as a packing that tests them all finds them.
+        let mut collisions: Vec<Collision> = known.collisions.iter().copied().filter(|c| position.contains_key(&(c.first, c.second))).collect();
+        collisions.sort_by_key(|c| position[&(c.first, c.second)]);
+        rest.retain(|&(i, j)| !collisions.iter().any(|c| (c.first, c.second) == (i, j)));
+        (report.collisions, report.collision_pairs_tested) = (collisions, tested);
         report.seconds_collisions = started.elapsed().as_secs_f64();
         progress.checkpoint(0.7)?;
     }
+    let mut tested_now: HashSet<(usize, usize)> = collision_missing.iter().copied().collect();
     if params.occlusion_conflicts {
         let started = Instant::now();
+        let occlusion_missing = missing(&known.occlusion_tested, &rest);
         let (found, tested) =
-            find_occlusions(rig, &regions, active, &rest, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction)
+            find_occlusions(rig, &regions, active, &occlusion_missing, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction)
                 .ok_or_else(|| invalid!("the camera direction must be a finite, non-zero vector, got {:?}", params.camera_direction))?;
-        (report.occlusions, report.occlusion_directions_tested) = (found, tested);
+        known.occlusion_tested.extend(&occlusion_missing);
+        known.occlusions.extend(&found);
+        // Directions (a, b) before (b, a), pairs in the order of the candidates.
+        let order = |o: &Occlusion| {
+            let pair = (o.hidden.min(o.by), o.hidden.max(o.by));
+            rest.contains(&pair).then(|| (position[&pair], o.hidden > o.by))
+        };
+        let mut occlusions: Vec<Occlusion> = known.occlusions.iter().copied().filter(|o| order(o).is_some()).collect();
+        occlusions.sort_by_key(order);
+        (report.occlusions, report.occlusion_directions_tested) = (occlusions, tested);
         report.seconds_occlusions = started.elapsed().as_secs_f64();
+        tested_now.extend(occlusion_missing);
     }
+    report.pairs_reused = candidates.len() - tested_now.len();
+    report.known = known;
     progress.checkpoint(1.0)?;
     Ok(report)
+}
+
+/// Known results must name shapes of this rig, each pair once in order, and a result only
+/// for a pair marked decided: anything else did not come from a packing of this rig.
+fn validate_known(known: &KnownPoseability, k_count: usize) -> ShapesmithResult<()> {
+    let stale = || invalid!("the stored poseability results do not belong to this rig: pack again without them");
+    let valid = |&(i, j): &(usize, usize)| i < j && j < k_count;
+    let decided = |list: &[(usize, usize)], pair: (usize, usize)| list.contains(&pair);
+    let ok = known.collision_tested.iter().all(valid)
+        && known.occlusion_tested.iter().all(valid)
+        && known.collisions.iter().all(|c| decided(&known.collision_tested, (c.first, c.second)))
+        && known.occlusions.iter().all(|o| o.hidden != o.by && decided(&known.occlusion_tested, (o.hidden.min(o.by), o.hidden.max(o.by))));
+    if ok {
+        Ok(())
+    } else {
+        Err(stale())
+    }
 }
 
 /// The inert shapes and the binary blendshapes $b_k$ (Eq. (2)), exactly as

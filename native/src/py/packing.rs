@@ -38,6 +38,53 @@ struct Options {
     occlusion_conflicts: bool,
     occlusion_keep: f64,
     camera_direction: [f64; 3],
+    /// An earlier report's `known`, as JSON (shape names).
+    known: Option<String>,
+}
+
+/// [`packing::KnownPoseability`] from the JSON [`known_to_json`] writes (shape names, values
+/// as the bits of their f64).
+fn known_from_json(text: &str, names: &[String]) -> ShapesmithResult<packing::KnownPoseability> {
+    let stale = || invalid!("the stored poseability results do not belong to this rig: pack again without them");
+    let value: Value = serde_json::from_str(text).map_err(|_| stale())?;
+    let index = |v: &Value| v.as_str().and_then(|n| names.iter().position(|m| m == n)).ok_or_else(stale);
+    let pair = |v: &Value| -> ShapesmithResult<(usize, usize)> {
+        let (i, j) = (index(&v[0])?, index(&v[1])?);
+        Ok((i.min(j), i.max(j)))
+    };
+    // Bits, not decimals: a reused value must equal the one measured, to the last bit.
+    let number = |v: &Value| v.as_u64().map(f64::from_bits).ok_or_else(stale);
+    let list = |key: &str| value[key].as_array().cloned().ok_or_else(stale);
+    Ok(packing::KnownPoseability {
+        collision_tested: list("collision_tested")?.iter().map(pair).collect::<ShapesmithResult<_>>()?,
+        collisions: list("collisions")?
+            .iter()
+            .map(|c| {
+                let (first, second) = pair(&c["shapes"])?;
+                Ok(packing::collisions::Collision { first, second, added: number(&c["added"])?, between_pieces: number(&c["between_pieces"])? })
+            })
+            .collect::<ShapesmithResult<_>>()?,
+        occlusion_tested: list("occlusion_tested")?.iter().map(pair).collect::<ShapesmithResult<_>>()?,
+        occlusions: list("occlusions")?
+            .iter()
+            .map(|o| Ok(packing::occlusion::Occlusion { hidden: index(&o["hidden"])?, by: index(&o["by"])?, kept: number(&o["kept"])? }))
+            .collect::<ShapesmithResult<_>>()?,
+    })
+}
+
+fn known_to_json(known: &packing::KnownPoseability, names: &[String]) -> Value {
+    let pairs = |pairs: &[(usize, usize)]| pairs.iter().map(|&(i, j)| [names[i].clone(), names[j].clone()]).collect::<Vec<_>>();
+    json!({
+        "collision_tested": pairs(&known.collision_tested),
+        "collisions": known.collisions.iter().map(|c| json!({
+            "shapes": [names[c.first].clone(), names[c.second].clone()], "added": c.added.to_bits(),
+            "between_pieces": c.between_pieces.to_bits(),
+        })).collect::<Vec<_>>(),
+        "occlusion_tested": pairs(&known.occlusion_tested),
+        "occlusions": known.occlusions.iter().map(|o| json!({
+            "hidden": names[o.hidden].clone(), "by": names[o.by].clone(), "kept": o.kept.to_bits(),
+        })).collect::<Vec<_>>(),
+    })
 }
 
 impl Options {
@@ -70,6 +117,7 @@ impl Options {
             occlusion_conflicts: self.occlusion_conflicts,
             occlusion_keep: self.occlusion_keep,
             camera_direction: self.camera_direction,
+            known: self.known.as_deref().map(|text| known_from_json(text, names)).transpose()?,
         })
     }
 
@@ -139,6 +187,8 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
             "hidden": names[o.hidden].clone(), "by": names[o.by].clone(), "kept": o.kept,
         })).collect::<Vec<_>>(),
         "poseability": {
+            "pairs_reused": p.poseability.pairs_reused,
+            "known": serde_json::to_string(&known_to_json(&p.poseability.known, names)).unwrap_or_default(),
             "collision_pairs_tested": p.poseability.collision_pairs_tested,
             "occlusion_directions_tested": p.poseability.occlusion_directions_tested,
             "seconds": {
@@ -159,14 +209,17 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 ///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
 ///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3,
 ///     collision_conflicts=True, collision_tolerance=0.11, occlusion_conflicts=True,
-///     occlusion_keep=0.5, camera_direction=(0, -1, 0), progress=None) -> dict
+///     occlusion_keep=0.5, camera_direction=(0, -1, 0), known=None, progress=None) -> dict
 ///
 /// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
 /// `pairs`, `pin_together` and `keep_apart` are lists of (name, name); `exclude` a list of
 /// names. Returns a dict: expressions, importance, inert, excluded, unplaced, pairs,
 /// antagonists, conflicts (each edge's shapes and reasons: user, antagonist, overlap,
 /// collision, occlusion), collisions (added curve / diagonal), occlusions (kept share),
-/// poseability (pairs tested, seconds), regions (each placed shape's strongly moving
+/// poseability (pairs tested and reused, seconds, and `known`: every pair decided so far as a
+/// JSON string, to pass back as `known` when packing the same rig with the same mu,
+/// collision tolerance, occlusion keep share and camera, which then skips those pairs;
+/// InvalidInputError when it names shapes the rig lacks), regions (each placed shape's strongly moving
 /// vertices, for the reference sheet), weights (J x K 0/1 in the order of `names`),
 /// fewest, params. `progress(fraction)`, when given, is called on the calling thread as the
 /// work advances (the collision and occlusion tests take most of it); returning False
@@ -177,7 +230,7 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
                     exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3,
                     collision_conflicts=true, collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE,
-                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], progress=None))]
+                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], known=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_expressions<'py>(
     py: Python<'py>,
@@ -207,12 +260,13 @@ fn pack_expressions<'py>(
     occlusion_conflicts: bool,
     occlusion_keep: f64,
     camera_direction: [f64; 3],
+    known: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest, time_limit, axis, mirror_tolerance,
-        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
+        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction, known,
     };
     run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options, progress)
 }
@@ -226,7 +280,7 @@ fn pack_expressions<'py>(
                     pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
                     exclude=Vec::new(), axis=0, mirror_tolerance=1e-3, collision_conflicts=true,
                     collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE, occlusion_conflicts=true,
-                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], progress=None))]
+                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], known=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_greedy<'py>(
     py: Python<'py>,
@@ -254,12 +308,13 @@ fn pack_greedy<'py>(
     occlusion_conflicts: bool,
     occlusion_keep: f64,
     camera_direction: [f64; 3],
+    known: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = Options {
         mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
         pairs, pin_together, keep_apart, exclude, fewest: false, time_limit: None, axis, mirror_tolerance,
-        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction,
+        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction, known,
     };
     run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options, progress)
 }

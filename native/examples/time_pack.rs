@@ -1,0 +1,68 @@
+//! Times `pack_expressions` outside Blender, on the arrays `scripts/bench_pack.py --
+//! --save-arrays DIR` writes:
+//!
+//!     cargo run --release --example time_pack -- DIR/<rig> [RUNS]
+//!
+//! Prints the best of RUNS (default 3) runs' native seconds with the collision and occlusion
+//! conflicts on and off, the poseability tests' parts, and what they found (the conflict
+//! edges and their values, J and the fewest count), so that two builds run one after the
+//! other can be compared for both speed and sameness. A profiler can watch it alone.
+
+use std::time::Instant;
+
+use shapesmith_native::packing::{pack_expressions, Packing, PackingParams};
+use shapesmith_native::{NoProgress, RigView};
+
+fn read(path: &str) -> Vec<[u32; 3]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
+    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
+}
+
+fn points(path: &str) -> Vec<[f32; 3]> {
+    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
+}
+
+/// The best wall seconds of `runs` packings, and the last packing.
+fn best_of(rig: &RigView, params: &PackingParams, runs: usize) -> (f64, Packing) {
+    let mut best = (f64::INFINITY, None);
+    for _ in 0..runs {
+        let started = Instant::now();
+        let packing = pack_expressions(rig, None, params, &NoProgress).expect("packing");
+        best = (best.0.min(started.elapsed().as_secs_f64()), Some(packing));
+    }
+    (best.0, best.1.expect("at least one run"))
+}
+
+fn main() {
+    let dir = std::env::args().nth(1).expect("usage: time_pack DIR [RUNS]");
+    let runs: usize = std::env::args().nth(2).map_or(3, |r| r.parse().expect("RUNS is a count"));
+    let neutral = points(&format!("{dir}/neutral.f32"));
+    let deltas = points(&format!("{dir}/deltas.f32"));
+    let triangles = read(&format!("{dir}/triangles.u32"));
+    let names: Vec<String> = (0..deltas.len() / neutral.len()).map(|k| format!("shape {k}")).collect();
+    let rig = RigView::new(&neutral, &deltas, &triangles, &names).expect("rig");
+    let on = PackingParams { fewest: true, ..PackingParams::default() };
+    let off = PackingParams { collision_conflicts: false, occlusion_conflicts: false, ..on.clone() };
+    let (seconds_on, packing) = best_of(&rig, &on, runs);
+    let (seconds_off, without) = best_of(&rig, &off, runs);
+    let p = &packing.poseability;
+    println!(
+        "{} vertices, {} shapes: native on {seconds_on:.4} s, off {seconds_off:.4} s; regions {:.4}, collisions {:.4} \
+         ({} pairs), occlusions {:.4} ({} directions)",
+        neutral.len(),
+        names.len(),
+        p.seconds_regions,
+        p.seconds_collisions,
+        p.collision_pairs_tested,
+        p.seconds_occlusions,
+        p.occlusion_directions_tested,
+    );
+    let fewest = |p: &Packing| p.fewest.as_ref().map_or(0, |f| f.count);
+    println!("J {} fewest {} (off: J {} fewest {})", packing.expressions.len(), fewest(&packing), without.expressions.len(), fewest(&without));
+    for c in &p.collisions {
+        println!("collision {} {} added {:.9} between {:.9}", c.first, c.second, c.added, c.between_pieces);
+    }
+    for o in &p.occlusions {
+        println!("occlusion {} by {} kept {:.9}", o.hidden, o.by, o.kept);
+    }
+}
