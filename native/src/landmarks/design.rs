@@ -124,38 +124,49 @@ impl Posterior {
 /// matrix; a pivot that rounding drives to zero is floored, not a failure.
 fn cholesky(m: &Mat<f64>) -> Mat<f64> {
     let n = m.nrows();
-    let mut l = Mat::<f64>::zeros(n, n);
+    let mut l = vec![0.0; n * n];
+    cholesky_into(|i, j| m[(i, j)], n, &mut l);
+    Mat::from_fn(n, n, |i, j| l[i * n + j])
+}
+
+/// [`cholesky`] of the n x n matrix `m(i, j)` into `l` (row-major, zeroed), without
+/// allocating: each unit's gain at each step takes one.
+fn cholesky_into(m: impl Fn(usize, usize) -> f64, n: usize, l: &mut [f64]) {
     for j in 0..n {
-        let d = (m[(j, j)] - (0..j).map(|c| l[(j, c)] * l[(j, c)]).sum::<f64>()).max(f64::MIN_POSITIVE).sqrt();
-        l[(j, j)] = d;
+        let d = (m(j, j) - (0..j).map(|c| l[j * n + c] * l[j * n + c]).sum::<f64>()).max(f64::MIN_POSITIVE).sqrt();
+        l[j * n + j] = d;
         for i in j + 1..n {
-            l[(i, j)] = (m[(i, j)] - (0..j).map(|c| l[(i, c)] * l[(j, c)]).sum::<f64>()) / d;
+            l[i * n + j] = (m(i, j) - (0..j).map(|c| l[i * n + c] * l[j * n + c]).sum::<f64>()) / d;
         }
     }
-    l
 }
 
 /// Inverse of a small symmetric positive definite matrix by Cholesky.
 fn spd_inverse(m: &Mat<f64>) -> Mat<f64> {
     let n = m.nrows();
-    let l = cholesky(m);
-    // Columns of L^{-T} L^{-1}: solve L L^T x = e_c.
-    let mut inverse = Mat::<f64>::zeros(n, n);
+    let mut l = vec![0.0; n * n];
+    cholesky_into(|i, j| m[(i, j)], n, &mut l);
+    let (mut inverse, mut x) = (vec![0.0; n * n], vec![0.0; n]);
+    inverse_from_cholesky(&l, n, &mut x, &mut inverse);
+    Mat::from_fn(n, n, |i, j| inverse[i * n + j])
+}
+
+/// `(L L^T)^{-1}` (row-major, into `inverse`) from the factor `l`, column by column: solve
+/// `L L^T x = e_c` (`x`: n of scratch).
+fn inverse_from_cholesky(l: &[f64], n: usize, x: &mut [f64], inverse: &mut [f64]) {
     for c in 0..n {
-        let mut x = vec![0.0; n];
         for i in 0..n {
-            let rhs = if i == c { 1.0 } else { 0.0 } - (0..i).map(|j| l[(i, j)] * x[j]).sum::<f64>();
-            x[i] = rhs / l[(i, i)];
+            let rhs = if i == c { 1.0 } else { 0.0 } - (0..i).map(|j| l[i * n + j] * x[j]).sum::<f64>();
+            x[i] = rhs / l[i * n + i];
         }
         for i in (0..n).rev() {
-            let rhs = x[i] - (i + 1..n).map(|j| l[(j, i)] * x[j]).sum::<f64>();
-            x[i] = rhs / l[(i, i)];
+            let rhs = x[i] - (i + 1..n).map(|j| l[j * n + i] * x[j]).sum::<f64>();
+            x[i] = rhs / l[i * n + i];
         }
         for i in 0..n {
-            inverse[(i, c)] = x[i];
+            inverse[i * n + c] = x[i];
         }
     }
-    inverse
 }
 
 /// Every unit's small matrices `S_u = sigma^2 I + B_u P B_u^T` and (criterion A)
@@ -244,16 +255,29 @@ impl UnitForms {
         });
     }
 
-    /// Unit `u`'s gain: A-gain `tr(S^{-1} T)` or D-gain `log det(S / sigma^2)` (module docs).
+    /// Unit `u`'s gain: A-gain `tr(S^{-1} T)` or D-gain `log det(S / sigma^2)` (module docs);
+    /// on the stack for units of up to two landmarks.
     fn gain(&self, u: usize, criterion: Criterion, sigma2: f64) -> f64 {
+        const STACK: usize = 36;
         let (from, to) = (self.at[u], self.at[u + 1]);
         let r = ((to - from) as f64).sqrt().round() as usize;
-        let s = Mat::<f64>::from_fn(r, r, |i, j| self.s[from + i * r + j]);
+        let s = &self.s[from..to];
+        let (mut l_stack, mut inverse_stack, mut x_stack) = ([0.0; STACK], [0.0; STACK], [0.0; STACK]);
+        let mut heap = Vec::new();
+        let (l, inverse, x): (&mut [f64], &mut [f64], &mut [f64]) = if r * r <= STACK {
+            (&mut l_stack[..r * r], &mut inverse_stack[..r * r], &mut x_stack[..r])
+        } else {
+            heap.resize(2 * r * r + r, 0.0);
+            let (l, rest) = heap.split_at_mut(r * r);
+            let (inverse, x) = rest.split_at_mut(r * r);
+            (l, inverse, x)
+        };
+        cholesky_into(|i, j| s[i * r + j], r, l);
         match criterion {
-            Criterion::D => log_det_spd(&s) - r as f64 * sigma2.ln(),
+            Criterion::D => (0..r).map(|j| 2.0 * l[j * r + j].ln()).sum::<f64>() - r as f64 * sigma2.ln(),
             Criterion::A => {
-                let s_inv = spd_inverse(&s);
-                (0..r).flat_map(|i| (0..r).map(move |j| (i, j))).map(|(i, j)| s_inv[(i, j)] * self.t[from + j * r + i]).sum()
+                inverse_from_cholesky(l, r, x, inverse);
+                (0..r).flat_map(|i| (0..r).map(move |j| (i, j))).map(|(i, j)| inverse[i * r + j] * self.t[from + j * r + i]).sum()
             }
         }
     }
@@ -296,11 +320,6 @@ fn update_factors(problem: &DesignProblem, posterior: &Posterior, b: &[f64], cri
         (vt, m)
     });
     (ut, weighted)
-}
-
-fn log_det_spd(m: &Mat<f64>) -> f64 {
-    let l = cholesky(m);
-    (0..m.nrows()).map(|j| 2.0 * l[(j, j)].ln()).sum()
 }
 
 /// A near tie between the two best gains, relative to the best: below it a step takes the

@@ -18,6 +18,11 @@ fn random_problem(rng: &mut ChaCha8Rng, k: usize, n: usize) -> DesignProblem {
     DesignProblem { k, units, weight, noise_variance: 0.05 }
 }
 
+fn log_det_spd(m: &Mat<f64>) -> f64 {
+    let l = cholesky(m);
+    (0..m.nrows()).map(|j| 2.0 * l[(j, j)].ln()).sum()
+}
+
 /// The criterion of a set of units from scratch (no Woodbury): `tr(W P)` for A (lower is
 /// better), `-log det P` for D (higher is better).
 fn value(problem: &DesignProblem, set: &[usize], criterion: Criterion) -> f64 {
