@@ -145,12 +145,19 @@ pub fn worst_case_visibility(
         .collect();
     // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
     // the boxes stay tight, and a refit costs far less than a build.
-    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral)));
+    // The next pose and its moving region are prepared on one thread while the others trace
+    // the current pose.
+    let posed = |i: usize| {
+        shapes.get(i).map(|&k| {
+            let mesh = PosedMesh::new(rig, Some(k), Some(&neutral));
+            let region = reuse.then(|| MovingRegion::new(rig, k, &neutral.points, &mesh.points, nudge));
+            (mesh, region)
+        })
+    };
     let mut next = posed(0);
-    for (i, &shape) in shapes.iter().enumerate() {
+    for i in 0..shapes.len() {
         progress.checkpoint((i + 1) as f64 / poses as f64)?;
-        let Some(mesh) = next.take() else { break };
-        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points, nudge));
+        let Some((mesh, region)) = next.take() else { break };
         let ((), prepared) = rayon::join(
             || {
                 tracks.par_iter_mut().filter(|t| !t.done()).for_each(|track| {
