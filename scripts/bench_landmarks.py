@@ -14,7 +14,9 @@ On the bundled Template (about 5k vertices) and its 4x denser version:
    across poses, pool vertices asked only their threshold; same layout asserted), on both
    rigs and on a ~25k-vertex head whose face is cut once more (bench_transfer's timing
    mesh), where visibility + cover + selection should take < 3 s; wall and CPU seconds.
-   `--speed-only` runs this section alone.
+   `--speed-only` runs this section alone. `--stages RIG` runs only the call with the savings
+   on one of those rigs (Template, Template_4x, Template_25k) and prints its seconds per stage,
+   wall and CPU: on a shared machine, run it with two builds alternately to compare them.
 Needs the extension installed (scripts/install_extension.py) in this Blender's user directory.
 """
 
@@ -272,6 +274,20 @@ def speed(results, landmarks, template, dense):
     results["speed_load_average"] = os.getloadavg()
 
 
+def stages(results, landmarks, rig):
+    """One call with the savings on `rig`: the native stage seconds (wall), the call's wall and
+    CPU seconds, rays cast and rays/s, and the load average."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    _, document = place(landmarks, rig, DESIGN_EPSILON, max_per_shape=1, landmarks=34, reuse_visibility=True)
+    row = {"seconds": document["seconds"], "call_wall": time.perf_counter() - wall, "call_cpu": time.process_time() - cpu,
+           "rays_cast": document["rays_cast"], "rays_per_second": document["rays_per_second"], "load_average": os.getloadavg()}
+    results["stages"] = {rig.name: row}
+    seconds = row["seconds"]
+    print(f"{rig.name}: visibility {seconds['visibility']:.2f} s, solve {seconds['solve']:.2f} s, design {seconds['design']:.2f} s, "
+          f"call {row['call_wall']:.2f} s wall / {row['call_cpu']:.2f} s CPU, {row['rays_cast']} rays at "
+          f"{row['rays_per_second']:.3g}/s, load {row['load_average'][0]:.1f}")
+
+
 def write_json(path, results):
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as f:
@@ -289,6 +305,8 @@ def main():
     parser.add_argument("--design-picture", default=os.path.join(ROOT, "docs", "landmarks_conditioned34.png"))
     parser.add_argument("--curve", default=os.path.join(ROOT, "docs", "landmarks_curve.png"))
     parser.add_argument("--speed-only", action="store_true", help="only the visibility speed table (section 4)")
+    parser.add_argument("--stages", choices=("Template", "Template_4x", "Template_25k"),
+                        help="only the call with the savings on this rig, seconds per stage")
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
@@ -307,6 +325,14 @@ def main():
 
     results = {"rigs": {}, "subdivide_seconds": subdivide_seconds}
     documents = {}
+    if args.stages:
+        import bench_transfer  # the 25k timing mesh
+
+        rigs = {"Template": lambda: template, "Template_4x": lambda: dense,
+                "Template_25k": lambda: bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)}
+        stages(results, landmarks, rigs[args.stages]())
+        write_json(args.json, results)
+        return
     if args.speed_only:
         speed(results, landmarks, template, dense)
         write_json(args.json, results)

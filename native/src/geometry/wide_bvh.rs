@@ -31,6 +31,8 @@ struct WideNode {
 
 pub struct OcclusionBvh {
     nodes: Vec<WideNode>,
+    /// For each node's slots, the binary node it was taken from (for [`Self::refitted`]).
+    sources: Vec<[u32; WIDTH]>,
     triangles: Vec<PreparedTriangle>,
 }
 
@@ -38,14 +40,44 @@ impl OcclusionBvh {
     /// The four-wide version of `binary`: each node takes the binary tree's nodes two levels
     /// down, opening the largest (by surface area) inner one first.
     pub fn new(binary: &TriangleBvh) -> Self {
-        let mut nodes = Vec::new();
+        let (mut nodes, mut sources) = (Vec::new(), Vec::new());
         if !binary.triangles.is_empty() {
-            let root = &binary.nodes[0].bounds;
-            let magnitude = (0..3).map(|a| root.lo[a].abs().max(root.hi[a].abs())).fold(0.0, f64::max);
-            let extent = (0..3).map(|a| root.hi[a] - root.lo[a]).fold(0.0, f64::max);
-            collapse(&binary.nodes, 0, PAD * (extent + magnitude), &mut nodes);
+            collapse(&binary.nodes, 0, &mut nodes, &mut sources);
         }
-        Self { nodes, triangles: binary.triangles.clone() }
+        let mut wide = Self { nodes, sources, triangles: binary.triangles.clone() };
+        wide.fit_boxes(binary);
+        wide
+    }
+
+    /// The same four-wide tree over `binary`, the hierarchy this was collapsed from refitted
+    /// to moved corners ([`TriangleBvh::refitted`]: same nodes, new boxes and triangles):
+    /// the boxes copied from it, its triangles taken over. A pose costs a copy of the nodes
+    /// instead of a collapse and a copy of every triangle; the answers are those of
+    /// [`Self::new`] on `binary` (the tree differs at most in the order children are
+    /// visited, which an any-hit answer does not depend on).
+    pub fn refitted(&self, binary: TriangleBvh) -> Self {
+        let mut wide = Self { nodes: self.nodes.clone(), sources: self.sources.clone(), triangles: Vec::new() };
+        wide.fit_boxes(&binary);
+        wide.triangles = binary.triangles;
+        wide
+    }
+
+    /// Each slot's box: its binary node's, padded outward (module docs) and rounded outward
+    /// to single precision.
+    fn fit_boxes(&mut self, binary: &TriangleBvh) {
+        let Some(root) = binary.nodes.first().map(|n| &n.bounds) else { return };
+        let magnitude = (0..3).map(|a| root.lo[a].abs().max(root.hi[a].abs())).fold(0.0, f64::max);
+        let extent = (0..3).map(|a| root.hi[a] - root.lo[a]).fold(0.0, f64::max);
+        let pad = PAD * (extent + magnitude);
+        for (node, sources) in self.nodes.iter_mut().zip(&self.sources) {
+            for (s, &n) in sources[..node.used as usize].iter().enumerate() {
+                let bounds = &binary.nodes[n as usize].bounds;
+                for a in 0..3 {
+                    node.lo[a][s] = round_down(bounds.lo[a] - pad);
+                    node.hi[a][s] = round_up(bounds.hi[a] + pad);
+                }
+            }
+        }
     }
 
     /// Whether the ray `origin + t * direction` meets a triangle at some `t` in `(0, t_max)`:
@@ -113,9 +145,10 @@ impl WideNode {
     }
 }
 
-/// Appends the wide node for binary node `index` (and, after it, its subtrees); returns its
-/// index. Children always come after their parent.
-fn collapse(binary: &[Node], index: usize, pad: f64, wide: &mut Vec<WideNode>) -> u32 {
+/// Appends the wide node for binary node `index` (and, after it, its subtrees) with the
+/// binary nodes of its slots (boxes are fitted after); returns its index. Children always
+/// come after their parent.
+fn collapse(binary: &[Node], index: usize, wide: &mut Vec<WideNode>, sources: &mut Vec<[u32; WIDTH]>) -> u32 {
     let mut slots = vec![index];
     while slots.len() < WIDTH {
         let widest = slots
@@ -130,17 +163,14 @@ fn collapse(binary: &[Node], index: usize, pad: f64, wide: &mut Vec<WideNode>) -
     }
     let me = wide.len();
     wide.push(WideNode { lo: [[0.0; WIDTH]; 3], hi: [[0.0; WIDTH]; 3], first: [0; WIDTH], count: [0; WIDTH], used: slots.len() as u8 });
+    sources.push(std::array::from_fn(|s| slots.get(s).map_or(0, |&n| n as u32)));
     for (s, &n) in slots.iter().enumerate() {
         let node = &binary[n];
-        for a in 0..3 {
-            wide[me].lo[a][s] = round_down(node.bounds.lo[a] - pad);
-            wide[me].hi[a][s] = round_up(node.bounds.hi[a] + pad);
-        }
         if node.count > 0 {
             wide[me].first[s] = node.first;
             wide[me].count[s] = node.count;
         } else {
-            wide[me].first[s] = collapse(binary, n, pad, wide);
+            wide[me].first[s] = collapse(binary, n, wide, sources);
         }
     }
     me as u32
@@ -163,7 +193,8 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     /// Random small triangles, random segments and rays: the wide hierarchy, built and
-    /// refitted to moved corners, agrees with testing every triangle and with the binary one.
+    /// refitted to moved corners (collapsed from the refitted binary tree, or refitted
+    /// itself), agrees with testing every triangle and with the binary one.
     #[test]
     fn agrees_with_brute_force_and_the_binary_tree() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
@@ -180,8 +211,9 @@ mod tests {
             let binary = TriangleBvh::build(&points, &triangles);
             let moved: Vec<[f64; 3]> = points.iter().map(|p| [p[0] + 0.2 * (p[1] - offset).powi(2), p[1], p[2] - 0.1 * (p[0] - offset)]).collect();
             let refitted = binary.refitted(&moved, &triangles);
-            for (corners, binary) in [(&points, &binary), (&moved, &refitted)] {
-                let wide = OcclusionBvh::new(binary);
+            let collapsed = OcclusionBvh::new(&binary);
+            let wides = [OcclusionBvh::new(&binary), collapsed.refitted(binary.refitted(&moved, &triangles))];
+            for ((corners, binary), wide) in [(&points, &binary), (&moved, &refitted)].into_iter().zip(&wides) {
                 let mut hits = 0;
                 for _ in 0..4000 {
                     let origin: [f64; 3] = std::array::from_fn(|_| offset + rng.random_range(-0.2..1.2));

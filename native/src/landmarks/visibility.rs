@@ -124,9 +124,13 @@ pub fn worst_case_visibility(
         .par_iter()
         .zip(needs)
         .map(|(&v, &need)| {
-            let (origin, rays) = neutral.rays(v, nudge, sampling);
+            let lattice = match sampling {
+                Sampling::Hemisphere { rays, seed } => hemisphere_lattice(*rays, *seed, v as u64),
+                Sampling::Cameras(_) => Vec::new(),
+            };
+            let (origin, rays) = neutral.rays(v, nudge, sampling, &lattice);
             let mut rest = RaysAtRest { origin, rays: rays.collect(), known: vec![0; total.div_ceil(64)], escaped: vec![0; total.div_ceil(64)] };
-            let mut track = Track { vertex: v, level: 1.0, threshold: None, below: false, cast: 0, reused: 0, rest: RaysAtRest::default() };
+            let mut track = Track { vertex: v, level: 1.0, threshold: None, below: false, cast: 0, reused: 0, rest: RaysAtRest::default(), lattice: Vec::new() };
             if let Need::AtLeast(t) = need {
                 track.level = t;
                 track.threshold = Some(t);
@@ -135,17 +139,25 @@ pub fn worst_case_visibility(
             let level = pose_visibility(track.level, total, track.threshold.is_none(), seen);
             track.settle(level);
             track.rest = rest;
+            track.lattice = lattice;
             track
         })
         .collect();
     // Shaped poses refit the neutral's hierarchy: a shape moves a small part of the head, so
     // the boxes stay tight, and a refit costs far less than a build.
-    let posed = |i: usize| shapes.get(i).map(|&k| PosedMesh::new(rig, Some(k), Some(&neutral.binary)));
+    // The next pose and its moving region are prepared on one thread while the others trace
+    // the current pose.
+    let posed = |i: usize| {
+        shapes.get(i).map(|&k| {
+            let mesh = PosedMesh::new(rig, Some(k), Some(&neutral));
+            let region = reuse.then(|| MovingRegion::new(rig, k, &neutral.points, &mesh.points, nudge));
+            (mesh, region)
+        })
+    };
     let mut next = posed(0);
-    for (i, &shape) in shapes.iter().enumerate() {
+    for i in 0..shapes.len() {
         progress.checkpoint((i + 1) as f64 / poses as f64)?;
-        let Some(mesh) = next.take() else { break };
-        let region = reuse.then(|| MovingRegion::new(rig, shape, &neutral.points, &mesh.points, nudge));
+        let Some((mesh, region)) = next.take() else { break };
         let ((), prepared) = rayon::join(
             || {
                 tracks.par_iter_mut().filter(|t| !t.done()).for_each(|track| {
@@ -162,7 +174,7 @@ pub fn worst_case_visibility(
                             pose_visibility(*level, total, exact_below, seen)
                         }
                         _ => {
-                            let (origin, rays) = mesh.rays(v, nudge, sampling);
+                            let (origin, rays) = mesh.rays(v, nudge, sampling, &track.lattice);
                             let cast = &mut track.cast;
                             let seen = rays.map(|ray| {
                                 *cast += 1;
@@ -214,6 +226,8 @@ struct Track {
     cast: u64,
     reused: u64,
     rest: RaysAtRest,
+    /// Its hemisphere samples in the normal's frame (the same in every pose).
+    lattice: Vec<Sample>,
 }
 
 impl Track {
@@ -259,9 +273,10 @@ impl MovingRegion {
             }
         }
         // The posed tree refits the one at rest: one build per shape.
-        let at_rest = TriangleBvh::build(rest, &moved);
-        let posed = OcclusionBvh::new(&at_rest.refitted(posed, &moved));
-        Self { at_rest: OcclusionBvh::new(&at_rest), posed, bounds, margin, touched }
+        let binary = TriangleBvh::build(rest, &moved);
+        let at_rest = OcclusionBvh::new(&binary);
+        let posed = at_rest.refitted(binary.refitted(posed, &moved));
+        Self { at_rest, posed, bounds, margin, touched }
     }
 
     fn is_static(&self, v: u32) -> bool {
@@ -312,12 +327,12 @@ impl MovingRegion {
     }
 }
 
-/// One pose: positions, vertex normals and the hierarchy of its triangles (binary, to be
-/// refitted by the next pose, and four-wide, to be traced).
+/// One pose: positions, vertex normals and the four-wide hierarchy of its triangles (to be
+/// traced); the neutral keeps its binary one too, which the shaped poses refit.
 struct PosedMesh {
     points: Vec<[f64; 3]>,
     normals: Vec<[f64; 3]>,
-    binary: TriangleBvh,
+    binary: Option<TriangleBvh>,
     bvh: OcclusionBvh,
 }
 
@@ -353,26 +368,30 @@ impl RaysAtRest {
 }
 
 impl PosedMesh {
-    /// The pose's points, normals and hierarchies: built, or `base` refitted.
-    fn new(rig: &RigView, shape: Option<usize>, base: Option<&TriangleBvh>) -> Self {
+    /// The pose's points, normals and hierarchy: built, or the neutral's (`base`) refitted.
+    fn new(rig: &RigView, shape: Option<usize>, base: Option<&PosedMesh>) -> Self {
         let points = posed_points(rig, shape);
         let normals = vertex_normals(&points, rig.triangles);
-        let binary = match base {
-            Some(base) => base.refitted(&points, rig.triangles),
-            None => TriangleBvh::build(&points, rig.triangles),
-        };
-        let bvh = OcclusionBvh::new(&binary);
-        Self { points, normals, binary, bvh }
+        match base.and_then(|b| Some((b.binary.as_ref()?, &b.bvh))) {
+            Some((binary, bvh)) => {
+                let bvh = bvh.refitted(binary.refitted(&points, rig.triangles));
+                Self { points, normals, binary: None, bvh }
+            }
+            None => {
+                let binary = TriangleBvh::build(&points, rig.triangles);
+                let bvh = OcclusionBvh::new(&binary);
+                Self { points, normals, binary: Some(binary), bvh }
+            }
+        }
     }
 
-    /// The nudged origin and the lazy sequence of rays of vertex `v` in this pose.
-    fn rays<'s>(&self, v: u32, nudge: f64, sampling: &'s Sampling) -> ([f64; 3], Box<dyn Iterator<Item = Ray> + 's>) {
+    /// The nudged origin and the lazy sequence of rays of vertex `v` in this pose (`lattice`:
+    /// its hemisphere samples, [`hemisphere_lattice`]).
+    fn rays<'s>(&self, v: u32, nudge: f64, sampling: &'s Sampling, lattice: &'s [Sample]) -> ([f64; 3], Box<dyn Iterator<Item = Ray> + 's>) {
         let normal = self.normals[v as usize];
         let origin: [f64; 3] = std::array::from_fn(|a| self.points[v as usize][a] + nudge * normal[a]);
         let rays: Box<dyn Iterator<Item = Ray>> = match sampling {
-            Sampling::Hemisphere { rays, seed } => {
-                Box::new(hemisphere_directions(&normal, *rays, *seed, v as u64).map(|d| (d, f64::INFINITY, true)))
-            }
+            Sampling::Hemisphere { .. } => Box::new(hemisphere_directions(normal, lattice).map(|d| (d, f64::INFINITY, true))),
             Sampling::Cameras(cameras) => Box::new(cameras.iter().map(move |camera| {
                 let to_camera = sub(camera, &origin);
                 // `t` runs from the vertex (0) to the camera (1): geometry behind the camera
@@ -452,29 +471,44 @@ fn pose_visibility(level: f64, total: usize, exact_below: bool, mut escapes: imp
     }
 }
 
-/// `rays` cosine-weighted directions around the unit `normal`: a jittered golden-ratio
-/// lattice (one stratum of `sin^2 theta` per ray) drawn from ChaCha stream `stream` of `seed`;
-/// the whole sphere when the normal is zero.
-fn hemisphere_directions(normal: &[f64; 3], rays: usize, seed: u64, stream: u64) -> impl Iterator<Item = [f64; 3]> {
+/// One hemisphere sample: its stratum `u` of `sin^2 theta` and the cosine and sine of its
+/// azimuth `phi`.
+type Sample = [f64; 3];
+
+/// `rays` samples of a jittered golden-ratio lattice (one stratum of `sin^2 theta` per ray)
+/// drawn from ChaCha stream `stream` of `seed`. They do not depend on the pose, so a vertex
+/// draws them once and each pose only turns them into its frame ([`hemisphere_directions`]):
+/// the same directions as drawing them in every pose, without the random numbers and the
+/// sine and cosine per ray and pose.
+fn hemisphere_lattice(rays: usize, seed: u64, stream: u64) -> Vec<Sample> {
     const GOLDEN: f64 = 0.618_033_988_749_894_8;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(stream);
     let rotation: f64 = rng.random();
-    let normal = *normal;
+    (0..rays)
+        .map(|i| {
+            let u = (i as f64 + rng.random::<f64>()) / rays as f64;
+            let phi = std::f64::consts::TAU * (i as f64 * GOLDEN + rotation).fract();
+            [u, phi.cos(), phi.sin()]
+        })
+        .collect()
+}
+
+/// The cosine-weighted directions of `lattice` around the unit `normal`; the whole sphere
+/// when the normal is zero.
+fn hemisphere_directions(normal: [f64; 3], lattice: &[Sample]) -> impl Iterator<Item = [f64; 3]> + '_ {
     let has_normal = dot(&normal, &normal) > 0.0;
     let (tangent, bitangent) = tangent_frame(&normal);
-    (0..rays).map(move |i| {
-        let u = (i as f64 + rng.random::<f64>()) / rays as f64;
-        let phi = std::f64::consts::TAU * (i as f64 * GOLDEN + rotation).fract();
+    lattice.iter().map(move |&[u, cos, sin]| {
         if has_normal {
             // Malley's method: uniform on the disc, lifted to the hemisphere.
             let (radius, height) = (u.sqrt(), (1.0 - u).sqrt());
-            let (x, y) = (radius * phi.cos(), radius * phi.sin());
+            let (x, y) = (radius * cos, radius * sin);
             std::array::from_fn(|a| x * tangent[a] + y * bitangent[a] + height * normal[a])
         } else {
             let z = 1.0 - 2.0 * u;
             let radius = (1.0 - z * z).max(0.0).sqrt();
-            [radius * phi.cos(), radius * phi.sin(), z]
+            [radius * cos, radius * sin, z]
         }
     })
 }
