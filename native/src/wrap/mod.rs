@@ -69,6 +69,7 @@ mod align;
 mod carry;
 mod nricp;
 mod pieces;
+mod rims;
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -87,6 +88,7 @@ use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
 use nricp::{fit_skin, Landmark, TargetSurface};
 use pieces::{carry_pieces, fit_pieces};
+use rims::rim_targets;
 
 /// Knobs of the non-rigid fit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -101,6 +103,9 @@ pub struct FitParams {
     pub max_angle_degrees: f64,
     /// Closest points farther than this fraction of the character's bbox diagonal are rejected.
     pub max_distance: f64,
+    /// Weight of a template rim vertex's pull to its place on the character's matching hole
+    /// (`rims`), against 1 for a closest point.
+    pub rim_weight: f64,
     /// A closest-point iteration that moves no vertex by more than this fraction of the
     /// diagonal ends its step.
     pub tolerance: f64,
@@ -114,6 +119,7 @@ impl Default for FitParams {
             landmark_weight: 100.0,
             max_angle_degrees: 60.0,
             max_distance: 0.1,
+            rim_weight: 1.0,
             tolerance: 1e-4,
         }
     }
@@ -157,6 +163,9 @@ pub struct WrapReport {
     /// skin around them).
     pub pieces: usize,
     pub pieces_fitted: usize,
+    /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
+    /// rims the fit lands on the character's (`rims`).
+    pub holes_paired: usize,
     /// Character bbox diagonal (character units).
     pub diagonal: f64,
     pub template_vertices: usize,
@@ -273,12 +282,14 @@ pub fn wrap_template(
             corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: hit.barycentric, target: *q })
         })
         .collect();
-    let (mut template_pieces, mut pieces_fitted) = (0, 0);
+    let (mut template_pieces, mut pieces_fitted, mut rims_paired) = (0, 0, 0);
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
     } else {
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
-        let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &surface, &params.fit, diagonal, &stage)?;
+        let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
+        rims_paired = holes;
+        let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
@@ -301,6 +312,7 @@ pub fn wrap_template(
         fit,
         pieces: template_pieces,
         pieces_fitted,
+        holes_paired: rims_paired,
         diagonal,
         template_vertices: template.len(),
         skin_vertices: template_skin.len(),
