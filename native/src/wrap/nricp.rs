@@ -8,7 +8,9 @@
 //! module's Deviations):
 //! $$ E(d) = \sum_i w_i |x^{rest}_i + d_i - u_i|^2 + \alpha \sum_i \Big| \frac{1}{|N(i)|}
 //!           \sum_{j \in N(i)} d_j - d_i \Big|^2 + \beta \sum_l |B_l (x^{rest} + d) - q_l|^2 $$
-//! `u_i` the closest character point, `w_i` 1 or 0 (rejected), `N(i)` the template neighbours
+//! `u_i` the closest character point, `w_i` 1 or 0 (rejected); for a rim vertex of a paired
+//! hole (`rims`) `u_i` is instead its fixed place on the character's hole and `w_i` the rim
+//! weight (the matrix keeps its pattern: only the diagonal weights change); `N(i)` the template neighbours
 //! of skin vertex `i` (the uniform Laplacian `L`, so the stiffness block is `alpha L^T L`),
 //! `B_l` the barycentric row of landmark `l` on the template, `q_l` its character point.
 

@@ -6,10 +6,10 @@
 //! rim had no data term: the stiffness alone placed it, each rim vertex slid along the lid by
 //! its own amount, and the closed lid of a blink showed it (a jagged lid edge on a decimated
 //! MakeHuman identity). Here each template rim vertex gets a fixed target on the character's
-//! matching loop, as a hard-to-move landmark of the fit (the boundary-to-boundary
-//! correspondence of the template fitting literature, e.g. Li, Sumner & Pauly 2008 treat
-//! boundaries apart; the arc-length parametrisation of matched boundary curves is Floater's
-//! boundary mapping, Floater 1997):
+//! matching loop (Amberg et al. 2007 drop correspondences on the target's border, Section
+//! 3.2, rightly for a cut neck; an eye opening is a feature both heads share, so its rim is
+//! matched instead; the chord-length parametrisation of a boundary loop is the one Floater
+//! 1997 maps a boundary with):
 //! - A **hole** is a boundary loop of the skin small against the mesh (its radius under
 //!   [`HOLE_SIZE`] of the skin's bbox diagonal; the neck cut of a head is about 0.15, an eye
 //!   opening 0.03), so the neck cut, which the character may end elsewhere, is left free.
