@@ -335,4 +335,5 @@ def summary_lines(wrapped):
             f"pieces (eyes, teeth, ...): {report['pieces_fitted']} of {report['pieces']} fitted onto the character's own, "
             "the others follow the skin"
         )
+    lines.append(f"holes (eye and mouth openings) landed on the character's: {report['holes_paired']}")
     return lines + [f"warning: {w}" for w in report["warnings"]]

@@ -134,7 +134,7 @@ fn centred_covariance(a: &[Vec3], b: &[Vec3]) -> ((Vec3, Vec3), Mat3) {
 }
 
 /// Eigenvalues (ascending) and eigenvectors (columns) of a symmetric 3x3 matrix.
-fn symmetric_eigen(m: &Mat3) -> ShapesmithResult<(Vec3, Mat3)> {
+pub(super) fn symmetric_eigen(m: &Mat3) -> ShapesmithResult<(Vec3, Mat3)> {
     let matrix = Mat::<f64>::from_fn(3, 3, |r, c| m[r][c]);
     let eigen = matrix
         .self_adjoint_eigen(Side::Lower)

@@ -8,7 +8,9 @@
 //! module's Deviations):
 //! $$ E(d) = \sum_i w_i |x^{rest}_i + d_i - u_i|^2 + \alpha \sum_i \Big| \frac{1}{|N(i)|}
 //!           \sum_{j \in N(i)} d_j - d_i \Big|^2 + \beta \sum_l |B_l (x^{rest} + d) - q_l|^2 $$
-//! `u_i` the closest character point, `w_i` 1 or 0 (rejected), `N(i)` the template neighbours
+//! `u_i` the closest character point, `w_i` 1 or 0 (rejected); for a rim vertex of a paired
+//! hole (`rims`) `u_i` is instead its fixed place on the character's hole and `w_i` the rim
+//! weight (the matrix keeps its pattern: only the diagonal weights change); `N(i)` the template neighbours
 //! of skin vertex `i` (the uniform Laplacian `L`, so the stiffness block is `alpha L^T L`),
 //! `B_l` the barycentric row of landmark `l` on the template, `q_l` its character point.
 
@@ -22,6 +24,7 @@ use crate::geometry::topology::unique_edges;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
+use super::rims::RimTarget;
 use super::FitParams;
 
 /// A template point tied to a character point: barycentric on a template skin triangle.
@@ -103,6 +106,7 @@ pub fn fit_skin(
     skin: &[u32],
     skin_triangles: &[[u32; 3]],
     landmarks: &[Landmark],
+    rims: &[RimTarget],
     surface: &TargetSurface,
     params: &FitParams,
     diagonal: f64,
@@ -122,6 +126,12 @@ pub fn fit_skin(
     // skin is rejected; it is far below every other weight.
     let ridge = 1e-8;
     let bending = bending_entries(n, &edges);
+    // Rim vertices target their place on the character's matching hole (`rims`), with the
+    // rim weight, whatever their closest point.
+    let mut rim_target: Vec<Option<Vec3>> = vec![None; n];
+    for rim in rims {
+        rim_target[local[rim.vertex as usize] as usize] = Some(rim.target);
+    }
     // `W + alpha L^T L + beta B^T B`; its pattern is the same at every step, so it is ordered
     // once.
     let assemble = |weights: &[f64], alpha: f64, beta: f64| {
@@ -144,7 +154,11 @@ pub fn fit_skin(
         progress.checkpoint(step as f64 / steps as f64)?;
         let beta = params.landmark_weight * alpha;
         let matches = closest_points(&positions, skin, skin_triangles, surface, max_distance, cos_max_angle);
-        let weights: Vec<f64> = matches.iter().map(|m| if m.is_some() { 1.0 } else { 0.0 }).collect();
+        let weights: Vec<f64> = matches
+            .iter()
+            .zip(&rim_target)
+            .map(|(m, rim)| if rim.is_some() { params.rim_weight } else if m.is_some() { 1.0 } else { 0.0 })
+            .collect();
         let matrix = assemble(&weights, alpha, beta);
         let factor = matrix.factor(&order)?;
         let mut matches = matches;
@@ -158,8 +172,8 @@ pub fn fit_skin(
                     if weights[i] == 0.0 {
                         return [0.0; 3];
                     }
-                    let target = matches[i].map_or(positions[v], |hit| hit.point);
-                    sub(target, rest[v])
+                    let target = rim_target[i].unwrap_or_else(|| matches[i].map_or(positions[v], |hit| hit.point));
+                    sub(target, rest[v]).map(|x| x * weights[i])
                 })
                 .collect();
             for l in landmarks {

@@ -19,9 +19,9 @@ use super::align::{similarity_from_pairs, Similarity};
 /// A piece's area-weighted centre and root-mean-square radius (area weights, so that a
 /// decimated copy with uneven vertex density has the same moments).
 #[derive(Clone, Copy, Debug)]
-struct Moments {
-    centre: Vec3,
-    radius: f64,
+pub(super) struct Moments {
+    pub centre: Vec3,
+    pub radius: f64,
 }
 
 fn moments(points: &[Vec3], triangles: &[[u32; 3]]) -> Option<Moments> {
@@ -105,15 +105,15 @@ const ICP_TOLERANCE: f64 = 1e-4;
 const ACCEPTED_DISTANCE: f64 = 0.1;
 
 /// Pairs of (template piece, character piece) indices into the `pieces` lists that match in
-/// place and size, one to one, the closest first.
-fn match_pieces(template_moments: &[Option<Moments>], character_moments: &[Option<Moments>]) -> Vec<(usize, usize)> {
+/// place (centres within `max_offset` template radii) and size, one to one, the closest first.
+pub(super) fn match_pieces(template_moments: &[Option<Moments>], character_moments: &[Option<Moments>], max_offset: f64) -> Vec<(usize, usize)> {
     let mut candidates = Vec::new();
     for (i, a) in template_moments.iter().enumerate() {
         for (j, b) in character_moments.iter().enumerate() {
             let (Some(a), Some(b)) = (a, b) else { continue };
             let offset = length(sub(a.centre, b.centre)) / a.radius;
             let size = (b.radius / a.radius).ln().abs();
-            if offset < MATCH_DISTANCE && size < MATCH_SIZE.ln() {
+            if offset < max_offset && size < MATCH_SIZE.ln() {
                 candidates.push((offset + size, i, j));
             }
         }
@@ -147,7 +147,7 @@ pub fn fit_pieces(
     let template_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(fitted, t)).collect();
     let character_moments: Vec<Option<Moments>> = character_pieces.iter().map(|(_, t)| moments(character, t)).collect();
     let mut count = 0;
-    for (i, j) in match_pieces(&template_moments, &character_moments) {
+    for (i, j) in match_pieces(&template_moments, &character_moments, MATCH_DISTANCE) {
         let (members, piece_triangles) = &template_pieces[i];
         let (character_members, character_piece_triangles) = &character_pieces[j];
         let radius = template_moments[i].map_or(1.0, |m| m.radius);
@@ -185,7 +185,7 @@ pub fn parts(template: &[Vec3], triangles: &[[u32; 3]], character: &[Vec3], char
     let mut template_vertex = vec![ANY_PART; template.len()];
     let mut character_vertex: Vec<u32> = is_character_skin.iter().map(|&s| if s { 0 } else { ANY_PART }).collect();
     (0..template.len()).filter(|&v| is_skin[v]).for_each(|v| template_vertex[v] = 0);
-    for (k, (i, j)) in match_pieces(&template_moments, &character_moments).into_iter().enumerate() {
+    for (k, (i, j)) in match_pieces(&template_moments, &character_moments, MATCH_DISTANCE).into_iter().enumerate() {
         template_pieces[i].0.iter().for_each(|&v| template_vertex[v] = k as u32 + 1);
         character_pieces[j].0.iter().for_each(|&v| character_vertex[v] = k as u32 + 1);
     }
