@@ -301,21 +301,12 @@ def added_beyond_template(report, row, key="length"):
     """How much more intersection curve the shape adds to the target's neutral than the
     template's shape adds to the template's, split into (inside one piece: lips or lids
     through each other, between pieces: skin through a separate eyeball, lashes or teeth),
-    each part zero or more. Issue 9's criterion, part by part: a part where the template's
-    shape removes some of its neutral's curve counts as adding none (the transfer must then
-    add none, not remove as much), and removing curve in one part does not pay for adding it
-    in the other. `key="plain_length"` judges plain transfer, `key="before_collisions_length"`
-    the result before the collision pass."""
-    between_key = key.replace("length", "between_pieces")
-    target_rest, template_rest = report["neutral_penetration"], report["template_neutral_penetration"]
-    target_between = row[between_key] - target_rest["between_pieces"]
-    target_inside = row[key] - target_rest["length"] - target_between
-    template_between = row["template_between_pieces"] - template_rest["between_pieces"]
-    template_inside = row["template_length"] - template_rest["length"] - template_between
-    return (
-        max(target_inside - max(template_inside, 0.0), 0.0),
-        max(target_between - max(template_between, 0.0), 0.0),
-    )
+    each part zero or more: issue 9's criterion, as the native report computes it (`excess`:
+    a part where the template's shape removes curve allows none, and removing in one part does
+    not pay for adding in the other). `key="plain_length"` reads plain transfer's,
+    `key="before_collisions_length"` the result's before the collision pass."""
+    excess = row[key.replace("length", "excess")]
+    return excess["inside"], excess["between"]
 
 
 def worse_than_template(report, key="length", tolerance=1e-3):

@@ -6,7 +6,8 @@
 //! Prints the best of RUNS (default 3) runs' native seconds split as the bench reports them
 //! (setup, virtual edges, solves, collision pass, report), the seconds of the template's own
 //! per-shape numbers (measured once per template), and a checksum of the results (summed
-//! intersection length and pairs, shapes the pass changed) so that two builds run one after
+//! intersection length and pairs, shapes the pass changed, summed excess over the template,
+//! summed absolute deltas) so that two builds run one after
 //! the other can be compared for both speed and sameness.
 
 use std::time::Instant;
@@ -36,10 +37,10 @@ fn main() {
     let template_seconds = started.elapsed().as_secs_f64();
     let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
     let mut best: Option<(f64, StageSeconds)> = None;
-    let mut checksum = (0.0, 0, 0);
+    let mut checksum = (0.0, 0, 0, 0.0, 0.0);
     for _ in 0..runs {
         let started = Instant::now();
-        let (_, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
+        let (deltas, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
             .expect("transfer");
         let wall = started.elapsed().as_secs_f64();
         let rows = &report.penetration;
@@ -47,6 +48,8 @@ fn main() {
             rows.iter().map(|r| r.length).sum::<f64>(),
             rows.iter().map(|r| r.pairs).sum::<usize>(),
             rows.iter().filter(|r| r.collisions.is_some_and(|c| c.applied)).count(),
+            rows.iter().map(|r| r.excess.inside + r.excess.between).sum::<f64>(),
+            deltas.iter().flatten().map(|&x| f64::from(x).abs()).sum::<f64>(),
         );
         if best.as_ref().is_none_or(|b| wall < b.0) {
             best = Some((wall, report.seconds));
@@ -64,5 +67,8 @@ fn main() {
         s.collisions,
         s.penetration
     );
-    println!("checksum: length {:.9}, pairs {}, shapes the pass changed {}", checksum.0, checksum.1, checksum.2);
+    println!(
+        "checksum: length {:.9}, pairs {}, shapes the pass changed {}, excess over the template summed {:.9}, |deltas| summed {:.9}",
+        checksum.0, checksum.1, checksum.2, checksum.3, checksum.4
+    );
 }

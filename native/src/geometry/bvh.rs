@@ -182,6 +182,100 @@ impl TriangleBvh {
         }
     }
 
+    /// Every unordered pair of distinct triangles whose boxes overlap and of which at least
+    /// one is `marked` (indexed like the list given to `build`), passed to `visit` with the
+    /// accumulator of the task that found it; one accumulator per task, from `init`. One
+    /// descent of the tree against itself (rayon across its top node pairs): nearby pairs
+    /// share the descent that one query per triangle would repeat, each pair is reached once,
+    /// and subtrees without a marked triangle are never entered against each other.
+    pub fn overlapping_pairs<T: Send>(
+        &self,
+        marked: &[bool],
+        init: impl Fn() -> T + Sync,
+        visit: impl Fn(&mut T, u32, u32) + Sync,
+    ) -> Vec<T> {
+        use rayon::prelude::*;
+        if self.triangles.is_empty() {
+            return Vec::new();
+        }
+        let is_marked = |k: usize| marked[self.original[k] as usize];
+        // Whether a node's subtree holds a marked triangle (children follow their parent).
+        let mut has_marked = vec![false; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            has_marked[i] = if count > 0 {
+                (first as usize..(first + count) as usize).any(is_marked)
+            } else {
+                has_marked[first as usize] || has_marked[first as usize + 1]
+            };
+        }
+        // Node pairs `(i, j)` whose subtrees' triangles may overlap each other (`i == j`: a
+        // subtree against itself); split into children until there are enough for the threads.
+        let children = |i: u32| [self.nodes[i as usize].first, self.nodes[i as usize].first + 1];
+        let worth = |i: u32, j: u32| {
+            (has_marked[i as usize] || has_marked[j as usize])
+                && (i == j || self.nodes[i as usize].bounds.overlaps(&self.nodes[j as usize].bounds))
+        };
+        let split = |i: u32, j: u32| -> Option<Vec<(u32, u32)>> {
+            let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
+            if i == j {
+                let [l, r] = children(i);
+                return (a.count == 0).then(|| vec![(l, l), (r, r), (l, r)]);
+            }
+            // Split the internal node with the larger box (both when leaves: none).
+            let first = match (a.count == 0, b.count == 0) {
+                (false, false) => return None,
+                (true, false) => true,
+                (false, true) => false,
+                (true, true) => a.bounds.half_area() >= b.bounds.half_area(),
+            };
+            Some(if first { children(i).map(|c| (c, j)).to_vec() } else { children(j).map(|c| (i, c)).to_vec() })
+        };
+        let mut tasks = vec![(0u32, 0u32)];
+        while tasks.len() < 256 {
+            let mut next = Vec::with_capacity(3 * tasks.len());
+            let mut grew = false;
+            for &(i, j) in &tasks {
+                match split(i, j) {
+                    Some(pairs) => {
+                        grew = true;
+                        next.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b)));
+                    }
+                    None => next.push((i, j)),
+                }
+            }
+            tasks = next;
+            if !grew {
+                break;
+            }
+        }
+        tasks
+            .into_par_iter()
+            .map(|task| {
+                let mut found = init();
+                let mut stack = vec![task];
+                while let Some((i, j)) = stack.pop() {
+                    match split(i, j) {
+                        Some(pairs) => stack.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b))),
+                        None => {
+                            // Two leaves, or one leaf against itself.
+                            let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
+                            for p in a.first as usize..(a.first + a.count) as usize {
+                                let from = if i == j { p + 1 } else { b.first as usize };
+                                for q in from..(b.first + b.count) as usize {
+                                    if (is_marked(p) || is_marked(q)) && self.boxes[p].overlaps(&self.boxes[q]) {
+                                        visit(&mut found, self.original[p], self.original[q]);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                found
+            })
+            .collect()
+    }
+
     /// Whether the ray `origin + t * direction` meets a triangle at some `t` in `(0, t_max)`.
     /// Both faces count; `direction` need not be normalised (`t` is in its units).
     pub fn any_hit(&self, origin: &[f64; 3], direction: &[f64; 3], t_max: f64) -> bool {

@@ -12,7 +12,7 @@
 use rayon::prelude::*;
 
 use super::mat3::{add, cross, dot, length, scale, sub, Vec3};
-use super::bvh::{Aabb, TriangleBvh};
+use super::bvh::TriangleBvh;
 use super::topology::connected_components;
 
 /// Self-intersection of a surface.
@@ -52,8 +52,8 @@ pub fn intersecting_triangles(positions: &[[f32; 3]], rest: Option<&[[f32; 3]]>,
     crossed
 }
 
-/// The connected piece of each triangle.
-fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+/// The connected piece of each triangle (that of its first corner).
+pub fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
     let (label, _) = connected_components(n_vertices, triangles);
     triangles.iter().map(|t| label[t[0] as usize]).collect()
 }
@@ -92,11 +92,21 @@ impl<'a> PenetrationBaseline<'a> {
             self.neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
         let moved: Vec<bool> =
             self.triangles.iter().map(|t| t.iter().any(|&v| delta[v as usize] != [0.0; 3])).collect();
-        let unmoved = self.rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]).copied();
-        let mut all: Vec<(u32, u32, f64)> = unmoved.collect();
-        all.extend(crossings(&points, self.triangles, &self.bvh.refitted(&points, self.triangles), Some(&moved)));
-        total(&all, &self.piece)
+        let swept = crossings(&points, self.triangles, &self.bvh.refitted(&points, self.triangles), Some(&moved));
+        shape_penetration(&swept, &self.rest, &moved, &self.piece)
     }
+}
+
+/// The penetration of a shape from the pairs `swept` that [`crossings`] found with `moved`
+/// (each has a moved triangle) and the rest mesh's pairs `rest` (`(a, b, length)` sorted),
+/// of which those with both triangles unmoved cross exactly as at rest. Summed in the order
+/// of a sweep of every triangle, so the numbers equal [`measure_penetration`]'s of the shape
+/// to the bit.
+pub fn shape_penetration(swept: &[(u32, u32, f64)], rest: &[(u32, u32, f64)], moved: &[bool], piece: &[u32]) -> Penetration {
+    let unmoved = rest.iter().filter(|&&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
+    let mut all: Vec<(u32, u32, f64)> = swept.iter().chain(unmoved).copied().collect();
+    all.sort_unstable_by_key(|&(a, b, _)| (a, b));
+    total(&all, piece)
 }
 
 fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
@@ -111,34 +121,33 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 /// Crossing pairs `(a, b, length)`, `a < b`, of triangles that share no vertex, `bvh` being
 /// over `points`. With `moved`, only pairs with at least one moved triangle are tested. Each
 /// pair is tested lower index first, as a sweep of every pair would, so the lengths are the
-/// same to the bit whatever `moved` is.
+/// same to the bit whatever `moved` is. Candidate pairs come from one descent of the
+/// hierarchy against itself ([`TriangleBvh::overlapping_pairs`]), not one query per triangle.
+
 pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
-    let is_moved = |t: usize| moved.is_none_or(|m| m[t]);
     // The normals of the triangles a test can involve, each computed once instead of per pair.
     let normals: Vec<Vec3> = (0..triangles.len()).into_par_iter().map(|t| normal(corners(t))).collect();
-    let per_triangle: Vec<Vec<(u32, u32, f64)>> = (0..triangles.len())
-        .into_par_iter()
-        .map(|a| {
-            let mut found = Vec::new();
-            if !is_moved(a) {
-                return found;
-            }
-            bvh.for_each_overlap(&Aabb::of_points(&corners(a)), |b| {
-                let b = b as usize;
-                // Each pair once: from its lower index when both moved, else from the moved one.
-                if (b <= a && is_moved(b)) || a == b || triangles[a].iter().any(|v| triangles[b].contains(v)) {
-                    return;
-                }
-                let (lo, hi) = (a.min(b), a.max(b));
-                if let Some(len) = crossing_length(corners(lo), normals[lo], corners(hi), normals[hi]) {
-                    found.push((lo as u32, hi as u32, len));
-                }
-            });
-            found
-        })
-        .collect();
-    let mut all: Vec<(u32, u32, f64)> = per_triangle.into_iter().flatten().collect();
+    let everything;
+    let marked = match moved {
+        Some(moved) => moved,
+        None => {
+            everything = vec![true; triangles.len()];
+            &everything
+        }
+    };
+    let per_task = bvh.overlapping_pairs(marked, Vec::new, |found, a, b| {
+        let (a, b) = (a as usize, b as usize);
+        if triangles[a].iter().any(|v| triangles[b].contains(v)) {
+            return;
+        }
+        // Lower index first, as a sweep of every pair would.
+        let (lo, hi) = (a.min(b), a.max(b));
+        if let Some(len) = crossing_length(corners(lo), normals[lo], corners(hi), normals[hi]) {
+            found.push((lo as u32, hi as u32, len));
+        }
+    });
+    let mut all: Vec<(u32, u32, f64)> = per_task.into_iter().flatten().collect();
     all.sort_by_key(|&(a, b, _)| (a, b));
     all
 }

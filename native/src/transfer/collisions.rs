@@ -54,7 +54,7 @@ use super::gradients::{add, cross, dot, length, scale, sub, to_f64, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::penetration::crossings;
+use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, Penetration};
 use crate::geometry::topology::Adjacency;
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
@@ -97,6 +97,13 @@ pub struct CollisionOutcome {
     /// Whether the result is a re-solve; `false` when the plain solve was kept (bit for bit),
     /// because it was no worse than the template or no re-solve added less curve.
     pub applied: bool,
+    /// The penetration of the result kept and of the plain solve, from the pass's own sweeps
+    /// of the written positions (equal to [`crate::geometry::penetration::measure_penetration`]
+    /// of them to the bit): the report reads them instead of sweeping the shapes again.
+    #[serde(skip)]
+    pub penetration: Option<Penetration>,
+    #[serde(skip)]
+    pub plain_penetration: Option<Penetration>,
 }
 
 /// The intersection curve a shape adds to its neutral (its length in the shape minus at
@@ -109,6 +116,12 @@ pub struct AddedCurve {
 }
 
 impl AddedCurve {
+    /// The curve a shape whose penetration is `shape` adds to its neutral's `rest`.
+    pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
+        let inside = |p: &Penetration| p.length - p.between_pieces;
+        AddedCurve { inside: inside(shape) - inside(rest), between: shape.between_pieces - rest.between_pieces }
+    }
+
     /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
     /// total `rest`, `piece` giving each triangle's piece.
     fn of(pairs: impl Iterator<Item = (u32, u32, f64)>, piece: impl Fn(u32) -> u32, rest: AddedCurve) -> Self {
@@ -128,14 +141,26 @@ impl AddedCurve {
     /// 9's criterion: where the template adds none, the transfer adds none), and removing in
     /// one part not paying for adding in the other. Zero when the shape meets the criterion.
     pub fn excess(&self, template: &AddedCurve) -> f64 {
-        (self.inside - template.inside.max(0.0)).max(0.0) + (self.between - template.between.max(0.0)).max(0.0)
+        let parts = self.excess_parts(template);
+        parts.inside + parts.between
+    }
+
+    /// [`Self::excess`] part by part (each zero or more): what the report gives per shape, so
+    /// the add-on reads the criterion instead of computing it again.
+    pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
+        AddedCurve {
+            inside: (self.inside - template.inside.max(0.0)).max(0.0),
+            between: (self.between - template.between.max(0.0)).max(0.0),
+        }
     }
 }
 
 /// What the pass needs of the two neutrals, computed once per transfer.
 pub(super) struct CollisionGuard {
     params: CollisionParams,
-    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted, with their lengths.
+    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted, with their lengths,
+    /// swept on the written positions (the target's own frame and precision, as the report
+    /// measures them).
     rest_pairs: Vec<(u32, u32)>,
     rest_lengths: Vec<f64>,
     /// The same on the template's neutral.
@@ -148,6 +173,12 @@ pub(super) struct CollisionGuard {
     edge_length: Vec<f64>,
     /// The target neutral's bounding-box diagonal.
     diagonal: f64,
+    /// The target neutral as given (its own frame, f32): results are swept where they are
+    /// written, `written_neutral + delta` in f32, so the report can take the pass's numbers.
+    written_neutral: Vec<[f32; 3]>,
+    /// The connected piece of each triangle, and the target neutral's own penetration.
+    triangle_piece: Vec<u32>,
+    pub(super) rest_penetration: Penetration,
     adjacency: Adjacency,
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
@@ -155,10 +186,21 @@ pub(super) struct CollisionGuard {
 }
 
 impl CollisionGuard {
-    pub(super) fn new(source: &[Vec3], neutral: &[Vec3], triangles: &[[u32; 3]], params: CollisionParams) -> Self {
+    /// `neutral` is the target's neutral in the working frame, `written_neutral` as given.
+    pub(super) fn new(
+        source: &[Vec3],
+        neutral: &[Vec3],
+        written_neutral: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+        params: CollisionParams,
+    ) -> Self {
         let n = neutral.len();
         let (bvh, template_bvh) = (TriangleBvh::build(neutral, triangles), TriangleBvh::build(source, triangles));
-        let (rest_pairs, rest_lengths) = crossings(neutral, triangles, &bvh, None).into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
+        let written: Vec<Vec3> = written_neutral.iter().map(|p| p.map(f64::from)).collect();
+        let rest = crossings(&written, triangles, &bvh.refitted(&written, triangles), None);
+        let triangle_piece = triangle_pieces(n, triangles);
+        let rest_penetration = shape_penetration(&[], &rest, &vec![false; triangles.len()], &triangle_piece);
+        let (rest_pairs, rest_lengths) = rest.into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
         let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
         let adjacency = Adjacency::from_triangles(n, triangles);
         let edge_length = (0..n)
@@ -186,7 +228,22 @@ impl CollisionGuard {
             }
         }
         let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
-        Self { params, diagonal, rest_pairs, rest_lengths, template_rest_pairs, bvh, template_bvh, edge_length, adjacency, ring_offsets, ring_triangles }
+        Self {
+            params,
+            diagonal,
+            written_neutral: written_neutral.to_vec(),
+            triangle_piece,
+            rest_penetration,
+            rest_pairs,
+            rest_lengths,
+            template_rest_pairs,
+            bvh,
+            template_bvh,
+            edge_length,
+            adjacency,
+            ring_offsets,
+            ring_triangles,
+        }
     }
 
     fn triangles_at(&self, v: u32) -> &[u32] {
@@ -266,36 +323,43 @@ impl DeformationTransfer {
         let mut template: Option<TemplateContacts> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
-        // template's is not known), the deltas that add it (empty: the plain solve) and the
-        // new pairs left in them.
-        let mut best: Option<(f64, Vec<Vec3>, usize)> = None;
+        // template's is not known), the deltas that add it (empty: the plain solve), the
+        // new pairs left in them and their crossing pairs.
+        let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>)> = None;
         let mut first: Option<AddedCurve> = None;
+        let mut first_crossing: Vec<(u32, u32, f64)> = Vec::new();
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
+            // Swept where the result is written (the target's frame, f32), so the report
+            // takes these numbers as they are.
+            let written = self.written_positions(guard, out);
             crossing = match &last {
-                None => self.crossing_pairs(guard, &positions, &moved, None),
+                None => self.crossing_pairs(guard, &written, &moved, None),
                 Some(previous) => {
-                    // After a re-solve, only triangles that moved (more than a millionth of their
-                    // edges) since the last sweep are tested again; the others keep their pairs.
-                    let changed_vertex: Vec<bool> = (0..positions.len())
-                        .map(|v| length(sub(positions[v], previous[v])) > 1e-6 * guard.edge_length[v])
-                        .collect();
+                    // After a re-solve, only triangles with a corner written elsewhere than
+                    // at the last sweep are tested again (against every triangle); the others
+                    // cross exactly as then and keep their pairs: the same pairs and lengths,
+                    // to the bit, as a sweep of every moved triangle.
+                    let changed_vertex: Vec<bool> = (0..written.len()).map(|v| written[v] != previous[v]).collect();
                     let changed: Vec<bool> =
                         self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
                     let mut pairs: Vec<(u32, u32, f64)> =
                         crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
-                    pairs.extend(self.crossing_pairs(guard, &positions, &changed, Some(&moved)));
+                    pairs.extend(self.crossing_pairs(guard, &written, &changed, Some(&moved)));
                     pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
                     pairs
                 }
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
             let added = AddedCurve::of(crossing.iter().copied(), piece_of, swept_rest);
-            first.get_or_insert(added);
+            if first.is_none() {
+                first = Some(added);
+                first_crossing = crossing.clone();
+            }
             let score = |a: &AddedCurve| template_added.map_or(a.inside + a.between, |t| a.excess(&t));
-            let improved = best.as_ref().is_none_or(|(b, _, _)| score(&added) < *b);
+            let improved = best.as_ref().is_none_or(|(b, _, _, _)| score(&added) < *b);
             if improved {
-                best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0));
+                best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0, crossing.clone()));
             }
             // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
             // the teeth adds curve by sliding deeper along pairs that already cross.
@@ -317,7 +381,7 @@ impl DeformationTransfer {
                     // Only the plain solve was judged so far (by added curve): judge it by
                     // its excess over the template.
                     template_added = Some(contacts.added);
-                    best = best.map(|(_, kept, left)| (first.map_or(0.0, |f| f.excess(&contacts.added)), kept, left));
+                    best = best.map(|(_, kept, left, pairs)| (first.map_or(0.0, |f| f.excess(&contacts.added)), kept, left, pairs));
                 }
                 template = Some(contacts);
                 if meets(&added, &template_added) {
@@ -342,7 +406,7 @@ impl DeformationTransfer {
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
-            if let Some((_, _, left)) = best.as_mut().filter(|_| improved) {
+            if let Some((_, _, left, _)) = best.as_mut().filter(|_| improved) {
                 *left = new_pairs.len();
             }
             if new_pairs.is_empty() || round == guard.params.max_iterations {
@@ -352,7 +416,7 @@ impl DeformationTransfer {
             if found.is_empty() {
                 break;
             }
-            last = Some(positions);
+            last = Some(written);
             let mut seeds = Vec::with_capacity(found.len());
             for (u, target) in found {
                 let reach = length(sub(target, add(self.target_neutral[u], out[u])));
@@ -372,7 +436,11 @@ impl DeformationTransfer {
         outcome.constrained_vertices = targets.len();
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
-        if let Some((_, kept, left)) = best {
+        let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
+        let penetration = |pairs: &[(u32, u32, f64)]| shape_penetration(pairs, &rest, &moved, &guard.triangle_piece);
+        outcome.plain_penetration = Some(penetration(&first_crossing));
+        if let Some((_, kept, left, pairs)) = best {
+            outcome.penetration = Some(penetration(&pairs));
             outcome.remaining_pairs = left;
             outcome.applied = !kept.is_empty();
             *out = if kept.is_empty() { plain } else { kept };
@@ -421,7 +489,13 @@ impl DeformationTransfer {
         }
     }
 
-    /// Pairs crossing at `positions` (working frame) with a triangle in `tested` (and, when
+    /// `target neutral + out` where it is written: in the target's own frame, added in f32
+    /// (as the report and Blender see the shape), as f64.
+    fn written_positions(&self, guard: &CollisionGuard, out: &[Vec3]) -> Vec<Vec3> {
+        guard.written_neutral.iter().zip(self.to_target_frame(out)).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect()
+    }
+
+    /// Pairs crossing at `positions` (written positions) with a triangle in `tested` (and, when
     /// `moved` is given, the other in it too or anywhere when the other is in `tested`), sorted.
     fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
         let bvh = guard.bvh.refitted(positions, &self.triangles);

@@ -134,7 +134,7 @@ impl DeformationTransfer {
             .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
         let guard_start = Instant::now();
-        let collisions = params.collisions.map(|c| CollisionGuard::new(&source, &target, triangles, c));
+        let collisions = params.collisions.map(|c| CollisionGuard::new(&source, &target, target_neutral, triangles, c));
         let collision_setup_seconds = guard_start.elapsed().as_secs_f64();
         Ok(Self {
             triangles: triangles.to_vec(),
@@ -162,6 +162,11 @@ impl DeformationTransfer {
 
     pub fn n_vertices(&self) -> usize {
         self.target_neutral.len()
+    }
+
+    /// The target neutral's own penetration, when the collision pass swept it.
+    pub(super) fn rest_penetration(&self) -> Option<crate::geometry::penetration::Penetration> {
+        self.collisions.as_ref().map(|guard| guard.rest_penetration)
     }
 
     /// The virtual edges `(i, j)` used by the solve (empty for plain transfer).

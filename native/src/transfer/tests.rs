@@ -248,11 +248,11 @@ fn pieces_that_move_as_a_whole_land_where_they_should() {
 }
 
 /// Source: the folded strip with an open gap; its shape closes the lips most of the way.
-fn lips(gap: f32) -> Mesh {
+pub(super) fn lips(gap: f32) -> Mesh {
     folded_strip(16, gap)
 }
 
-fn lip_closing(pts: &[[f32; 3]], gap: f32, amount: f32) -> Vec<[f32; 3]> {
+pub(super) fn lip_closing(pts: &[[f32; 3]], gap: f32, amount: f32) -> Vec<[f32; 3]> {
     pts.iter()
         .map(|p| {
             let along = (std::f32::consts::PI * p[0] / 1.5).sin().max(0.0);
@@ -509,7 +509,7 @@ fn serial_and_parallel_runs_agree_and_cancelling_stops() {
 // --- the collision pass -------------------------------------------------------------------
 
 /// `neutral + delta`.
-fn posed(neutral: &[[f32; 3]], delta: &[[f32; 3]]) -> Vec<[f32; 3]> {
+pub(super) fn posed(neutral: &[[f32; 3]], delta: &[[f32; 3]]) -> Vec<[f32; 3]> {
     neutral.iter().zip(delta).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect()
 }
 
@@ -557,7 +557,7 @@ fn collision_pass_uncrosses_thick_lips_that_virtual_edges_alone_leave_crossed() 
 }
 
 /// A flat skin sheet over a box of teeth (a separate piece), the teeth's top at `top`.
-fn skin_over_teeth(top: f32) -> Mesh {
+pub(super) fn skin_over_teeth(top: f32) -> Mesh {
     let w = 15usize;
     let mut pts: Vec<[f32; 3]> = Vec::new();
     for y in 0..w {
@@ -587,7 +587,7 @@ fn skin_over_teeth(top: f32) -> Mesh {
 
 /// Shape 0 presses the middle of the skin down by 0.15 (the teeth stay); shape 1 raises a
 /// bump in a corner, far from the teeth.
-fn press_and_bump(pts: &[[f32; 3]]) -> Vec<[f32; 3]> {
+pub(super) fn press_and_bump(pts: &[[f32; 3]]) -> Vec<[f32; 3]> {
     let skin = 15 * 15;
     let mut deltas = vec![[0.0f32; 3]; 2 * pts.len()];
     for (v, p) in pts.iter().enumerate().take(skin) {
@@ -634,7 +634,7 @@ fn skin_pressed_onto_static_teeth_stays_outside_and_other_shapes_are_untouched()
     assert_eq!(with.deltas[n..], without.deltas[n..]);
     let outcomes = with.collisions.unwrap();
     assert!(outcomes[0].solves >= 1 && outcomes[0].remaining_pairs == 0);
-    assert_eq!(outcomes[1], CollisionOutcome::default());
+    assert_eq!(CollisionOutcome { penetration: None, plain_penetration: None, ..outcomes[1] }, CollisionOutcome::default());
     assert!(with.before_collisions[1].is_none());
 }
 
