@@ -1,8 +1,9 @@
 //! Counts the shapes worse than the template by issue 9's criterion (SPEC 3), plain, with
 //! virtual edges before the collision pass and after it, on the arrays
-//! `scripts/bench_transfer.py -- --save-arrays DIR` writes (any head saved the same way):
+//! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
+//! --save-arrays DIR`):
 //!
-//!     cargo run --release --example collision_counts -- DIR/<head> [NAMES]
+//!     cargo run --release --example collision_counts -- DIR/<head> [DIR/names.txt]
 //!
 //! The criterion as `added_beyond_template` in `addon/blender/transfer.py` computes it: per
 //! part (inside one piece, between pieces), the curve the shape adds to the target's neutral

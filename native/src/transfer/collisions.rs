@@ -54,7 +54,7 @@
 //! shape is still worse. No single setting clears every shape (Deviations).
 //!
 //! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
-//! `scripts/bench_transfer.py -- --save-arrays`; shapes worse than the template after the
+//! `scripts/save_collision_arrays.py`; shapes worse than the template after the
 //! pass on Boy / OldMan / YoungWoman, issue 9's criterion)
 //!
 //! - Before this round: 5 / 5 / 5, warp ground truth (`scripts/bench_personalise.py`'s
