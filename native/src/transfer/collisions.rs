@@ -20,7 +20,9 @@
 //! triangle sharing a corner with the other in the template's shape and not at the
 //! template's rest (the template's crossing triangles are listed once per shape, then each
 //! pair is a lookup). Only vertices the solve is free to move (moving, in a piece anchored by
-//! its static vertices) are held.
+//! its static vertices) are held. When every pair of the part in excess lies near a template
+//! contact (the template's skin slides a little along its teeth, the target's far more), the
+//! pairs of that part are acted on regardless of the template's contacts.
 //!
 //! **Which vertices, and where to.** Against a piece that is static in the shape (teeth, an
 //! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
@@ -45,6 +47,41 @@
 //! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
 //! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
 //! the one with least excess over the template is kept: it never makes a shape worse.
+//!
+//! **Attempts.** A shape still worse than the template after the rounds is tried again from
+//! its plain solve with other holds (`ATTEMPTS`): twice the margin, then ten times the
+//! stiffness; the attempt with least excess is kept, and the next is tried only while the
+//! shape is still worse. No single setting clears every shape (Deviations).
+//!
+//! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
+//! `scripts/save_collision_arrays.py`; shapes worse than the template after the
+//! pass on Boy / OldMan / YoungWoman, issue 9's criterion)
+//!
+//! - Before this round: 5 / 5 / 5, warp ground truth (`scripts/bench_personalise.py`'s
+//!   warp, mean active error) +4.2% over virtual edges alone. Acting on the pairs near
+//!   template contacts when they are all the part in excess has: 3 / 5 / 4 (Boy's
+//!   mouthShrugLower, 1.8 cm, had no pair left after the template filter). The attempts: 2 /
+//!   4 / 3, warp +4.4%; the 19k head 9 -> 8, the 25k head 10 -> 10 (docs/transfer.md). What
+//!   is left: mouthDimple skin against the teeth (0.14-0.42 cm), OldMan's jawForward (+2.1
+//!   cm between pieces) and lip through lip (OldMan's mouthClose +1.65 cm, mouthRollLower
+//!   +1.57 cm), where every round's pushes add curve elsewhere along the lips; on the dense
+//!   heads also mouthLeft/Right, mouthPucker, mouthShrugLower against the teeth.
+//! - Cleared more shapes but cost the warp (dropped for the +5% limit): falling back to all
+//!   pairs of the part in excess when the filtered ones hold no vertex (clears OldMan's
+//!   jawForward and mouthRollLower down to +0.24 cm; warp +5.6% with the attempts); an
+//!   attempt sending every corner against a static piece back to rest however far it moved,
+//!   and one with that and ten times the stiffness (with the fallback: 0 / 2 / 0, 19k 2, 25k
+//!   4, but warp +29.7%: on the warped head it puts moving skin back at rest; at most one edge
+//!   length away +8.5%, two +17.7%).
+//! - Tried and dropped (each against 5 / 5 / 5 unless said): holding a skin vertex that rests
+//!   inside a static piece (teeth) at its rest depth below the surface (the side read through
+//!   the piece's signed volume), one-sided (no deeper) 7 / 10 / 5, two-sided 7 / 12 / 9: it
+//!   moves many vertices the side test leaves alone and the local re-solve pushes their
+//!   neighbours through. Counting a rest pair as grown at any growth instead of 5%: 6 / 5 on
+//!   Boy / OldMan. Lip-through-lip corners pulled back towards rest (to 90% or 70% of their
+//!   motion) instead of pushed across the other lip's plane: no shape cleared. 8 rounds
+//!   instead of 4: no shape cleared. One setting for all shapes instead of attempts
+//!   (stiffness x10 or x0.2, margin x2): each clears some shapes and brings back others.
 
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
@@ -295,6 +332,36 @@ impl DeformationTransfer {
         factor: &RestrictedFactor,
         out: &mut Vec<Vec3>,
     ) -> ShapesmithResult<CollisionOutcome> {
+        let plain = out.clone();
+        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, factor, out, &ATTEMPTS[0])?;
+        let mut solves = outcome.solves;
+        for attempt in &ATTEMPTS[1..] {
+            // Only a shape still worse than the template (its excess known) tries again.
+            let Some(least) = excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal) else { break };
+            let mut again = plain.clone();
+            let (next, next_excess) = self.collision_rounds(guard, shape, factor, &mut again, attempt)?;
+            solves += next.solves;
+            if next_excess.is_some_and(|e| e < least) {
+                *out = again;
+                outcome = CollisionOutcome { new_pairs: outcome.new_pairs, ..next };
+                excess = next_excess;
+            }
+        }
+        Ok(CollisionOutcome { solves, ..outcome })
+    }
+
+    /// One attempt of the pass: up to `max_iterations` rounds of judging, holding and
+    /// re-solving, from the plain solve in `out`; leaves the best round in `out` and returns
+    /// its excess over the template (`None` when the template's numbers were never needed:
+    /// nothing new crosses, or the plain solve meets the criterion).
+    fn collision_rounds(
+        &self,
+        guard: &CollisionGuard,
+        shape: &ShapeSystem<'_>,
+        factor: &RestrictedFactor,
+        out: &mut Vec<Vec3>,
+        attempt: &Attempt,
+    ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
         let moved: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
         let free: Vec<bool> =
             (0..out.len()).map(|v| factor.is_kept(v) && !shape.pinned[self.piece[v] as usize]).collect();
@@ -328,6 +395,8 @@ impl DeformationTransfer {
         let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>)> = None;
         let mut first: Option<AddedCurve> = None;
         let mut first_crossing: Vec<(u32, u32, f64)> = Vec::new();
+        // Whether any vertices were sought: only then can another attempt differ.
+        let mut held = false;
         for round in 0..=guard.params.max_iterations {
             let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
             // Swept where the result is written (the target's frame, f32), so the report
@@ -388,21 +457,29 @@ impl DeformationTransfer {
                     break;
                 }
             }
-            let new_pairs: Vec<(u32, u32)> = match &template {
-                Some(contacts) => candidates.into_iter().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
-                None => candidates,
-            };
-            // Only the part (inside one piece, between pieces) adding more than the template's
-            // is acted on: pushing the other part's pairs moves vertices for nothing and can
-            // add curve where the shape met the criterion.
-            let new_pairs: Vec<(u32, u32)> = match template_added {
+            let in_excess = |&(a, b): &(u32, u32)| match template_added {
                 Some(t) => {
                     let over_inside = added.inside - t.inside.max(0.0) > 0.5 * tolerance;
                     let over_between = added.between - t.between.max(0.0) > 0.5 * tolerance;
-                    new_pairs.into_iter().filter(|&(a, b)| if piece_of(a) == piece_of(b) { over_inside } else { over_between }).collect()
+                    if piece_of(a) == piece_of(b) { over_inside } else { over_between }
                 }
-                None => new_pairs,
+                None => true,
             };
+            let mut new_pairs: Vec<(u32, u32)> = match &template {
+                Some(contacts) => candidates.iter().copied().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
+                None => candidates.clone(),
+            };
+            if !new_pairs.iter().any(in_excess) {
+                // Every pair of the part in excess lies near one of the template's own
+                // contacts, yet the part adds more than the template's: the template's contact
+                // is smaller than the target's there (skin sliding along the teeth), so the
+                // pairs are acted on after all.
+                new_pairs = candidates.clone();
+            }
+            // Only the part (inside one piece, between pieces) adding more than the template's
+            // is acted on: pushing the other part's pairs moves vertices for nothing and can
+            // add curve where the shape met the criterion.
+            let new_pairs: Vec<(u32, u32)> = new_pairs.into_iter().filter(in_excess).collect();
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
@@ -412,7 +489,8 @@ impl DeformationTransfer {
             if new_pairs.is_empty() || round == guard.params.max_iterations {
                 break;
             }
-            let found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece);
+            held = true;
+            let found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece, attempt);
             if found.is_empty() {
                 break;
             }
@@ -427,7 +505,7 @@ impl DeformationTransfer {
             let members: Vec<usize> = (0..out.len()).filter(|&v| region[v]).collect();
             let constraints: Vec<(usize, f64, Vec3)> = targets
                 .iter()
-                .map(|(&u, &target)| (u, guard.params.stiffness * self.matrix.diagonal(u), sub(target, self.target_neutral[u])))
+                .map(|(&u, &target)| (u, attempt.stiffness * guard.params.stiffness * self.matrix.diagonal(u), sub(target, self.target_neutral[u])))
                 .collect();
             *out = self.matrix.solve_local(&members, &constraints, shape.rhs, out)?;
             outcome.solves += 1;
@@ -436,6 +514,7 @@ impl DeformationTransfer {
         outcome.constrained_vertices = targets.len();
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
+        let excess = if held { template_added.and(best.as_ref().map(|b| b.0)) } else { None };
         let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
         let penetration = |pairs: &[(u32, u32, f64)]| shape_penetration(pairs, &rest, &moved, &guard.triangle_piece);
         outcome.plain_penetration = Some(penetration(&first_crossing));
@@ -445,7 +524,7 @@ impl DeformationTransfer {
             outcome.applied = !kept.is_empty();
             *out = if kept.is_empty() { plain } else { kept };
         }
-        Ok(outcome)
+        Ok((outcome, excess))
     }
 
     /// Adds to `region` the free vertices within reach of the seeds `(u, reach)` along the
@@ -543,7 +622,9 @@ impl DeformationTransfer {
         pairs: &[(u32, u32)],
         free: &[bool],
         static_piece: &[bool],
+        attempt: &Attempt,
     ) -> Targets {
+        let margin = attempt.margin;
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
         let keep = |u: usize, push: Vec3, obstacle: u32, pushes: &mut BTreeMap<usize, Vec3>, queue: &mut Vec<(u32, u32)>| {
@@ -577,8 +658,8 @@ impl DeformationTransfer {
                         Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
-                        Some(piece) => self.push_off_piece(guard, positions, u, piece),
-                        None => self.push_out(guard, positions, u, obstacle as usize, free),
+                        Some(piece) => self.push_off_piece(guard, positions, u, piece, margin),
+                        None => self.push_out(guard, positions, u, obstacle as usize, free, margin),
                     };
                     if let Some(push) = push {
                         keep(u, push, obstacle, &mut pushes, &mut queue);
@@ -593,13 +674,13 @@ impl DeformationTransfer {
                     continue;
                 }
                 if let Some(piece) = obstacle_piece(w, obstacle) {
-                    if let Some(push) = self.push_off_piece(guard, positions, w, piece) {
+                    if let Some(push) = self.push_off_piece(guard, positions, w, piece, margin) {
                         keep(w, push, obstacle, &mut pushes, &mut queue);
                     }
                     continue;
                 }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
-                if let Some(push) = self.push_out(guard, positions, w, beneath as usize, free) {
+                if let Some(push) = self.push_out(guard, positions, w, beneath as usize, free, margin) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
@@ -612,7 +693,7 @@ impl DeformationTransfer {
     /// margin along the surface's normal, on the rest side. The side is read at the closest
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
-    fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32) -> Option<Vec3> {
+    fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32, margin: f64) -> Option<Vec3> {
         let in_piece = |t: u32| self.triangle_piece(t) == piece;
         let side_at = |q: Vec3| -> Option<(f64, Vec3, Vec3)> {
             let hit = guard.bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
@@ -624,7 +705,7 @@ impl DeformationTransfer {
         if rest_height == 0.0 || rest_height * height > 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
             return None;
         }
-        let target = add(point, scale(normal, rest_height.signum() * guard.margin(u)));
+        let target = add(point, scale(normal, rest_height.signum() * margin * guard.margin(u)));
         Some(sub(target, positions[u]))
     }
 
@@ -650,7 +731,7 @@ impl DeformationTransfer {
 
     /// The push of vertex `u` back across triangle `t`'s plane to the side it was on at rest,
     /// plus its margin, when it is on the other side now (half of it when `t` can move too).
-    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool]) -> Option<Vec3> {
+    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool], margin: f64) -> Option<Vec3> {
         let tri = self.triangles[t];
         let rest = tri.map(|v| self.target_neutral[v as usize]);
         let rest_side = dot(cross(sub(rest[1], rest[0]), sub(rest[2], rest[0])), sub(self.target_neutral[u], rest[0]));
@@ -668,7 +749,7 @@ impl DeformationTransfer {
             return None;
         }
         let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
-        Some(scale(normal, (side * guard.margin(u) - height) * share))
+        Some(scale(normal, (side * margin * guard.margin(u) - height) * share))
     }
 
     /// Among `near` and the triangles around its corners (not touching `w`), the one whose
@@ -691,6 +772,23 @@ impl DeformationTransfer {
         best.map(|(_, t)| t)
     }
 }
+
+/// One way of holding the vertices that went through (see the module's "Attempts"): the
+/// targets' weights are `stiffness` x [`CollisionParams::stiffness`], the margin `margin` x
+/// [`CollisionGuard::margin`].
+struct Attempt {
+    stiffness: f64,
+    margin: f64,
+}
+
+/// The attempts, in order; the next is tried (from the plain solve) only while the shape is
+/// still worse than the template. Measured on the three bundled targets, each later attempt
+/// clears shapes the earlier ones leave (module docs).
+const ATTEMPTS: [Attempt; 3] = [
+    Attempt { stiffness: 1.0, margin: 1.0 },
+    Attempt { stiffness: 1.0, margin: 2.0 },
+    Attempt { stiffness: 10.0, margin: 1.0 },
+];
 
 /// The template shape's crossing pairs, per triangle its partners, and the curve the shape
 /// adds to the template's neutral.

@@ -1,0 +1,106 @@
+//! Counts the shapes worse than the template by issue 9's criterion (SPEC 3), plain, with
+//! virtual edges before the collision pass and after it, on the arrays
+//! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
+//! --save-arrays DIR`):
+//!
+//!     cargo run --release --example collision_counts -- DIR/<head> [DIR/names.txt]
+//!
+//! The criterion as the native report computes it (`excess`, read by the add-on): per
+//! part (inside one piece, between pieces), the curve the shape adds to the target's neutral
+//! beyond the template shape's own (a template removal counting as zero), each clamped at
+//! zero, summed; worse when beyond 1e-3 of the target's bounding-box diagonal. NAMES, a file
+//! of one shape name per line, names the shapes still worse after the pass. When DIR holds
+//! `truth.f32` (the true target shapes' deltas, as `scripts/bench_personalise.py`'s warp
+//! ground truth makes them), it also prints the warp error, mean over shapes of the mean
+//! error on each shape's active vertices / diagonal, with virtual edges and with the pass.
+
+use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, AddedCurve, TransferShapesParams};
+use shapesmith_native::NoProgress;
+
+fn read(path: &str) -> Vec<[u32; 3]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
+    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
+}
+
+fn points(path: &str) -> Vec<[f32; 3]> {
+    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
+}
+
+fn main() {
+    let dir = std::env::args().nth(1).expect("usage: collision_counts DIR [NAMES]");
+    let source = points(&format!("{dir}/source.f32"));
+    let target = points(&format!("{dir}/target.f32"));
+    let deltas = points(&format!("{dir}/deltas.f32"));
+    let triangles = read(&format!("{dir}/triangles.u32"));
+    let count = deltas.len() / source.len();
+    let names: Vec<String> = match std::env::args().nth(2) {
+        Some(file) => std::fs::read_to_string(file).expect("names file").lines().map(str::to_owned).collect(),
+        None => (0..count).map(|k| format!("shape {k}")).collect(),
+    };
+    assert_eq!(names.len(), count, "one name per shape");
+    let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
+    let params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
+    let started = std::time::Instant::now();
+    let (_, report) =
+        transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress).expect("transfer");
+    let wall = started.elapsed().as_secs_f64();
+    let diagonal = shapesmith_native::rig::bbox_diagonal(&target);
+    let mut line = Vec::new();
+    let mut worse_after = Vec::new();
+    for label in ["plain", "virtual edges", "pass"] {
+        let (mut worse, mut added) = (0, 0.0);
+        for row in &report.penetration {
+            // The report's own criterion (`AddedCurve::excess_parts`), as the add-on reads it.
+            let AddedCurve { inside, between } = match label {
+                "plain" => row.plain_excess.expect("compare_plain"),
+                "virtual edges" => row.before_collisions_excess.unwrap_or(row.excess),
+                _ => row.excess,
+            };
+            added += inside + between;
+            if inside + between > 1e-3 * diagonal {
+                worse += 1;
+                if label == "pass" {
+                    worse_after.push(format!("{} {:+.2}/{:+.2}cm", row.name, 100.0 * inside, 100.0 * between));
+                }
+            }
+        }
+        line.push(format!("{label} {worse} ({added:.3} m)"));
+    }
+    println!("{}: {}; wall {wall:.2} s, pass {:.2} s", dir.rsplit('/').next().unwrap_or(&dir), line.join(", "), report.seconds.collisions);
+    println!("  still worse: {}", worse_after.join(", "));
+    let Ok(bytes) = std::fs::read(format!("{dir}/truth.f32")) else { return };
+    let truth: Vec<[f32; 3]> =
+        bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect();
+    let mut plain_params = params.clone();
+    plain_params.transfer.collisions = None;
+    plain_params.measure_penetration = false;
+    plain_params.compare_plain = false;
+    let (without, _) =
+        transfer_shapes(&source, &deltas, &target, &triangles, &names, None, None, &plain_params, &NoProgress).expect("transfer");
+    let (with, _) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
+        .expect("transfer");
+    let error = |predicted: &[[f32; 3]]| warp_error(predicted, &truth, source.len(), diagonal);
+    let (a, b) = (error(&without), error(&with));
+    println!("  warp: virtual edges {a:.4e}, with the pass {b:.4e} ({:+.1}%)", 100.0 * (b / a - 1.0));
+}
+
+/// Mean over shapes of the mean error on the shape's active vertices (moving at least 0.3 of
+/// its largest true displacement), / diagonal (`mean_active_error` of bench_personalise.py).
+fn warp_error(predicted: &[[f32; 3]], truth: &[[f32; 3]], n: usize, diagonal: f64) -> f64 {
+    let norm = |d: [f32; 3]| (d.iter().map(|&x| f64::from(x) * f64::from(x)).sum::<f64>()).sqrt();
+    let mut errors = Vec::new();
+    for (p, t) in predicted.chunks(n).zip(truth.chunks(n)) {
+        let largest = t.iter().map(|&d| norm(d)).fold(0.0, f64::max);
+        if largest == 0.0 {
+            continue;
+        }
+        let active: Vec<f64> = p
+            .iter()
+            .zip(t)
+            .filter(|(_, &d)| norm(d) >= 0.3 * largest)
+            .map(|(&a, &b)| norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]]))
+            .collect();
+        errors.push(active.iter().sum::<f64>() / active.len() as f64 / diagonal);
+    }
+    errors.iter().sum::<f64>() / errors.len() as f64
+}
