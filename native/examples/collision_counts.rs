@@ -17,14 +17,9 @@
 use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, AddedCurve, TransferShapesParams};
 use shapesmith_native::NoProgress;
 
-fn read(path: &str) -> Vec<[u32; 3]> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
-    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
-}
-
-fn points(path: &str) -> Vec<[f32; 3]> {
-    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
-}
+#[path = "common/arrays.rs"]
+mod arrays;
+use arrays::{points, read};
 
 fn main() {
     let dir = std::env::args().nth(1).expect("usage: collision_counts DIR [NAMES]");
@@ -68,9 +63,11 @@ fn main() {
     }
     println!("{}: {}; wall {wall:.2} s, pass {:.2} s", dir.rsplit('/').next().unwrap_or(&dir), line.join(", "), report.seconds.collisions);
     println!("  still worse: {}", worse_after.join(", "));
-    let Ok(bytes) = std::fs::read(format!("{dir}/truth.f32")) else { return };
-    let truth: Vec<[f32; 3]> =
-        bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect();
+    let truth_path = format!("{dir}/truth.f32");
+    if !std::path::Path::new(&truth_path).exists() {
+        return;
+    }
+    let truth = points(&truth_path);
     let mut plain_params = params.clone();
     plain_params.transfer.collisions = None;
     plain_params.measure_penetration = false;

@@ -13,14 +13,9 @@ use std::time::Instant;
 use shapesmith_native::packing::{pack_expressions, Packing, PackingParams};
 use shapesmith_native::{NoProgress, RigView};
 
-fn read(path: &str) -> Vec<[u32; 3]> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
-    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
-}
-
-fn points(path: &str) -> Vec<[f32; 3]> {
-    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
-}
+#[path = "common/arrays.rs"]
+mod arrays;
+use arrays::{points, read};
 
 /// The best wall seconds of `runs` packings, and the last packing.
 fn best_of(rig: &RigView, params: &PackingParams, runs: usize) -> (f64, Packing) {

@@ -15,14 +15,9 @@ use std::time::Instant;
 use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, StageSeconds, TransferShapesParams};
 use shapesmith_native::NoProgress;
 
-fn read(path: &str) -> Vec<[u32; 3]> {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
-    bytes.chunks_exact(12).map(|c| std::array::from_fn(|i| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
-}
-
-fn points(path: &str) -> Vec<[f32; 3]> {
-    read(path).into_iter().map(|p| p.map(f32::from_bits)).collect()
-}
+#[path = "common/arrays.rs"]
+mod arrays;
+use arrays::{points, read};
 
 fn main() {
     let dir = std::env::args().nth(1).expect("usage: time_transfer DIR [RUNS]");

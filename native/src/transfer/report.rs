@@ -288,7 +288,7 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transfer::tests::{lip_closing, lips, posed, press_and_bump, skin_over_teeth};
+    use crate::transfer::tests::{lip_closing, lips, posed, skin_rising_over_teeth};
     use crate::transfer::{measure_penetration, CollisionParams, VirtualEdgeParams};
     use crate::NoProgress;
 
@@ -350,14 +350,8 @@ mod tests {
     fn report_takes_the_passs_numbers_and_they_equal_an_exhaustive_sweep() {
         // Skin resting through the teeth (rest pairs on both heads) rising through the
         // target's lower teeth top; a bump far away; a shape that does not move.
-        let (source, tris) = skin_over_teeth(0.2);
-        let (target, _) = skin_over_teeth(0.02);
+        let (source, target, tris, mut deltas) = skin_rising_over_teeth();
         let n = source.len();
-        let mut deltas = press_and_bump(&source);
-        for (v, p) in source.iter().enumerate().take(15 * 15) {
-            let rise = (-((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).exp();
-            deltas[v] = if rise > 1e-3 { [0.0, 0.0, 0.03 * rise] } else { [0.0; 3] };
-        }
         deltas.extend(vec![[0.0; 3]; n]);
         let target: Vec<[f32; 3]> = target.iter().map(moved).collect();
         let plain = TransferParams { virtual_edges: None, ..Default::default() };

@@ -587,6 +587,22 @@ pub(super) fn skin_over_teeth(top: f32) -> Mesh {
 
 /// Shape 0 presses the middle of the skin down by 0.15 (the teeth stay); shape 1 raises a
 /// bump in a corner, far from the teeth.
+/// The skin plane cutting through the teeth at rest (both meshes cross from the start: the
+/// MakeHuman lids and lips rest inside their eyeballs and teeth), and a small rise of the skin
+/// over the teeth (first shape; the second is [`press_and_bump`]'s bump) that stays inside the
+/// template's tall teeth but pokes through the target's top, 0.02 above the skin: only the
+/// target's shape adds curve. Template, target, triangles, deltas.
+pub(super) fn skin_rising_over_teeth() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<[f32; 3]>) {
+    let (source, tris) = skin_over_teeth(0.2);
+    let (target, _) = skin_over_teeth(0.02);
+    let mut deltas = press_and_bump(&source);
+    for (v, p) in source.iter().enumerate().take(15 * 15) {
+        let rise = (-((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).exp();
+        deltas[v] = if rise > 1e-3 { [0.0, 0.0, 0.03 * rise] } else { [0.0; 3] };
+    }
+    (source, target, tris, deltas)
+}
+
 pub(super) fn press_and_bump(pts: &[[f32; 3]]) -> Vec<[f32; 3]> {
     let skin = 15 * 15;
     let mut deltas = vec![[0.0f32; 3]; 2 * pts.len()];
@@ -706,18 +722,8 @@ fn collision_pass_does_not_move_a_warped_target_away_from_its_ground_truth() {
 
 #[test]
 fn skin_resting_through_a_static_piece_adds_no_curve_where_the_template_adds_none() {
-    // The skin plane cuts through the teeth at rest (both meshes cross from the start: the
-    // MakeHuman lids and lips rest inside their eyeballs and teeth). A small rise of the skin
-    // over the teeth stays inside the template's tall teeth but pokes through the target's
-    // top, 0.02 above the skin: only the target's shape adds curve.
-    let (source, tris) = skin_over_teeth(0.2);
-    let (target, _) = skin_over_teeth(0.02);
+    let (source, target, tris, deltas) = skin_rising_over_teeth();
     let n = source.len();
-    let mut deltas = press_and_bump(&source);
-    for (v, p) in source.iter().enumerate().take(15 * 15) {
-        let rise = (-((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).exp();
-        deltas[v] = if rise > 1e-3 { [0.0, 0.0, 0.03 * rise] } else { [0.0; 3] };
-    }
     let names = vec!["lipRise".to_string(), "cheekBump".to_string()];
     let added = |neutral: &[[f32; 3]], delta: &[[f32; 3]]| {
         let (rest, shape) = (measure_penetration(neutral, &tris), measure_penetration(&posed(neutral, delta), &tris));
