@@ -300,14 +300,7 @@ mod tests {
                 [x, y, amplitude * (7.0 * x + rng.random::<f64>()).sin() * (5.0 * y).cos()]
             })
             .collect();
-        let mut tris: Vec<[u32; 3]> = Vec::new();
-        for y in 0..w - 1 {
-            for x in 0..w - 1 {
-                let v = (y * w + x) as u32;
-                tris.push([v, v + 1, v + w as u32 + 1]);
-                tris.push([v, v + w as u32 + 1, v + w as u32]);
-            }
-        }
+        let mut tris = crate::geometry::topology::grid_triangles(w as u32, w as u32, 0);
         for _ in 0..soup {
             let start = pts.len() as u32;
             let centre: Vec3 = [rng.random(), rng.random(), rng.random::<f64>() - 0.5];

@@ -80,6 +80,17 @@ pub fn connected_components(n_vertices: usize, triangles: &[[u32; 3]]) -> (Vec<u
     (label, count as usize)
 }
 
+/// The triangles of a `width` x `height` grid of vertices numbered row by row from `first`,
+/// each cell split along the diagonal from its first corner: the small synthetic meshes the
+/// crate's tests build.
+#[cfg(test)]
+pub(crate) fn grid_triangles(width: u32, height: u32, first: u32) -> Vec<[u32; 3]> {
+    (0..height - 1)
+        .flat_map(|y| (0..width - 1).map(move |x| first + y * width + x))
+        .flat_map(|a| [[a, a + 1, a + width + 1], [a, a + width + 1, a + width]])
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

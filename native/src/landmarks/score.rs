@@ -191,13 +191,7 @@ mod tests {
     fn patch_rig() -> Fixture {
         let side = 6u32;
         let points: Vec<[f32; 3]> = (0..side * side).map(|i| [(i % side) as f32, (i / side) as f32, 0.0]).collect();
-        let triangles = (0..side - 1)
-            .flat_map(|y| (0..side - 1).map(move |x| (x, y)))
-            .flat_map(|(x, y)| {
-                let a = y * side + x;
-                [[a, a + 1, a + side + 1], [a, a + side + 1, a + side]]
-            })
-            .collect();
+        let triangles = crate::geometry::topology::grid_triangles(side, side, 0);
         let centres = [[1.0, 1.0], [4.0, 1.0], [1.0, 4.0], [4.0, 4.0]];
         let mut deltas = Vec::new();
         for (k, c) in centres.iter().enumerate() {

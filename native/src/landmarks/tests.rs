@@ -15,15 +15,7 @@ fn grid() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
         .flat_map(|y| (-HALF..=HALF).map(move |x| (x, y)))
         .map(|(x, y)| [x as f32, y as f32, 3.0 - 0.03 * (x * x + (y - 6) * (y - 6)) as f32])
         .collect();
-    let triangles = (0..ROWS - 1)
-        .flat_map(|y| (0..width - 1).map(move |x| (x, y)))
-        .flat_map(|(x, y)| {
-            let a = (y * width + x) as u32;
-            let w = width as u32;
-            [[a, a + 1, a + w + 1], [a, a + w + 1, a + w]]
-        })
-        .collect();
-    (points, triangles)
+    (points, crate::geometry::topology::grid_triangles(width as u32, ROWS as u32, 0))
 }
 
 fn index(x: i32, y: i32) -> usize {

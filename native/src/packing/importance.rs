@@ -127,15 +127,7 @@ mod tests {
                 pts.push([x as f32, y as f32, 0.0]);
             }
         }
-        let mut tris = Vec::new();
-        for y in 0..3u32 {
-            for x in 0..3u32 {
-                let a = y * 4 + x;
-                tris.push([a, a + 1, a + 5]);
-                tris.push([a, a + 5, a + 4]);
-            }
-        }
-        (pts, tris)
+        (pts, crate::geometry::topology::grid_triangles(4, 4, 0))
     }
 
     #[test]

@@ -119,13 +119,7 @@ fn sheet(points: &mut Vec<[f32; 3]>, triangles: &mut Vec<[u32; 3]>, origin: Vec3
             points.push(std::array::from_fn(|a| (origin[a] + i as f64 * step_u[a] + j as f64 * step_v[a]) as f32));
         }
     }
-    for j in 0..rows - 1 {
-        for i in 0..cols - 1 {
-            let a = first + j * cols + i;
-            triangles.push([a, a + 1, a + cols + 1]);
-            triangles.push([a, a + cols + 1, a + cols]);
-        }
-    }
+    triangles.extend(crate::geometry::topology::grid_triangles(cols, rows, first));
     first as usize..points.len()
 }
 

@@ -37,15 +37,7 @@ impl Instance {
 /// A `side` x `side` grid in x, y >= 1 (so no vertex has a mirror partner across x = 0).
 fn grid(side: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let points = (0..side * side).map(|i| [1.0 + (i % side) as f32, 1.0 + (i / side) as f32, 0.0]).collect();
-    let mut triangles = Vec::new();
-    for y in 0..side - 1 {
-        for x in 0..side - 1 {
-            let a = y * side + x;
-            triangles.push([a, a + 1, a + side + 1]);
-            triangles.push([a, a + side + 1, a + side]);
-        }
-    }
-    (points, triangles)
+    (points, crate::geometry::topology::grid_triangles(side, side, 0))
 }
 
 /// K random blobs on an 8 x 8 grid: full displacement inside a radius (the active set),

@@ -169,15 +169,7 @@ mod tests {
                 pts.push([x as f64, y as f64 * 1.1, 0.05 * ((x * y) as f64).sin()]);
             }
         }
-        let mut tris = Vec::new();
-        for y in 0..h - 1 {
-            for x in 0..w - 1 {
-                let v = (y * w + x) as u32;
-                tris.push([v, v + 1, v + w as u32 + 1]);
-                tris.push([v, v + w as u32 + 1, v + w as u32]);
-            }
-        }
-        (pts, tris)
+        (pts, crate::geometry::topology::grid_triangles(w as u32, h as u32, 0))
     }
 
     #[test]

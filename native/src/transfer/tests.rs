@@ -4,6 +4,7 @@
 use super::virtual_edges::tests::folded_strip;
 use super::*;
 use crate::error::ShapesmithError;
+use crate::geometry::topology::grid_triangles;
 use crate::NoProgress;
 
 /// A wavy face sheet (piece 0), a UV-sphere eyeball (piece 1) and a box of teeth (piece 2).
@@ -14,7 +15,6 @@ type Pieces = [std::ops::Range<usize>; 3];
 
 fn head() -> (Vec<[f32; 3]>, Vec<[u32; 3]>, Pieces) {
     let mut pts: Vec<[f32; 3]> = Vec::new();
-    let mut tris: Vec<[u32; 3]> = Vec::new();
     let (w, h) = (14usize, 12usize);
     for y in 0..h {
         for x in 0..w {
@@ -22,13 +22,7 @@ fn head() -> (Vec<[f32; 3]>, Vec<[u32; 3]>, Pieces) {
             pts.push([fx, fy, 0.08 * (3.0 * fx).sin() * (2.0 * fy).cos() + 0.01 * ((x * 7 + y * 3) % 5) as f32]);
         }
     }
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let v = (y * w + x) as u32;
-            tris.push([v, v + 1, v + w as u32 + 1]);
-            tris.push([v, v + w as u32 + 1, v + w as u32]);
-        }
-    }
+    let mut tris = grid_triangles(w as u32, h as u32, 0);
     let face = 0..pts.len();
     // Eyeball: a UV sphere of radius 0.08 behind the sheet.
     let start = pts.len() as u32;
@@ -565,14 +559,7 @@ pub(super) fn skin_over_teeth(top: f32) -> Mesh {
             pts.push([x as f32 / (w - 1) as f32, y as f32 / (w - 1) as f32, 0.0]);
         }
     }
-    let mut tris: Vec<[u32; 3]> = Vec::new();
-    for y in 0..w - 1 {
-        for x in 0..w - 1 {
-            let v = (y * w + x) as u32;
-            tris.push([v, v + 1, v + w as u32 + 1]);
-            tris.push([v, v + w as u32 + 1, v + w as u32]);
-        }
-    }
+    let mut tris = grid_triangles(w as u32, w as u32, 0);
     let start = pts.len() as u32;
     for c in 0..8u32 {
         let z = if c >> 2 == 1 { top } else { -0.5 };
