@@ -1,5 +1,7 @@
-//! Mesh connectivity from the triangle list: unique edges, vertex neighbours, connected
-//! components.
+//! Mesh connectivity from the triangle list: unique edges, boundary edges, vertex
+//! neighbours, connected components.
+
+use std::collections::{HashMap, HashSet};
 
 /// Unique undirected edges `(a, b)` with `a < b`, sorted.
 pub fn unique_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
@@ -11,6 +13,18 @@ pub fn unique_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
     edges.sort_unstable();
     edges.dedup();
     edges
+}
+
+/// The undirected edges `(a, b)`, `a < b`, that belong to one triangle only: the mesh's open
+/// boundary.
+pub fn boundary_edges(triangles: &[[u32; 3]]) -> HashSet<(u32, u32)> {
+    let mut count = HashMap::<(u32, u32), u32>::new();
+    for t in triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    count.into_iter().filter(|&(_, n)| n == 1).map(|(edge, _)| edge).collect()
 }
 
 /// Vertex adjacency lists (compressed rows): neighbours of `v` are

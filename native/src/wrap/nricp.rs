@@ -20,7 +20,7 @@ use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::closest_point::SurfacePoint;
 use crate::geometry::mat3::{add, dot, length, sub, vertex_normals, Vec3};
-use crate::geometry::topology::unique_edges;
+use crate::geometry::topology::{boundary_edges, unique_edges};
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
@@ -56,13 +56,7 @@ impl<'a> TargetSurface<'a> {
                 if len > 0.0 { n.map(|x| x / len) } else { n }
             })
             .collect();
-        let mut count = std::collections::HashMap::<(u32, u32), u32>::new();
-        for t in triangles {
-            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-                *count.entry((a.min(b), a.max(b))).or_default() += 1;
-            }
-        }
-        let boundary_edges: std::collections::HashSet<(u32, u32)> = count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect();
+        let boundary_edges = boundary_edges(triangles);
         let mut boundary_vertices = vec![false; points.len()];
         for &(a, b) in &boundary_edges {
             boundary_vertices[a as usize] = true;

@@ -25,6 +25,7 @@
 //!   puts the targets nearest the template's rim.
 
 use crate::geometry::mat3::{add, dot, length, scale, sub, Vec3};
+use crate::geometry::topology::boundary_edges;
 
 use super::align::symmetric_eigen;
 use super::pieces::{match_pieces, Moments};
@@ -48,16 +49,11 @@ pub struct RimTarget {
 /// Each boundary loop of the mesh (edges of one triangle), as its vertices in walking order.
 /// A vertex where two loops touch is walked once per outgoing boundary edge.
 pub fn boundary_loops(triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
-    let mut count = std::collections::HashMap::<(u32, u32), u32>::new();
-    for t in triangles {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *count.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
+    let boundary = boundary_edges(triangles);
     let mut next = std::collections::BTreeMap::<u32, Vec<u32>>::new();
     for t in triangles {
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            if count[&(a.min(b), a.max(b))] == 1 {
+            if boundary.contains(&(a.min(b), a.max(b))) {
                 next.entry(a).or_default().push(b);
             }
         }
