@@ -70,7 +70,7 @@
 //!   final gap, not at the rest gap, so they need more pull against the gradient term: on the
 //!   two-layer lip test (template gap 0.1 closed by 90%, target gap 0.04) `w_ve = 1` leaves 28
 //!   crossing pairs, `w_ve = 3` none (minimum gap 3e-4; 3.5e-3 at 10).
-//! - **Collision-aware pass** (SPEC 3, beyond paper 004; [`CollisionParams`], `collisions.rs`),
+//! - **Collision-aware pass** (SPEC 3, beyond paper 004; [`CollisionParams`], `collisions/`),
 //!   on by default. After each transferred shape's solve: (1) the result is swept (triangles
 //!   with a moving corner) and the curve it adds to the target's neutral, inside one piece
 //!   and between pieces, is compared part by part with what the template's shape adds to its

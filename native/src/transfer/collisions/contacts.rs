@@ -1,0 +1,128 @@
+//! What a shape adds to its neutral's intersection curve, and what the template's own shape
+//! adds: issue 9's criterion ([`AddedCurve::excess`]) and the template's contacts the pass
+//! leaves alone ([`TemplateContacts::near`]).
+
+use std::collections::HashMap;
+
+use super::CollisionGuard;
+use crate::geometry::penetration::{crossings, Penetration};
+use crate::transfer::deformation::DeformationTransfer;
+use crate::transfer::gradients::{add, to_f64, Vec3};
+
+/// The intersection curve a shape adds to its neutral (its length in the shape minus at
+/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
+/// and between two pieces (skin through teeth, an eyeball, lashes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AddedCurve {
+    pub inside: f64,
+    pub between: f64,
+}
+
+impl AddedCurve {
+    /// The curve a shape whose penetration is `shape` adds to its neutral's `rest`.
+    pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
+        let inside = |p: &Penetration| p.length - p.between_pieces;
+        AddedCurve { inside: inside(shape) - inside(rest), between: shape.between_pieces - rest.between_pieces }
+    }
+
+    /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
+    /// total `rest`, `piece` giving each triangle's piece.
+    pub(super) fn of(pairs: impl Iterator<Item = (u32, u32, f64)>, piece: impl Fn(u32) -> u32, rest: AddedCurve) -> Self {
+        let mut added = AddedCurve { inside: -rest.inside, between: -rest.between };
+        for (a, b, l) in pairs {
+            if piece(a) == piece(b) {
+                added.inside += l;
+            } else {
+                added.between += l;
+            }
+        }
+        added
+    }
+
+    /// How much more this adds than the template's shape `template` adds, per part, a part
+    /// where the template removes some of its neutral's curve counting as adding none (issue
+    /// 9's criterion: where the template adds none, the transfer adds none), and removing in
+    /// one part not paying for adding in the other. Zero when the shape meets the criterion.
+    pub fn excess(&self, template: &AddedCurve) -> f64 {
+        let parts = self.excess_parts(template);
+        parts.inside + parts.between
+    }
+
+    /// [`Self::excess`] part by part (each zero or more): what the report gives per shape, so
+    /// the add-on reads the criterion instead of computing it again.
+    pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
+        AddedCurve {
+            inside: (self.inside - template.inside.max(0.0)).max(0.0),
+            between: (self.between - template.between.max(0.0)).max(0.0),
+        }
+    }
+}
+
+impl DeformationTransfer {
+    /// The template shape's own crossing pairs (one sweep of its moved triangles, plus its
+    /// neutral's unmoved ones), computed once per shape that has candidate pairs.
+    pub(super) fn template_contacts(&self, guard: &CollisionGuard, delta: &[[f32; 3]], moved: &[bool]) -> TemplateContacts {
+        let points: Vec<Vec3> = self.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let bvh = guard.template_bvh.refitted(&points, &self.triangles);
+        let swept = crossings(&points, &self.triangles, &bvh, Some(moved));
+        let unmoved = guard.template_rest_pairs.iter().copied().filter(|&(a, b, _)| !moved[a as usize] && !moved[b as usize]);
+        let all: Vec<(u32, u32, f64)> = swept.into_iter().chain(unmoved).collect();
+        // The artist's own contacts are the pairs the shape crosses and its neutral does not:
+        // a pair crossing at the template's rest (skin resting in its teeth) says nothing
+        // about what the shape may add around it.
+        let mut partners: HashMap<u32, Vec<u32>> = HashMap::new();
+        let at_rest = |a: u32, b: u32| guard.template_rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok();
+        for &(a, b, _) in all.iter().filter(|&&(a, b, _)| !at_rest(a, b)) {
+            partners.entry(a).or_default().push(b);
+            partners.entry(b).or_default().push(a);
+        }
+        // Template and target share the topology, hence the pieces.
+        let piece_of = |t: u32| self.triangle_piece(t);
+        let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
+        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest) }
+    }
+
+}
+
+/// The template shape's crossing pairs, per triangle its partners, and the curve the shape
+/// adds to the template's neutral.
+pub(super) struct TemplateContacts {
+    partners: HashMap<u32, Vec<u32>>,
+    pub(super) added: AddedCurve,
+}
+
+impl TemplateContacts {
+    /// Whether the pair `(a, b)` is the artist's own: some triangle sharing a corner with `a`
+    /// crosses some triangle sharing a corner with `b` in the template's shape (the target's
+    /// contact may sit a triangle away from the template's). Lips the template presses into
+    /// each other stay as the template has them.
+    pub(super) fn near(&self, dt: &DeformationTransfer, guard: &CollisionGuard, a: u32, b: u32) -> bool {
+        let near_b = guard.around(&dt.triangles[b as usize]);
+        guard.around(&dt.triangles[a as usize]).into_iter().any(|x| {
+            self.partners.get(&x).is_some_and(|ys| ys.iter().any(|y| near_b.binary_search(y).is_ok()))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::AddedCurve;
+
+    #[test]
+    fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_gain_only() {
+        // Triangles 0, 1 in piece 0; 2 in piece 1. Rest: inside 0.5, between 0.25.
+        let piece = |t: u32| u32::from(t == 2);
+        let rest = AddedCurve::of([(0, 1, 0.5), (1, 2, 0.25)].into_iter(), piece, AddedCurve::default());
+        assert_eq!(rest, AddedCurve { inside: 0.5, between: 0.25 });
+        let added = AddedCurve::of([(0, 1, 0.75), (0, 2, 0.125)].into_iter(), piece, rest);
+        assert_eq!(added, AddedCurve { inside: 0.25, between: -0.125 });
+        // A template adding more inside and anything between: met.
+        assert_eq!(added.excess(&AddedCurve { inside: 0.5, between: -1.0 }), 0.0);
+        // Removing between does not pay for adding inside: the template adds none inside.
+        assert_eq!(added.excess(&AddedCurve { inside: -0.5, between: 1.0 }), 0.25);
+        // Where the template removes, the target need only add none (not remove as much).
+        let removes = AddedCurve { inside: -0.25, between: -0.5 };
+        assert_eq!(AddedCurve { inside: 0.0, between: -0.125 }.excess(&removes), 0.0);
+        assert_eq!(AddedCurve { inside: 0.125, between: 0.25 }.excess(&removes), 0.375);
+    }
+}
