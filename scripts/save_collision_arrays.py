@@ -5,7 +5,10 @@
 DIR/<head>/ for each Target_* head of the cached sample, for the 19k and 25k heads of
 scripts/bench_transfer.py (its subdivided Template / first target pairs), and DIR/warp/ for
 scripts/bench_personalise.py's warp ground truth (with `truth.f32`, the true shapes' deltas);
-DIR/names.txt holds the template's shape names, one a line. Then
+DIR/face_<head>/ for the face region alone of each Target_* head (one surface: the skin's
+moving vertices and two rings around them, no eyes, teeth or lashes; what a face-region rig
+is, like the held-back one issue 9 names); DIR/names.txt holds the template's shape names, one
+a line. Then
 
     cargo run --release --example collision_counts -- DIR/<head> DIR/names.txt
 
@@ -39,8 +42,11 @@ def main():
     template = bpy.data.objects["Template"]
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
+    region = face_region(rig)
     for target in targets:
-        bench_transfer.save_arrays(rig, transfer.rest_positions(target), os.path.join(out, target.name))
+        rest = transfer.rest_positions(target)
+        bench_transfer.save_arrays(rig, rest, os.path.join(out, target.name))
+        bench_transfer.save_arrays(region.cut(rig), rest[region.kept], os.path.join(out, "face_" + target.name))
     dense = bench_transfer.subdivided(template, "TemplateDense"), bench_transfer.subdivided(targets[0], "TargetDense")
     face = (
         bench_transfer.subdivided(template, "TemplateDenseFace", bench_transfer.FACE_EDGES),
@@ -53,7 +59,47 @@ def main():
     np.ascontiguousarray(truth.truth, dtype="<f4").tofile(os.path.join(out, "warp", "truth.f32"))
     with open(os.path.join(out, "names.txt"), "w") as f:
         f.write("\n".join(rig.names))
-    print(f"wrote {len(targets) + 3} heads to {out}")
+    print(f"wrote {2 * len(targets) + 3} heads to {out}")
+
+
+class face_region:
+    """The skin's face as one surface: the vertices of the largest connected piece that move
+    in some shape (more than 1e-4 of the diagonal), grown by two rings over the skin's
+    triangles, and the triangles with every corner among them."""
+
+    def __init__(self, rig):
+        triangles = rig.triangles.astype(np.int64)
+        n = len(rig.neutral)
+        parent = np.arange(n)
+
+        def root(v):
+            while parent[v] != v:
+                parent[v] = parent[parent[v]]
+                v = parent[v]
+            return v
+
+        for a, b, c in triangles:
+            for u, w in ((a, b), (b, c)):
+                ru, rw = root(u), root(w)
+                if ru != rw:
+                    parent[ru] = rw
+        roots = np.array([root(v) for v in range(n)])
+        skin = roots == np.bincount(roots).argmax()
+        diagonal = np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0))
+        chosen = skin & (np.linalg.norm(rig.deltas, axis=2).max(0) > 1e-4 * diagonal)
+        for _ in range(2):
+            touched = chosen[triangles].any(1)
+            chosen[triangles[touched].ravel()] = True
+            chosen &= skin
+        self.kept = np.flatnonzero(chosen)
+        index = np.full(n, -1)
+        index[self.kept] = np.arange(len(self.kept))
+        self.triangles = index[triangles[chosen[triangles].all(1)]].astype(np.uint32)
+
+    def cut(self, rig):
+        return type(rig)(
+            neutral=rig.neutral[self.kept], deltas=rig.deltas[:, self.kept], triangles=self.triangles, names=rig.names
+        )
 
 
 if __name__ == "__main__":
