@@ -5,7 +5,7 @@
 DIR/<head>/ for each Target_* head of the cached sample, for the 19k and 25k heads of
 scripts/bench_transfer.py (its subdivided Template / first target pairs), and DIR/warp/ for
 scripts/bench_personalise.py's warp ground truth (with `truth.f32`, the true shapes' deltas);
-DIR/face_<head>/ for the face region alone of each Target_* head (one surface: the skin's
+DIR/face_<head>/ for the face region alone of each Target_* head and of the 19k head (one surface: the skin's
 moving vertices and two rings around them, no eyes, teeth or lashes; what a face-region rig
 is, like the held-back one issue 9 names); DIR/names.txt holds the template's shape names, one
 a line. Then
@@ -53,13 +53,17 @@ def main():
         bench_transfer.subdivided(targets[0], "TargetDenseFace", bench_transfer.FACE_EDGES, template=template),
     )
     for head, (source, target) in (("19k", dense), ("25k", face)):
-        bench_transfer.save_arrays(mesh_arrays.read_rig(source), transfer.rest_positions(target), os.path.join(out, head))
+        dense_rig, dense_rest = mesh_arrays.read_rig(source), transfer.rest_positions(target)
+        bench_transfer.save_arrays(dense_rig, dense_rest, os.path.join(out, head))
+        if head == "19k":
+            dense_region = face_region(dense_rig)
+            bench_transfer.save_arrays(dense_region.cut(dense_rig), dense_rest[dense_region.kept], os.path.join(out, "face_19k"))
     truth = bench_personalise.WarpGroundTruth(shapesmith.native.module(), rig, {})
     bench_transfer.save_arrays(rig, truth.target, os.path.join(out, "warp"))
     np.ascontiguousarray(truth.truth, dtype="<f4").tofile(os.path.join(out, "warp", "truth.f32"))
     with open(os.path.join(out, "names.txt"), "w") as f:
         f.write("\n".join(rig.names))
-    print(f"wrote {2 * len(targets) + 3} heads to {out}")
+    print(f"wrote {2 * len(targets) + 4} heads to {out}")
 
 
 class face_region:
