@@ -110,7 +110,8 @@ pub struct FitParams {
     pub iterations: usize,
     /// `beta / alpha`: the landmark term's weight decays with the stiffness.
     pub landmark_weight: f64,
-    /// Closest points whose surface normal differs from the template's by more are rejected.
+    /// Closest points are searched among the character's triangles whose normal differs from
+    /// the template vertex's by at most this (`nricp::closest_points`).
     pub max_angle_degrees: f64,
     /// Closest points farther than this fraction of the character's bbox diagonal are rejected.
     pub max_distance: f64,
@@ -126,9 +127,9 @@ impl Default for FitParams {
     fn default() -> Self {
         Self {
             stiffness: vec![100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.5],
-            iterations: 3,
+            iterations: 5,
             landmark_weight: 100.0,
-            max_angle_degrees: 60.0,
+            max_angle_degrees: 45.0,
             max_distance: 0.1,
             rim_weight: 1.0,
             tolerance: 1e-4,
