@@ -234,10 +234,11 @@ fn bending_entries(n: usize, edges: &[(usize, usize)]) -> Vec<(usize, usize, f64
 /// disagrees). Where two sheets of the character face each other (the closed lips, the
 /// mouth's inside, a lid over the eye) the nearest point often lies on the sheet facing the
 /// other way; rejected, the vertex had no data term and the stiffness alone placed it, while
-/// the search finds its own sheet a little farther on. Measured on the bench's decimated
-/// `Target_OldMan` (keys' mismatch at the wrapped template's vertices against the true
-/// correspondence): 1.01e-3 with rejection at 60 degrees, 9.5e-4 with the search at 60
-/// degrees, 9.1e-4 at 45 (30: 9.6e-4, the lids lose their data).
+/// the search finds its own sheet a little farther on. Measured on `scripts/bench_wrap.py`'s
+/// 25k character (decimated `Target_OldMan`): the true keys sampled where the fit put each
+/// template vertex are 1.01e-3 of the diagonal from its own with the rejection at 60 degrees,
+/// 9.5e-4 with the search at 60 and 9.1e-4 at 45 (30: 9.6e-4, the lids lose their data);
+/// the carried keys 1.28e-3 -> 1.23e-3 (10k: 1.24e-3 -> 1.25e-3).
 fn closest_points(
     positions: &[Vec3],
     skin: &[u32],
@@ -271,7 +272,11 @@ mod tests {
     fn closest_points_search_the_sheet_facing_the_same_way() {
         let square = |z: f64, up: bool, first: u32| -> (Vec<Vec3>, Vec<[u32; 3]>) {
             let points = vec![[-5.0, -5.0, z], [5.0, -5.0, z], [5.0, 5.0, z], [-5.0, 5.0, z]];
-            let triangles = if up { vec![[first, first + 1, first + 2], [first, first + 2, first + 3]] } else { vec![[first, first + 2, first + 1], [first, first + 3, first + 2]] };
+            let triangles = if up {
+                vec![[first, first + 1, first + 2], [first, first + 2, first + 3]]
+            } else {
+                vec![[first, first + 2, first + 1], [first, first + 3, first + 2]]
+            };
             (points, triangles)
         };
         let (mut points, mut triangles) = square(0.0, true, 0);
