@@ -28,6 +28,7 @@ SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 import makehuman  # noqa: E402
+from wrap_copies import barycentric_copy, moving_error, nearest_vertex_copy  # noqa: E402
 
 IDENTITY = "Target_OldMan"
 SIZES = {"10k": 10_000, "25k": 25_000}
@@ -65,15 +66,6 @@ def build_character(identity, name, vertices):
     return obj
 
 
-def moving_error(estimate, reference, diagonal):
-    errors = []
-    for est, ref in zip(estimate, reference):
-        moving = np.linalg.norm(ref, axis=1) > 1e-3 * diagonal
-        if moving.any():
-            errors.append(np.linalg.norm(est[moving] - ref[moving], axis=1).mean() / diagonal)
-    return float(np.mean(errors))
-
-
 def roughness(deltas, edges, reference, diagonal):
     """Mean norm of the uniform Laplacian of the deltas on moving vertices, / diagonal."""
     n = deltas.shape[1]
@@ -88,21 +80,6 @@ def roughness(deltas, edges, reference, diagonal):
         if moving.any():
             values.append(np.linalg.norm(laplacian[moving], axis=1).mean() / diagonal)
     return float(np.mean(values))
-
-
-def barycentric_sample(nat, points, surface, triangles, deltas):
-    triangle, barycentric, _ = nat.bind_to_surface(points.astype(np.float32), surface.astype(np.float32), triangles)
-    return np.einsum("vc,kvcx->kvx", barycentric, deltas[:, triangles[triangle]])
-
-
-def nearest_vertex(surface, deltas, points):
-    from mathutils.kdtree import KDTree
-
-    tree = KDTree(len(surface))
-    for i, p in enumerate(surface):
-        tree.insert(p, i)
-    tree.balance()
-    return deltas[:, [tree.find(p)[1] for p in points]]
 
 
 def run_size(shapesmith, label, vertices, truth):
@@ -133,14 +110,14 @@ def run_size(shapesmith, label, vertices, truth):
     identity_frame = (points - SHIFT) / SCALE
     identity_frame = np.stack([identity_frame[:, 0], -identity_frame[:, 2], identity_frame[:, 1]], axis=1)
     identity_triangles = mesh_arrays.read_triangles(identity)
-    reference = barycentric_sample(nat, identity_frame, positions(identity), identity_triangles, truth)
+    reference = barycentric_copy(nat, identity_frame, positions(identity), identity_triangles, truth)
     reference = np.stack([makehuman.character_frame(r, SCALE) for r in reference])
     wrapped_positions = positions(wrapped_object)
     wrapped_deltas = transfer.transfer_object(template, wrapped_object).deltas.astype(np.float64)
     copies = {
         "carry": result.deltas.astype(np.float64),
-        "nearest vertex": nearest_vertex(wrapped_positions, wrapped_deltas, points),
-        "barycentric": barycentric_sample(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), wrapped_deltas),
+        "nearest vertex": nearest_vertex_copy(wrapped_positions, wrapped_deltas, points),
+        "barycentric": barycentric_copy(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), wrapped_deltas),
     }
     edges = np.array([tuple(e.vertices) for e in character.data.edges])
     row = {
