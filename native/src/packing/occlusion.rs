@@ -11,7 +11,7 @@
 //!
 //! A vertex is seen when no triangle other than its own lies over it, nearer the camera. In
 //! a frame whose third axis points at the camera, that is an axis-parallel ray, so the box
-//! query of [`TriangleBvh`] finds its candidate triangles exactly. As for collisions, only
+//! query of [`crate::geometry::bvh::TriangleBvh`] finds its candidate triangles exactly. As for collisions, only
 //! the triangles the two shapes move are posed (the rest are tested at rest) and a direction
 //! is tested only when the two can interact: A's and B's moving regions meet, or the front
 //! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
@@ -27,7 +27,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles};
-use crate::geometry::bvh::{Aabb, TriangleBvh};
+use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::{cross, dot, length, scale, Vec3};
 use crate::rig::RigView;
 
@@ -87,8 +87,8 @@ struct Scene<'a> {
     rig: &'a RigView<'a>,
     regions: &'a [MovingRegion],
     frame: ViewFrame,
-    rest: Vec<Vec3>,
-    rest_bvh: TriangleBvh,
+    /// Every triangle at rest, in view coordinates; position `t` is triangle `t`.
+    rest: PosedTriangles,
     epsilon: f64,
     /// Per shape, the front-view box of its moved triangles at rest and in its pose.
     reach: Vec<Box2>,
@@ -146,7 +146,7 @@ impl Scene<'_> {
     fn posed(&self, k: usize) -> &PosedTriangles {
         self.posed[k].get_or_init(|| {
             let pose = Pose::of(self.rig, self.regions, &[k]);
-            PosedTriangles::new(self.regions[k].triangles.clone(), self.rig.triangles, &pose, |p| self.frame.map(p))
+            self.rest.subset(|t| self.regions[k].contains(t), |t| self.rig.triangles[t as usize].map(|v| self.view(&pose, v)))
         })
     }
 
@@ -159,8 +159,8 @@ impl Scene<'_> {
     fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
         let triangles = self.rig.triangles;
         let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
-        self.rest_bvh.for_each_overlap(&ray, |t| {
-            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&triangles[t as usize].map(|u| self.rest[u as usize]), q, self.epsilon) {
+        self.rest.for_each_overlap(&ray, |t| {
+            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&self.rest.corners[t as usize], q, self.epsilon) {
                 found.push(t);
             }
         });
@@ -231,7 +231,7 @@ impl Scene<'_> {
         if near.is_empty() {
             return count;
         }
-        let shared = PosedTriangles::new(shared, rig.triangles, &pose, |p| self.frame.map(p));
+        let shared = self.posed(h).subset(|t| rb.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v)));
         for i in near {
             let (v, mut found) = (active[i], Vec::new());
             let q = if rb.moves(v) {
@@ -310,8 +310,15 @@ pub fn find_occlusions(
     let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
     let reach = boxes.iter().map(|b| b.1).collect();
     let posed = (0..k_count).map(|_| OnceLock::new()).collect();
-    let scene =
-        Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal, reach, posed };
+    let scene = Scene {
+        rig,
+        regions,
+        rest: PosedTriangles::whole(&rest, rig.triangles),
+        frame,
+        epsilon: DEPTH_EPSILON * diagonal,
+        reach,
+        posed,
+    };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
     hidden_shapes.dedup();
