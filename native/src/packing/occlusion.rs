@@ -17,8 +17,9 @@
 //! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
 //! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly. Each shape's
 //! moved triangles are posed once, in one hierarchy that serves every direction it takes
-//! part in (a triangle only B moves sits where B alone puts it), built when a direction first
-//! needs it; per direction only the triangles both move are posed anew, and only A's vertices
+//! part in (a triangle only B moves sits where B alone puts it), cut from the whole mesh's
+//! hierarchy ([`super::regions::PosedTriangles`]) when a direction first needs it; per
+//! direction only the triangles both move are posed anew, and only A's vertices
 //! inside B's reach in the front view are traced (outside it nothing B moves can cover them),
 //! until the count seen decides the direction.
 
@@ -92,7 +93,7 @@ struct Scene<'a> {
     epsilon: f64,
     /// Per shape, the front-view box of its moved triangles at rest and in its pose.
     reach: Vec<Box2>,
-    /// Per shape, its moved triangles in its pose, in view coordinates, built on first use
+    /// Per shape, its moved triangles in its pose, in view coordinates, cut on first use
     /// ([`Scene::posed`]): many shapes are only ever a partner whose reach no vertex enters.
     posed: Vec<OnceLock<PosedTriangles>>,
 }
@@ -206,8 +207,8 @@ impl Scene<'_> {
     /// moves, at rest and posed by it, and of those both move, posed by both) are traced: a
     /// triangle hides only points inside its own box, so a vertex outside, which `by` does
     /// not move, is seen exactly when every one of its hiders in pose h is one `by` moves
-    /// away. The triangles both move are posed, and a hierarchy built over them, only when
-    /// some vertex needs them.
+    /// away. The triangles both move are posed, and their hierarchy cut, only when a vertex
+    /// that nothing else hides needs them.
     fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, enough: impl Fn(usize) -> bool) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
         let pose = Pose::of(rig, self.regions, &[h, by]);
@@ -231,7 +232,9 @@ impl Scene<'_> {
         if near.is_empty() {
             return count;
         }
-        let shared = self.posed(h).subset(|t| rb.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v)));
+        // The triangles both move, posed by both: cut when a vertex no other triangle hides
+        // first needs them.
+        let shared = std::cell::OnceCell::new();
         for i in near {
             let (v, mut found) = (active[i], Vec::new());
             let q = if rb.moves(v) {
@@ -248,7 +251,9 @@ impl Scene<'_> {
                 self.posed_hiders(self.posed(by), v, q, |t| rh.contains(t), &mut found);
             }
             if found.is_empty() {
-                self.posed_hiders(&shared, v, q, |_| false, &mut found);
+                let shared = shared
+                    .get_or_init(|| self.posed(h).subset(|t| rb.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v))));
+                self.posed_hiders(shared, v, q, |_| false, &mut found);
             }
             if found.is_empty() {
                 count += 1;
