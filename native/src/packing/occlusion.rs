@@ -11,14 +11,15 @@
 //!
 //! A vertex is seen when no triangle other than its own lies over it, nearer the camera. In
 //! a frame whose third axis points at the camera, that is an axis-parallel ray, so the box
-//! query of [`TriangleBvh`] finds its candidate triangles exactly. As for collisions, only
+//! query of [`crate::geometry::bvh::TriangleBvh`] finds its candidate triangles exactly. As for collisions, only
 //! the triangles the two shapes move are posed (the rest are tested at rest) and a direction
 //! is tested only when the two can interact: A's and B's moving regions meet, or the front
 //! view's box of A's active vertices meets that of B's moving region. Otherwise B moves
 //! nothing over A's vertices nor any of them, and V(A + B) = V(A) exactly. Each shape's
 //! moved triangles are posed once, in one hierarchy that serves every direction it takes
-//! part in (a triangle only B moves sits where B alone puts it), built when a direction first
-//! needs it; per direction only the triangles both move are posed anew, and only A's vertices
+//! part in (a triangle only B moves sits where B alone puts it), cut from the whole mesh's
+//! hierarchy ([`super::regions::PosedTriangles`]) when a direction first needs it; per
+//! direction only the triangles both move are posed anew, and only A's vertices
 //! inside B's reach in the front view are traced (outside it nothing B moves can cover them),
 //! until the count seen decides the direction.
 
@@ -27,7 +28,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles};
-use crate::geometry::bvh::{Aabb, TriangleBvh};
+use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::{cross, dot, length, scale, Vec3};
 use crate::rig::RigView;
 
@@ -87,12 +88,12 @@ struct Scene<'a> {
     rig: &'a RigView<'a>,
     regions: &'a [MovingRegion],
     frame: ViewFrame,
-    rest: Vec<Vec3>,
-    rest_bvh: TriangleBvh,
+    /// Every triangle at rest, in view coordinates; position `t` is triangle `t`.
+    rest: PosedTriangles,
     epsilon: f64,
     /// Per shape, the front-view box of its moved triangles at rest and in its pose.
     reach: Vec<Box2>,
-    /// Per shape, its moved triangles in its pose, in view coordinates, built on first use
+    /// Per shape, its moved triangles in its pose, in view coordinates, cut on first use
     /// ([`Scene::posed`]): many shapes are only ever a partner whose reach no vertex enters.
     posed: Vec<OnceLock<PosedTriangles>>,
 }
@@ -146,7 +147,7 @@ impl Scene<'_> {
     fn posed(&self, k: usize) -> &PosedTriangles {
         self.posed[k].get_or_init(|| {
             let pose = Pose::of(self.rig, self.regions, &[k]);
-            PosedTriangles::new(self.regions[k].triangles.clone(), self.rig.triangles, &pose, |p| self.frame.map(p))
+            self.rest.subset(|t| self.regions[k].contains(t), |t| self.rig.triangles[t as usize].map(|v| self.view(&pose, v)))
         })
     }
 
@@ -159,8 +160,8 @@ impl Scene<'_> {
     fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
         let triangles = self.rig.triangles;
         let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
-        self.rest_bvh.for_each_overlap(&ray, |t| {
-            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&triangles[t as usize].map(|u| self.rest[u as usize]), q, self.epsilon) {
+        self.rest.for_each_overlap(&ray, |t| {
+            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&self.rest.corners[t as usize], q, self.epsilon) {
                 found.push(t);
             }
         });
@@ -206,8 +207,8 @@ impl Scene<'_> {
     /// moves, at rest and posed by it, and of those both move, posed by both) are traced: a
     /// triangle hides only points inside its own box, so a vertex outside, which `by` does
     /// not move, is seen exactly when every one of its hiders in pose h is one `by` moves
-    /// away. The triangles both move are posed, and a hierarchy built over them, only when
-    /// some vertex needs them.
+    /// away. The triangles both move are posed, and their hierarchy cut, only when a vertex
+    /// that nothing else hides needs them.
     fn seen_with(&self, h: usize, by: usize, active: &[u32], alone: &Alone, enough: impl Fn(usize) -> bool) -> usize {
         let (rig, rh, rb) = (self.rig, &self.regions[h], &self.regions[by]);
         let pose = Pose::of(rig, self.regions, &[h, by]);
@@ -231,7 +232,9 @@ impl Scene<'_> {
         if near.is_empty() {
             return count;
         }
-        let shared = PosedTriangles::new(shared, rig.triangles, &pose, |p| self.frame.map(p));
+        // The triangles both move, posed by both: cut when a vertex no other triangle hides
+        // first needs them.
+        let shared = std::cell::OnceCell::new();
         for i in near {
             let (v, mut found) = (active[i], Vec::new());
             let q = if rb.moves(v) {
@@ -248,7 +251,9 @@ impl Scene<'_> {
                 self.posed_hiders(self.posed(by), v, q, |t| rh.contains(t), &mut found);
             }
             if found.is_empty() {
-                self.posed_hiders(&shared, v, q, |_| false, &mut found);
+                let shared = shared
+                    .get_or_init(|| self.posed(h).subset(|t| rb.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v))));
+                self.posed_hiders(shared, v, q, |_| false, &mut found);
             }
             if found.is_empty() {
                 count += 1;
@@ -310,8 +315,15 @@ pub fn find_occlusions(
     let rest: Vec<Vec3> = (0..rig.n_vertices() as u32).map(rest_of).collect();
     let reach = boxes.iter().map(|b| b.1).collect();
     let posed = (0..k_count).map(|_| OnceLock::new()).collect();
-    let scene =
-        Scene { rig, regions, rest_bvh: TriangleBvh::build(&rest, rig.triangles), rest, frame, epsilon: DEPTH_EPSILON * diagonal, reach, posed };
+    let scene = Scene {
+        rig,
+        regions,
+        rest: PosedTriangles::whole(&rest, rig.triangles),
+        frame,
+        epsilon: DEPTH_EPSILON * diagonal,
+        reach,
+        posed,
+    };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
     hidden_shapes.dedup();
