@@ -152,6 +152,66 @@ impl TriangleBvh {
         Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
     }
 
+    /// The hierarchy over the triangles `keep` marks (by index in the list given to `build`),
+    /// taken from this one: the same splits, subtrees without a kept triangle dropped, a node
+    /// left with one kept child replaced by it, boxes those of the kept triangles. A subset of
+    /// the mesh (a shape's moving region) costs one pass over the tree instead of a build, and
+    /// where the subset is clustered its boxes are as tight; it is no deeper than this one.
+    /// Triangle indices keep referring to the list given to `build` (pass that list to
+    /// [`Self::refitted`]).
+    pub fn restricted(&self, keep: &[bool]) -> Self {
+        let mut kept = vec![0u32; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            kept[i] = if count > 0 {
+                self.original[first as usize..(first + count) as usize].iter().filter(|&&t| keep[t as usize]).count() as u32
+            } else {
+                kept[first as usize] + kept[first as usize + 1]
+            };
+        }
+        let root = Node { bounds: Aabb::EMPTY, first: 0, count: 0 };
+        let mut out = Self { nodes: vec![root], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
+        if kept.first().is_some_and(|&k| k > 0) {
+            self.restrict_into(0, 0, keep, &kept, &mut out);
+        }
+        out
+    }
+
+    /// Writes the restriction of node `index` (`kept[index] > 0`) into `out.nodes[slot]`,
+    /// its subtree after it (children side by side, after their parent).
+    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], kept: &[u32], out: &mut Self) {
+        while self.nodes[index].count == 0 {
+            let left = self.nodes[index].first as usize;
+            match (kept[left] > 0, kept[left + 1] > 0) {
+                (true, false) => index = left,
+                (false, true) => index = left + 1,
+                _ => break,
+            }
+        }
+        let Node { first, count, .. } = self.nodes[index];
+        let mut bounds = Aabb::EMPTY;
+        if count > 0 {
+            let start = out.triangles.len();
+            for i in first as usize..(first + count) as usize {
+                if keep[self.original[i] as usize] {
+                    out.triangles.push(self.triangles[i]);
+                    out.boxes.push(self.boxes[i]);
+                    out.original.push(self.original[i]);
+                    bounds.grow(&self.boxes[i]);
+                }
+            }
+            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.triangles.len() - start) as u32 };
+        } else {
+            let children = out.nodes.len();
+            out.nodes.extend([Node { bounds: Aabb::EMPTY, first: 0, count: 0 }; 2]);
+            for side in 0..2 {
+                self.restrict_into(first as usize + side, children + side, keep, kept, out);
+                bounds.grow(&out.nodes[children + side].bounds);
+            }
+            out.nodes[slot] = Node { bounds, first: children as u32, count: 0 };
+        }
+    }
+
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
     /// whose bounding box overlaps `query`.
     pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
