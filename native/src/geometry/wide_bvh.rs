@@ -19,19 +19,26 @@ const STACK: usize = (WIDTH - 1) * (MAX_DEPTH + 2) + 1;
 const PAD: f64 = 1e-5;
 
 /// Up to four children: their boxes by axis then slot, and for each either an inner node
-/// (`count == 0`, `first` is its index) or a leaf (triangles `first..first + count`).
+/// (`count == 0`, `first` is its index), a leaf (triangles `first..first + count`) or nothing
+/// (`count == UNUSED`, an empty box). 128 bytes on a 64-byte boundary: a node visit touches
+/// two cache lines.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
 struct WideNode {
     lo: [[f32; WIDTH]; 3],
     hi: [[f32; WIDTH]; 3],
     first: [u32; WIDTH],
     count: [u32; WIDTH],
-    used: u8,
 }
+
+/// The `count` of a slot a node does not use (its box is empty, `lo > hi`).
+const UNUSED: u32 = u32::MAX;
+const _: () = assert!(std::mem::size_of::<WideNode>() == 128);
 
 pub struct OcclusionBvh {
     nodes: Vec<WideNode>,
-    /// For each node's slots, the binary node it was taken from (for [`Self::refitted`]).
+    /// For each node's slots, the binary node it was taken from (for [`Self::refitted`]);
+    /// `UNUSED` for an unused slot.
     sources: Vec<[u32; WIDTH]>,
     triangles: Vec<PreparedTriangle>,
 }
@@ -70,11 +77,13 @@ impl OcclusionBvh {
         let extent = (0..3).map(|a| root.hi[a] - root.lo[a]).fold(0.0, f64::max);
         let pad = PAD * (extent + magnitude);
         for (node, sources) in self.nodes.iter_mut().zip(&self.sources) {
-            for (s, &n) in sources[..node.used as usize].iter().enumerate() {
-                let bounds = &binary.nodes[n as usize].bounds;
+            for (s, &n) in sources.iter().enumerate() {
                 for a in 0..3 {
-                    node.lo[a][s] = round_down(bounds.lo[a] - pad);
-                    node.hi[a][s] = round_up(bounds.hi[a] + pad);
+                    // `UNUSED` is no node's index.
+                    (node.lo[a][s], node.hi[a][s]) = match binary.nodes.get(n as usize) {
+                        Some(source) => (round_down(source.bounds.lo[a] - pad), round_up(source.bounds.hi[a] + pad)),
+                        None => (f32::INFINITY, f32::NEG_INFINITY),
+                    };
                 }
             }
         }
@@ -101,6 +110,10 @@ impl OcclusionBvh {
                 let slot = hit.trailing_zeros() as usize;
                 hit &= hit - 1;
                 let (first, count) = (node.first[slot], node.count[slot]);
+                if count == UNUSED {
+                    // An empty box is never entered; kept from the traversal all the same.
+                    continue;
+                }
                 if count > 0 {
                     let range = first as usize..(first + count) as usize;
                     if self.triangles[range].iter().any(|tri| ray_meets(tri, origin, direction, t_max)) {
@@ -143,8 +156,8 @@ impl SlabRay {
 }
 
 impl WideNode {
-    /// Slab tests of the four boxes: where the ray enters each, and a bit per used slot the
-    /// ray enters within `[0, t_end]`. The near plane per axis follows the direction's sign,
+    /// Slab tests of the four boxes: where the ray enters each, and a bit per slot the ray
+    /// enters within `[0, t_end]`. The near plane per axis follows the direction's sign,
     /// so each slab costs one distance to each plane and no `min`/`max` between them. A NaN
     /// distance (an origin on the plane of a parallel ray) fails both comparisons and leaves
     /// the interval as it was: the box is kept, never wrongly dropped.
@@ -165,7 +178,7 @@ impl WideNode {
         for s in 0..WIDTH {
             hit |= ((enter[s] <= exit[s]) as u32) << s;
         }
-        (enter, hit & ((1 << self.used) - 1))
+        (enter, hit)
     }
 }
 
@@ -186,8 +199,8 @@ fn collapse(binary: &[Node], index: usize, wide: &mut Vec<WideNode>, sources: &m
         slots.push(first + 1);
     }
     let me = wide.len();
-    wide.push(WideNode { lo: [[0.0; WIDTH]; 3], hi: [[0.0; WIDTH]; 3], first: [0; WIDTH], count: [0; WIDTH], used: slots.len() as u8 });
-    sources.push(std::array::from_fn(|s| slots.get(s).map_or(0, |&n| n as u32)));
+    wide.push(WideNode { lo: [[0.0; WIDTH]; 3], hi: [[0.0; WIDTH]; 3], first: [0; WIDTH], count: [UNUSED; WIDTH] });
+    sources.push(std::array::from_fn(|s| slots.get(s).map_or(UNUSED, |&n| n as u32)));
     for (s, &n) in slots.iter().enumerate() {
         let node = &binary[n];
         if node.count > 0 {
@@ -195,6 +208,7 @@ fn collapse(binary: &[Node], index: usize, wide: &mut Vec<WideNode>, sources: &m
             wide[me].count[s] = node.count;
         } else {
             wide[me].first[s] = collapse(binary, n, wide, sources);
+            wide[me].count[s] = 0;
         }
     }
     me as u32
