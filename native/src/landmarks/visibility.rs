@@ -101,9 +101,10 @@ pub struct Visibility {
 ///   neutral iff it meets a static one or a moved one at rest. So: when the moved triangles
 ///   (posed and at rest) lie behind the vertex's tangent plane, no ray of its can reach
 ///   them and the pose sees what the neutral saw; else a ray is blocked if it meets the
-///   posed moved triangles (a small hierarchy), takes the neutral's outcome if it misses
-///   them at rest too (another small one; the neutral traces a ray the first time its
-///   outcome is asked), and only otherwise is traced through the whole pose.
+///   posed moved triangles (a small hierarchy, cut from the neutral's), escapes if it
+///   escaped at rest, takes the neutral's outcome if it misses the moved triangles at rest
+///   too (another small one; the neutral traces a ray the first time its outcome is asked),
+///   and only otherwise is traced through the whole pose.
 pub fn worst_case_visibility(
     rig: &RigView,
     shapes: &[usize],
