@@ -91,7 +91,8 @@ pub struct Visibility {
 ///
 /// Work saved, with the same answer as tracing every ray through every pose (`reuse =
 /// false`; the tests compare the two):
-/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum. A vertex
+/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum; a vertex
+///   a shape moves traces the rays that escaped at rest first, to get there sooner. A vertex
 ///   asked only whether `l >= t` stops a pose once `t` of its rays escaped, and stops
 ///   altogether once a pose is certain to stay below `t`.
 /// - Reuse across poses. A shape moves a small part of the head. In pose k the triangles
@@ -176,12 +177,19 @@ pub fn worst_case_visibility(
                         }
                         _ => {
                             let (origin, rays) = mesh.rays(v, nudge, sampling, &track.lattice);
-                            let cast = &mut track.cast;
-                            let seen = rays.map(|ray| {
+                            // The rays that escaped at rest first: they likely escape in this
+                            // pose too, and a pose that keeps the vertex's level stops at its
+                            // `needed`-th escape (the answer is a count: the order is free).
+                            let rays: Vec<Ray> = rays.collect();
+                            let Track { rest, cast, level, .. } = track;
+                            let first = (0..total).filter(|&r| rest.escaped_at_rest(r));
+                            let order = first.chain((0..total).filter(|&r| !rest.escaped_at_rest(r)));
+                            let seen = order.map(|r| {
+                                let ray = &rays[r];
                                 *cast += 1;
                                 ray.2 && !mesh.bvh.any_hit(&origin, &ray.0, ray.1)
                             });
-                            pose_visibility(track.level, total, exact_below, seen)
+                            pose_visibility(*level, total, exact_below, seen)
                         }
                     };
                     track.settle(level);
