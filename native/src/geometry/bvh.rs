@@ -135,105 +135,91 @@ impl TriangleBvh {
         let boxes: Vec<Aabb> = corners.iter().map(|c| Aabb::of_points(c)).collect();
         let prepared = corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
         let mut nodes = self.nodes.clone();
-        if !boxes.is_empty() {
-            // Children come after their parent in the array.
-            for i in (0..nodes.len()).rev() {
-                let Node { first, count, .. } = nodes[i];
-                let mut bounds = Aabb::EMPTY;
-                if count > 0 {
-                    boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
-                } else {
-                    bounds.grow(&nodes[first as usize].bounds);
-                    bounds.grow(&nodes[first as usize + 1].bounds);
-                }
-                nodes[i].bounds = bounds;
-            }
-        }
+        refit_bounds(&mut nodes, &boxes);
         Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
     }
 
     /// The hierarchy over the triangles `keep` picks (indices into the list given to
-    /// `build`), at new corners (`corners(t)`): this tree's shape with the other triangles
-    /// left out (a node left with one child is replaced by it) and every box recomputed. One
-    /// pass over the nodes and no sorting, so far cheaper than a build, and as exact (the
-    /// boxes are the new corners'); as good a tree as this one is for the new corners (a pose
-    /// that moves triangles a little loosens it a little). Returns the hierarchy, which
-    /// answers positions in the returned list of kept triangles, that list, in the
-    /// hierarchy's order, and their corners.
+    /// `build`), at new corners (`corners(t)`): [`Self::restricted`]'s cut of this tree with
+    /// every box recomputed from the new corners. One pass over the nodes and no sorting, so
+    /// far cheaper than a build, and as exact; as good a tree as this one is for the new
+    /// corners (a pose that moves triangles a little loosens it a little). Returns the
+    /// hierarchy, which answers positions in the returned list of kept triangles, that list,
+    /// in the hierarchy's order, and their corners.
     pub fn subset(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> (Self, Vec<u32>, Vec<[[f64; 3]; 3]>) {
-        let mut out = Self { nodes: vec![Node { bounds: Aabb::EMPTY, first: 0, count: 0 }], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
-        if self.triangles.is_empty() {
-            // The root of an empty hierarchy is no internal node.
-            return (out, Vec::new(), Vec::new());
-        }
-        let kept: Vec<bool> = self.original.iter().map(|&t| keep(t)).collect();
-        // Kept triangles per subtree (children follow their parent).
-        let mut count = vec![0u32; self.nodes.len()];
-        for i in (0..self.nodes.len()).rev() {
-            let Node { first, count: leaf, .. } = self.nodes[i];
-            count[i] = if leaf > 0 {
-                kept[first as usize..(first + leaf) as usize].iter().filter(|&&k| k).count() as u32
-            } else {
-                count[first as usize] + count[first as usize + 1]
-            };
-        }
-        let mut list = Vec::new();
-        let mut kept_corners = Vec::new();
-        if count[0] > 0 {
-            self.emit_subset(0, 0, &count, &kept, &mut |t| {
-                let c = corners(t);
-                kept_corners.push(c);
-                c
-            }, &mut out, &mut list);
-        }
-        out.original = (0..list.len() as u32).collect();
-        (out, list, kept_corners)
+        let mask: Vec<bool> = (0..self.original.len() as u32).map(keep).collect();
+        let mut cut = self.restricted(&mask);
+        let list = std::mem::take(&mut cut.original);
+        let kept_corners: Vec<[[f64; 3]; 3]> = list.iter().map(|&t| corners(t)).collect();
+        cut.triangles = kept_corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
+        cut.boxes = kept_corners.iter().map(|c| Aabb::of_points(c)).collect();
+        cut.original = (0..list.len() as u32).collect();
+        refit_bounds(&mut cut.nodes, &cut.boxes);
+        (cut, list, kept_corners)
     }
 
-    /// Writes the kept part of subtree `node` as node `at` of `out` and returns its box.
-    #[allow(clippy::too_many_arguments)]
-    fn emit_subset(
-        &self,
-        mut node: usize,
-        at: usize,
-        count: &[u32],
-        kept: &[bool],
-        corners: &mut impl FnMut(u32) -> [[f64; 3]; 3],
-        out: &mut Self,
-        list: &mut Vec<u32>,
-    ) -> Aabb {
-        // Skip internal nodes with one kept side.
-        while self.nodes[node].count == 0 {
-            let first = self.nodes[node].first as usize;
-            match (count[first] > 0, count[first + 1] > 0) {
-                (true, false) => node = first,
-                (false, true) => node = first + 1,
+    /// The hierarchy over the triangles `keep` marks (by index in the list given to `build`),
+    /// taken from this one: the same splits, subtrees without a kept triangle dropped, a node
+    /// left with one kept child replaced by it, boxes those of the kept triangles. A subset of
+    /// the mesh (a shape's moving region) costs one pass over the tree instead of a build, and
+    /// where the subset is clustered its boxes are as tight; it is no deeper than this one.
+    /// Triangle indices keep referring to the list given to `build` (pass that list to
+    /// [`Self::refitted`]).
+    pub fn restricted(&self, keep: &[bool]) -> Self {
+        let root = Node { bounds: Aabb::EMPTY, first: 0, count: 0 };
+        let mut out = Self { nodes: vec![root], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
+        if self.triangles.is_empty() {
+            // The root of an empty hierarchy is no internal node.
+            return out;
+        }
+        let mut kept = vec![0u32; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            kept[i] = if count > 0 {
+                self.original[first as usize..(first + count) as usize].iter().filter(|&&t| keep[t as usize]).count() as u32
+            } else {
+                kept[first as usize] + kept[first as usize + 1]
+            };
+        }
+        if kept.first().is_some_and(|&k| k > 0) {
+            self.restrict_into(0, 0, keep, &kept, &mut out);
+        }
+        out
+    }
+
+    /// Writes the restriction of node `index` (`kept[index] > 0`) into `out.nodes[slot]`,
+    /// its subtree after it (children side by side, after their parent).
+    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], kept: &[u32], out: &mut Self) {
+        while self.nodes[index].count == 0 {
+            let left = self.nodes[index].first as usize;
+            match (kept[left] > 0, kept[left + 1] > 0) {
+                (true, false) => index = left,
+                (false, true) => index = left + 1,
                 _ => break,
             }
         }
-        let Node { first, count: leaf, .. } = self.nodes[node];
+        let Node { first, count, .. } = self.nodes[index];
         let mut bounds = Aabb::EMPTY;
-        if leaf > 0 {
-            let start = list.len() as u32;
-            for k in (first..first + leaf).filter(|&k| kept[k as usize]) {
-                let t = self.original[k as usize];
-                let [a, b, c] = corners(t);
-                let b_box = Aabb::of_points(&[a, b, c]);
-                bounds.grow(&b_box);
-                out.boxes.push(b_box);
-                out.triangles.push(PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) });
-                list.push(t);
+        if count > 0 {
+            let start = out.triangles.len();
+            for i in first as usize..(first + count) as usize {
+                if keep[self.original[i] as usize] {
+                    out.triangles.push(self.triangles[i]);
+                    out.boxes.push(self.boxes[i]);
+                    out.original.push(self.original[i]);
+                    bounds.grow(&self.boxes[i]);
+                }
             }
-            out.nodes[at] = Node { bounds, first: start, count: list.len() as u32 - start };
-            return bounds;
+            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.triangles.len() - start) as u32 };
+        } else {
+            let children = out.nodes.len();
+            out.nodes.extend([Node { bounds: Aabb::EMPTY, first: 0, count: 0 }; 2]);
+            for side in 0..2 {
+                self.restrict_into(first as usize + side, children + side, keep, kept, out);
+                bounds.grow(&out.nodes[children + side].bounds);
+            }
+            out.nodes[slot] = Node { bounds, first: children as u32, count: 0 };
         }
-        let children = out.nodes.len();
-        out.nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
-        out.nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
-        bounds.grow(&self.emit_subset(first as usize, children, count, kept, corners, out, list));
-        bounds.grow(&self.emit_subset(first as usize + 1, children + 1, count, kept, corners, out, list));
-        out.nodes[at] = Node { bounds, first: children as u32, count: 0 };
-        bounds
     }
 
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
@@ -461,6 +447,25 @@ impl TriangleBvh {
 
 /// Splits node `index` (covering `order[start..start + count]`) by the binned SAH, or makes it
 /// a leaf when no split is cheaper than testing its triangles.
+/// Recomputes every node's box bottom-up from the triangles' `boxes` (children come after
+/// their parent in the array); a tree without triangles keeps its empty root.
+fn refit_bounds(nodes: &mut [Node], boxes: &[Aabb]) {
+    if boxes.is_empty() {
+        return;
+    }
+    for i in (0..nodes.len()).rev() {
+        let Node { first, count, .. } = nodes[i];
+        let mut bounds = Aabb::EMPTY;
+        if count > 0 {
+            boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
+        } else {
+            bounds.grow(&nodes[first as usize].bounds);
+            bounds.grow(&nodes[first as usize + 1].bounds);
+        }
+        nodes[i].bounds = bounds;
+    }
+}
+
 fn split(
     nodes: &mut Vec<Node>,
     index: usize,

@@ -91,7 +91,8 @@ pub struct Visibility {
 ///
 /// Work saved, with the same answer as tracing every ray through every pose (`reuse =
 /// false`; the tests compare the two):
-/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum. A vertex
+/// - A pose stops casting for a vertex once it cannot lower that vertex's minimum; a vertex
+///   a shape moves traces the rays that escaped at rest first, to get there sooner. A vertex
 ///   asked only whether `l >= t` stops a pose once `t` of its rays escaped, and stops
 ///   altogether once a pose is certain to stay below `t`.
 /// - Reuse across poses. A shape moves a small part of the head. In pose k the triangles
@@ -101,9 +102,10 @@ pub struct Visibility {
 ///   neutral iff it meets a static one or a moved one at rest. So: when the moved triangles
 ///   (posed and at rest) lie behind the vertex's tangent plane, no ray of its can reach
 ///   them and the pose sees what the neutral saw; else a ray is blocked if it meets the
-///   posed moved triangles (a small hierarchy), takes the neutral's outcome if it misses
-///   them at rest too (another small one; the neutral traces a ray the first time its
-///   outcome is asked), and only otherwise is traced through the whole pose.
+///   posed moved triangles (a small hierarchy, cut from the neutral's), escapes if it
+///   escaped at rest, takes the neutral's outcome if it misses the moved triangles at rest
+///   too (another small one; the neutral traces a ray the first time its outcome is asked),
+///   and only otherwise is traced through the whole pose.
 pub fn worst_case_visibility(
     rig: &RigView,
     shapes: &[usize],
@@ -118,7 +120,7 @@ pub fn worst_case_visibility(
     let (mut rays_cast, mut rays_reused) = (0u64, 0u64);
     let poses = shapes.len() + 1;
     progress.checkpoint(0.0)?;
-    let neutral = PosedMesh::new(rig, None, None);
+    let (neutral, neutral_binary) = PosedMesh::neutral(rig);
     // The neutral pose keeps each vertex's rays and the outcomes it traced.
     let mut tracks: Vec<Track> = vertices
         .par_iter()
@@ -149,8 +151,8 @@ pub fn worst_case_visibility(
     // the current pose.
     let posed = |i: usize| {
         shapes.get(i).map(|&k| {
-            let mesh = PosedMesh::new(rig, Some(k), Some(&neutral));
-            let region = reuse.then(|| MovingRegion::new(rig, k, &neutral.points, &mesh.points, nudge));
+            let mesh = PosedMesh::shaped(rig, k, &neutral_binary, &neutral.bvh);
+            let region = reuse.then(|| MovingRegion::new(rig, k, &neutral_binary, &neutral.points, &mesh.points, nudge));
             (mesh, region)
         })
     };
@@ -175,12 +177,19 @@ pub fn worst_case_visibility(
                         }
                         _ => {
                             let (origin, rays) = mesh.rays(v, nudge, sampling, &track.lattice);
-                            let cast = &mut track.cast;
-                            let seen = rays.map(|ray| {
+                            // The rays that escaped at rest first: they likely escape in this
+                            // pose too, and a pose that keeps the vertex's level stops at its
+                            // `needed`-th escape (the answer is a count: the order is free).
+                            let rays: Vec<Ray> = rays.collect();
+                            let Track { rest, cast, level, .. } = track;
+                            let first = (0..total).filter(|&r| rest.escaped_at_rest(r));
+                            let order = first.chain((0..total).filter(|&r| !rest.escaped_at_rest(r)));
+                            let seen = order.map(|r| {
+                                let ray = &rays[r];
                                 *cast += 1;
                                 ray.2 && !mesh.bvh.any_hit(&origin, &ray.0, ray.1)
                             });
-                            pose_visibility(track.level, total, exact_below, seen)
+                            pose_visibility(*level, total, exact_below, seen)
                         }
                     };
                     track.settle(level);
@@ -255,12 +264,13 @@ struct MovingRegion {
 }
 
 impl MovingRegion {
-    fn new(rig: &RigView, shape: usize, rest: &[[f64; 3]], posed: &[[f64; 3]], margin: f64) -> Self {
+    /// `neutral`: the neutral pose's binary hierarchy, which the region's is cut from.
+    fn new(rig: &RigView, shape: usize, neutral: &TriangleBvh, rest: &[[f64; 3]], posed: &[[f64; 3]], margin: f64) -> Self {
         let delta = rig.delta(shape);
         let mut touched: Vec<bool> = delta.iter().map(|d| *d != [0.0; 3]).collect();
-        let moved: Vec<[u32; 3]> = rig.triangles.iter().filter(|t| t.iter().any(|&v| touched[v as usize])).copied().collect();
+        let moved: Vec<bool> = rig.triangles.iter().map(|t| t.iter().any(|&v| touched[v as usize])).collect();
         let mut bounds: Option<[[f64; 3]; 2]> = None;
-        for t in &moved {
+        for t in rig.triangles.iter().zip(&moved).filter_map(|(t, &m)| m.then_some(t)) {
             for &v in t {
                 touched[v as usize] = true;
                 for p in [&rest[v as usize], &posed[v as usize]] {
@@ -272,10 +282,11 @@ impl MovingRegion {
                 }
             }
         }
-        // The posed tree refits the one at rest: one build per shape.
-        let binary = TriangleBvh::build(rest, &moved);
+        // The neutral's hierarchy cut down to the moved triangles (no build), and refitted
+        // to the pose.
+        let binary = neutral.restricted(&moved);
         let at_rest = OcclusionBvh::new(&binary);
-        let posed = at_rest.refitted(binary.refitted(posed, &moved));
+        let posed = at_rest.refitted(binary.refitted(posed, rig.triangles));
         Self { at_rest, posed, bounds, margin, touched }
     }
 
@@ -309,15 +320,28 @@ impl MovingRegion {
     }
 
     /// Whether ray `r` of a static vertex escapes in the pose whose hierarchy is `pose`.
+    ///
+    /// A ray that misses the moved triangles as posed escapes in the pose iff it misses the
+    /// static ones. When it escaped at rest it missed them (and the moved ones at rest), so
+    /// the hierarchy at rest is asked only of rays blocked at rest, or not traced there yet:
+    /// most rays escape, and this halves the small hierarchies' queries.
     fn outcome(&self, r: usize, rest: &mut RaysAtRest, pose: &OcclusionBvh, neutral: &OcclusionBvh, cast: &mut u64, reused: &mut u64) -> bool {
         let (direction, t_max, in_front) = rest.rays[r];
-        if in_front && !self.reaches(&rest.origin, &direction, t_max) {
+        if !in_front {
             *reused += 1;
-            rest.neutral_outcome(r, neutral, cast)
-        } else if !in_front || self.posed.any_hit(&rest.origin, &direction, t_max) {
+            return false;
+        }
+        if !self.reaches(&rest.origin, &direction, t_max) {
             *reused += 1;
-            false
-        } else if !self.at_rest.any_hit(&rest.origin, &direction, t_max) {
+            return rest.neutral_outcome(r, neutral, cast);
+        }
+        if self.posed.any_hit(&rest.origin, &direction, t_max) {
+            *reused += 1;
+            return false;
+        }
+        if rest.escaped_at_rest(r) || !self.at_rest.any_hit(&rest.origin, &direction, t_max) {
+            // Escaped at rest, or blocked at rest by static triangles alone (or not yet
+            // traced: the neutral's outcome, traced now, is the pose's).
             *reused += 1;
             rest.neutral_outcome(r, neutral, cast)
         } else {
@@ -328,11 +352,10 @@ impl MovingRegion {
 }
 
 /// One pose: positions, vertex normals and the four-wide hierarchy of its triangles (to be
-/// traced); the neutral keeps its binary one too, which the shaped poses refit.
+/// traced).
 struct PosedMesh {
     points: Vec<[f64; 3]>,
     normals: Vec<[f64; 3]>,
-    binary: Option<TriangleBvh>,
     bvh: OcclusionBvh,
 }
 
@@ -352,6 +375,11 @@ struct RaysAtRest {
 }
 
 impl RaysAtRest {
+    /// Whether ray `i` is known to escape in the neutral pose (traced there, and escaped).
+    fn escaped_at_rest(&self, i: usize) -> bool {
+        self.escaped[i / 64] & (1u64 << (i % 64)) != 0
+    }
+
     /// Whether ray `i` escapes in the neutral pose, traced (and counted) the first time.
     fn neutral_outcome(&mut self, i: usize, neutral: &OcclusionBvh, cast: &mut u64) -> bool {
         let (word, bit) = (i / 64, 1u64 << (i % 64));
@@ -368,21 +396,21 @@ impl RaysAtRest {
 }
 
 impl PosedMesh {
-    /// The pose's points, normals and hierarchy: built, or the neutral's (`base`) refitted.
-    fn new(rig: &RigView, shape: Option<usize>, base: Option<&PosedMesh>) -> Self {
-        let points = posed_points(rig, shape);
+    /// The neutral pose, and its binary hierarchy (which the shaped poses refit).
+    fn neutral(rig: &RigView) -> (Self, TriangleBvh) {
+        let points = posed_points(rig, None);
         let normals = vertex_normals(&points, rig.triangles);
-        match base.and_then(|b| Some((b.binary.as_ref()?, &b.bvh))) {
-            Some((binary, bvh)) => {
-                let bvh = bvh.refitted(binary.refitted(&points, rig.triangles));
-                Self { points, normals, binary: None, bvh }
-            }
-            None => {
-                let binary = TriangleBvh::build(&points, rig.triangles);
-                let bvh = OcclusionBvh::new(&binary);
-                Self { points, normals, binary: Some(binary), bvh }
-            }
-        }
+        let binary = TriangleBvh::build(&points, rig.triangles);
+        let bvh = OcclusionBvh::new(&binary);
+        (Self { points, normals, bvh }, binary)
+    }
+
+    /// Shape `shape` at weight 1: the neutral's hierarchies (`binary`, `wide`) refitted.
+    fn shaped(rig: &RigView, shape: usize, binary: &TriangleBvh, wide: &OcclusionBvh) -> Self {
+        let points = posed_points(rig, Some(shape));
+        let normals = vertex_normals(&points, rig.triangles);
+        let bvh = wide.refitted(binary.refitted(&points, rig.triangles));
+        Self { points, normals, bvh }
     }
 
     /// The nudged origin and the lazy sequence of rays of vertex `v` in this pose (`lattice`:
