@@ -86,6 +86,7 @@ pub(super) struct PreparedTriangle {
     pub(super) ac: [f64; 3],
 }
 
+#[derive(Clone)]
 pub struct TriangleBvh {
     pub(super) nodes: Vec<Node>,
     /// In leaf order, with each one's box and index in the caller's triangle list.
@@ -150,6 +151,49 @@ impl TriangleBvh {
             }
         }
         Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
+    }
+
+    /// [`Self::refitted`] in place after only the triangles `changed` (indexed like the list
+    /// given to `build`) moved since the last refit: their boxes are recomputed, then every
+    /// node's bounds bottom-up. The same hierarchy, boxes and answers as `refitted(points)`
+    /// to the bit (a box is the exact min and max of its corners, in any order), without
+    /// gathering the corners of the triangles that stayed put: the collision pass re-sweeps a
+    /// shape after each local re-solve, which moves a few hundred of its triangles.
+    pub fn refit_changed(&mut self, points: &[[f64; 3]], triangles: &[[u32; 3]], changed: &[bool]) {
+        for (slot, &t) in self.original.iter().enumerate() {
+            if changed[t as usize] {
+                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+                self.boxes[slot] = Aabb::of_points(&[a, b, c]);
+                self.triangles[slot] = PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) };
+            }
+        }
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            let mut bounds = Aabb::EMPTY;
+            if count > 0 {
+                self.boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
+            } else {
+                bounds.grow(&self.nodes[first as usize].bounds);
+                bounds.grow(&self.nodes[first as usize + 1].bounds);
+            }
+            self.nodes[i].bounds = bounds;
+        }
+    }
+
+    /// Per node, whether its subtree holds a `marked` triangle (indexed like the list given
+    /// to `build`): the pruning mask [`Self::closest_point_among`] takes.
+    pub fn nodes_holding(&self, marked: &[bool]) -> Vec<bool> {
+        let mut holds = vec![false; self.nodes.len()];
+        // Children come after their parent in the array.
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            holds[i] = if count > 0 {
+                self.original[first as usize..(first + count) as usize].iter().any(|&t| marked[t as usize])
+            } else {
+                holds[first as usize] || holds[first as usize + 1]
+            };
+        }
+        holds
     }
 
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
@@ -334,7 +378,34 @@ impl TriangleBvh {
     /// [`Self::closest_point`] among the triangles `t` (indices into the list given to
     /// `build`) with `accept(t)`.
     pub fn closest_point_where(&self, query: &[f64; 3], max_distance: f64, accept: impl Fn(u32) -> bool) -> Option<SurfacePoint> {
-        if self.triangles.is_empty() {
+        self.closest_point_pruned(query, max_distance, None, accept)
+    }
+
+    /// [`Self::closest_point_where`] among the triangles of `holding` ([`Self::nodes_holding`]
+    /// of those `accept` takes): subtrees without one are never entered. The same point to the
+    /// bit: a skipped subtree would only have tested triangles `accept` refuses, and the others
+    /// are visited in the same order. Until a first accepted triangle bounds the search, the
+    /// unpruned query descends every subtree of a large piece (the skin) looking for a small
+    /// one (the teeth).
+    pub fn closest_point_among(
+        &self,
+        query: &[f64; 3],
+        max_distance: f64,
+        holding: &[bool],
+        accept: impl Fn(u32) -> bool,
+    ) -> Option<SurfacePoint> {
+        self.closest_point_pruned(query, max_distance, Some(holding), accept)
+    }
+
+    fn closest_point_pruned(
+        &self,
+        query: &[f64; 3],
+        max_distance: f64,
+        holding: Option<&[bool]>,
+        accept: impl Fn(u32) -> bool,
+    ) -> Option<SurfacePoint> {
+        let enter = |node: u32| holding.is_none_or(|h| h[node as usize]);
+        if self.triangles.is_empty() || !enter(0) {
             return None;
         }
         let mut best: Option<SurfacePoint> = None;
@@ -367,9 +438,12 @@ impl TriangleBvh {
             let (left, right) = (node.first, node.first + 1);
             let (dl, dr) = (self.nodes[left as usize].bounds.distance_squared(query), self.nodes[right as usize].bounds.distance_squared(query));
             let (near, far) = if dl <= dr { (left, right) } else { (right, left) };
-            stack[top] = far;
-            stack[top + 1] = near;
-            top += 2;
+            for child in [far, near] {
+                if enter(child) {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
         }
         best
     }
@@ -584,6 +658,41 @@ mod tests {
             found.sort_unstable();
             let expect: Vec<u32> = (0..triangles.len() as u32).filter(|&t| moved_boxes[t as usize].overlaps(query)).collect();
             assert_eq!(found, expect);
+        }
+    }
+
+    /// Random triangles moved in part: refitting in place only the moved ones gives the
+    /// boxes of a refit of all of them, and the pruned closest-point query among a subset
+    /// gives the unpruned filtered query's answer to the bit.
+    #[test]
+    fn partial_refit_and_pruned_closest_point_match_the_full_ones() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let points: Vec<[f64; 3]> = (0..900).map(|_| std::array::from_fn(|_| rng.random::<f64>())).collect();
+        let triangles: Vec<[u32; 3]> = (0..300).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let bvh = TriangleBvh::build(&points, &triangles);
+        let changed: Vec<bool> = (0..triangles.len()).map(|_| rng.random::<f64>() < 0.2).collect();
+        let moved: Vec<[f64; 3]> = points
+            .iter()
+            .enumerate()
+            .map(|(v, p)| if changed[v / 3] { [p[0] + 0.3, p[1] - 0.1 * p[2], p[2]] } else { *p })
+            .collect();
+        let full = bvh.refitted(&moved, &triangles);
+        let mut partial = bvh.clone();
+        partial.refit_changed(&moved, &triangles, &changed);
+        let boxes = |b: &TriangleBvh| b.nodes.iter().map(|n| (n.bounds.lo, n.bounds.hi)).chain(b.boxes.iter().map(|x| (x.lo, x.hi))).collect::<Vec<_>>();
+        assert_eq!(boxes(&partial), boxes(&full));
+        assert!(partial.triangles.iter().zip(&full.triangles).all(|(a, b)| (a.a, a.ab, a.ac) == (b.a, b.ab, b.ac)));
+        // The subset: a third of the triangles, mostly in one corner of the cube.
+        let accept = |t: u32| t % 3 == 0 && moved[3 * t as usize][0] < 0.6;
+        let marked: Vec<bool> = (0..triangles.len() as u32).map(accept).collect();
+        let holding = full.nodes_holding(&marked);
+        assert!(holding.iter().any(|&h| !h), "some subtree should hold none of the subset");
+        for _ in 0..500 {
+            let q: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.5..1.5));
+            let (a, b) = (full.closest_point_where(&q, f64::INFINITY, accept), full.closest_point_among(&q, f64::INFINITY, &holding, accept));
+            let key = |p: Option<SurfacePoint>| p.map(|p| (p.triangle, p.point, p.barycentric, p.distance_squared));
+            assert!(a.is_some_and(|p| accept(p.triangle)));
+            assert_eq!(key(a), key(b));
         }
     }
 
