@@ -242,13 +242,14 @@ impl TriangleBvh {
         if self.triangles.is_empty() {
             return Vec::new();
         }
-        let is_marked = |k: usize| marked[self.original[k] as usize];
+        // The marks in leaf order, read without going through `original`.
+        let slot_marked: Vec<bool> = self.original.iter().map(|&t| marked[t as usize]).collect();
         // Whether a node's subtree holds a marked triangle (children follow their parent).
         let mut has_marked = vec![false; self.nodes.len()];
         for i in (0..self.nodes.len()).rev() {
             let Node { first, count, .. } = self.nodes[i];
             has_marked[i] = if count > 0 {
-                (first as usize..(first + count) as usize).any(is_marked)
+                slot_marked[first as usize..(first + count) as usize].iter().any(|&m| m)
             } else {
                 has_marked[first as usize] || has_marked[first as usize + 1]
             };
@@ -260,11 +261,13 @@ impl TriangleBvh {
             (has_marked[i as usize] || has_marked[j as usize])
                 && (i == j || self.nodes[i as usize].bounds.overlaps(&self.nodes[j as usize].bounds))
         };
-        let split = |i: u32, j: u32| -> Option<Vec<(u32, u32)>> {
+        // The node pairs a pair splits into (the first `count` of the array), without a heap
+        // allocation per step of the descent.
+        let split = |i: u32, j: u32| -> Option<([(u32, u32); 3], usize)> {
             let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
             if i == j {
                 let [l, r] = children(i);
-                return (a.count == 0).then(|| vec![(l, l), (r, r), (l, r)]);
+                return (a.count == 0).then_some(([(l, l), (r, r), (l, r)], 3));
             }
             // Split the internal node with the larger box (both when leaves: none).
             let first = match (a.count == 0, b.count == 0) {
@@ -273,7 +276,8 @@ impl TriangleBvh {
                 (false, true) => false,
                 (true, true) => a.bounds.half_area() >= b.bounds.half_area(),
             };
-            Some(if first { children(i).map(|c| (c, j)).to_vec() } else { children(j).map(|c| (i, c)).to_vec() })
+            let [x, y] = if first { children(i).map(|c| (c, j)) } else { children(j).map(|c| (i, c)) };
+            Some(([x, y, (0, 0)], 2))
         };
         let mut tasks = vec![(0u32, 0u32)];
         while tasks.len() < 256 {
@@ -281,9 +285,9 @@ impl TriangleBvh {
             let mut grew = false;
             for &(i, j) in &tasks {
                 match split(i, j) {
-                    Some(pairs) => {
+                    Some((pairs, count)) => {
                         grew = true;
-                        next.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b)));
+                        next.extend(pairs[..count].iter().copied().filter(|&(a, b)| worth(a, b)));
                     }
                     None => next.push((i, j)),
                 }
@@ -300,14 +304,16 @@ impl TriangleBvh {
                 let mut stack = vec![task];
                 while let Some((i, j)) = stack.pop() {
                     match split(i, j) {
-                        Some(pairs) => stack.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b))),
+                        Some((pairs, count)) => stack.extend(pairs[..count].iter().copied().filter(|&(a, b)| worth(a, b))),
                         None => {
                             // Two leaves, or one leaf against itself.
                             let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
+                            let b_end = (b.first + b.count) as usize;
                             for p in a.first as usize..(a.first + a.count) as usize {
                                 let from = if i == j { p + 1 } else { b.first as usize };
-                                for q in from..(b.first + b.count) as usize {
-                                    if (is_marked(p) || is_marked(q)) && self.boxes[p].overlaps(&self.boxes[q]) {
+                                let (p_marked, p_box) = (slot_marked[p], &self.boxes[p]);
+                                for q in from..b_end {
+                                    if (p_marked || slot_marked[q]) && p_box.overlaps(&self.boxes[q]) {
                                         visit(&mut found, self.original[p], self.original[q]);
                                     }
                                 }
