@@ -87,9 +87,10 @@ mod contacts;
 mod holds;
 
 use std::cmp::Ordering;
-use std::cell::OnceCell;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
 use std::sync::OnceLock;
+
+use rayon::prelude::*;
 
 pub use contacts::AddedCurve;
 use contacts::TemplateContacts;
@@ -312,11 +313,23 @@ impl DeformationTransfer {
         let shared = PlainRound::new(self, guard, shape, factor);
         let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0])?;
         let mut solves = outcome.solves;
-        for attempt in &ATTEMPTS[1..] {
-            // Only a shape still worse than the template (its excess known) tries again.
-            let Some(least) = excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal) else { break };
+        let worse = |excess: Option<f64>| excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal);
+        if worse(excess).is_none() {
+            return Ok(outcome);
+        }
+        // The later attempts, each from the plain solve, side by side: a shape that needs them
+        // (a few mouth shapes, each a dozen rounds) is the last to finish otherwise. They are
+        // then taken in order as if run one after the other: the next only while the shape is
+        // still worse (its excess known), so the result does not depend on the threads.
+        let run = |attempt: &Attempt| {
             let mut again = plain.clone();
-            let (next, next_excess) = self.collision_rounds(guard, shape, &shared, &mut again, attempt)?;
+            self.collision_rounds(guard, shape, &shared, &mut again, attempt).map(|(next, next_excess)| (next, next_excess, again))
+        };
+        let later: Vec<ShapesmithResult<(CollisionOutcome, Option<f64>, Vec<Vec3>)>> = ATTEMPTS[1..].par_iter().map(run).collect();
+        for tried in later {
+            // Only a shape still worse than the template (its excess known) tries again.
+            let Some(least) = worse(excess) else { break };
+            let (next, next_excess, again) = tried?;
             solves += next.solves;
             if next_excess.is_some_and(|e| e < least) {
                 *out = again;
@@ -576,8 +589,8 @@ struct PlainRound {
     /// The rest curve the sweeps see again: all of it but the rest pairs whose triangles both
     /// stay put (those cross exactly as at rest and are not swept).
     swept_rest: AddedCurve,
-    crossing: OnceCell<Vec<(u32, u32, f64)>>,
-    template: OnceCell<TemplateContacts>,
+    crossing: OnceLock<Vec<(u32, u32, f64)>>,
+    template: OnceLock<TemplateContacts>,
 }
 
 impl PlainRound {
@@ -596,7 +609,7 @@ impl PlainRound {
             |t| dt.triangle_piece(t),
             AddedCurve::default(),
         );
-        Self { moved, free, static_piece, swept_rest, crossing: OnceCell::new(), template: OnceCell::new() }
+        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), template: OnceLock::new() }
     }
 }
 
