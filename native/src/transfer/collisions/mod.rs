@@ -87,7 +87,7 @@ mod contacts;
 mod holds;
 
 use std::cmp::Ordering;
-use std::collections::{BTreeMap, BinaryHeap, HashMap};
+use std::collections::{BTreeMap, BinaryHeap};
 use std::sync::OnceLock;
 
 use rayon::prelude::*;
@@ -545,22 +545,23 @@ impl DeformationTransfer {
                 self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
             }
         }
-        let mut best: HashMap<usize, f64> = HashMap::new();
+        // Per vertex, the most budget it was reached with (none yet: below any budget).
+        let mut best = vec![f64::NEG_INFINITY; region.len()];
         let mut heap = BinaryHeap::new();
         for &(u, reach) in seeds {
             let budget = (REGION_RINGS * guard.edge_length[u]).max(REGION_SPREAD * reach);
             heap.push(Budget(budget, u));
         }
         while let Some(Budget(budget, v)) = heap.pop() {
-            if best.get(&v).is_some_and(|&b| b >= budget) {
+            if best[v] >= budget {
                 continue;
             }
-            best.insert(v, budget);
+            best[v] = budget;
             region[v] = true;
             for &w in guard.adjacency.neighbours(v) {
                 let w = w as usize;
                 let left = budget - length(sub(self.target_neutral[w], self.target_neutral[v]));
-                if free[w] && left >= 0.0 && best.get(&w).is_none_or(|&b| b < left) {
+                if free[w] && left >= 0.0 && best[w] < left {
                     heap.push(Budget(left, w));
                 }
             }
