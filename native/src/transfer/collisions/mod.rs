@@ -51,7 +51,11 @@
 //! **Attempts.** A shape still worse than the template after the rounds is tried again from
 //! its plain solve with other holds (`ATTEMPTS`): twice the margin, then ten times the
 //! stiffness; the attempt with least excess is kept, and the next is tried only while the
-//! shape is still worse. No single setting clears every shape (Deviations).
+//! shape is still worse. No single setting clears every shape (Deviations). Every attempt
+//! starts from the plain solve, so its sweep and the template shape's contacts are found once
+//! per shape (`PlainRound`); the two later attempts run side by side (the few shapes needing
+//! them are a dozen rounds each, the last to finish otherwise) and are then taken in order,
+//! so the result is the same as one after the other.
 //!
 //! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
 //! `scripts/save_collision_arrays.py`; shapes worse than the template after the
