@@ -312,9 +312,10 @@ impl TriangleBvh {
                             for p in a.first as usize..(a.first + a.count) as usize {
                                 let from = if i == j { p + 1 } else { b.first as usize };
                                 let (p_marked, p_box) = (slot_marked[p], &self.boxes[p]);
-                                for q in from..b_end {
-                                    if (p_marked || slot_marked[q]) && p_box.overlaps(&self.boxes[q]) {
-                                        visit(&mut found, self.original[p], self.original[q]);
+                                let others = slot_marked[from..b_end].iter().zip(&self.boxes[from..b_end]).zip(&self.original[from..b_end]);
+                                for ((&q_marked, q_box), &q) in others {
+                                    if (p_marked || q_marked) && p_box.overlaps(q_box) {
+                                        visit(&mut found, self.original[p], q);
                                     }
                                 }
                             }

@@ -123,7 +123,6 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 /// pair is tested lower index first, as a sweep of every pair would, so the lengths are the
 /// same to the bit whatever `moved` is. Candidate pairs come from one descent of the
 /// hierarchy against itself ([`TriangleBvh::overlapping_pairs`]), not one query per triangle.
-
 pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
     let everything;

@@ -329,7 +329,7 @@ impl DeformationTransfer {
             let mut again = plain.clone();
             self.collision_rounds(guard, shape, &shared, &mut again, attempt).map(|(next, next_excess)| (next, next_excess, again))
         };
-        let later: Vec<ShapesmithResult<(CollisionOutcome, Option<f64>, Vec<Vec3>)>> = ATTEMPTS[1..].par_iter().map(run).collect();
+        let later: Vec<_> = ATTEMPTS[1..].par_iter().map(run).collect();
         for tried in later {
             // Only a shape still worse than the template (its excess known) tries again.
             let Some(least) = worse(excess) else { break };
