@@ -7,8 +7,8 @@
 //! (setup, virtual edges, solves, collision pass, report), the seconds of the template's own
 //! per-shape numbers (measured once per template), and a checksum of the results (summed
 //! intersection length and pairs, shapes the pass changed, summed excess over the template,
-//! summed absolute deltas) so that two builds run one after
-//! the other can be compared for both speed and sameness.
+//! summed absolute deltas, local re-solves, and a hash of every written delta's bits) so that
+//! two builds run one after the other can be compared for both speed and sameness.
 
 use std::time::Instant;
 
@@ -32,7 +32,7 @@ fn main() {
     let template_seconds = started.elapsed().as_secs_f64();
     let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
     let mut best: Option<(f64, StageSeconds)> = None;
-    let mut checksum = (0.0, 0, 0, 0.0, 0.0);
+    let mut checksum = (0.0, 0, 0, 0.0, 0.0, 0, 0u64);
     for _ in 0..runs {
         let started = Instant::now();
         let (deltas, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
@@ -45,6 +45,9 @@ fn main() {
             rows.iter().filter(|r| r.collisions.is_some_and(|c| c.applied)).count(),
             rows.iter().map(|r| r.excess.inside + r.excess.between).sum::<f64>(),
             deltas.iter().flatten().map(|&x| f64::from(x).abs()).sum::<f64>(),
+            rows.iter().filter_map(|r| r.collisions).map(|c| c.solves).sum::<usize>(),
+            // FNV-1a over the deltas' bits: equal only when every written number is.
+            deltas.iter().flatten().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| (h ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3)),
         );
         if best.as_ref().is_none_or(|b| wall < b.0) {
             best = Some((wall, report.seconds));
@@ -63,7 +66,8 @@ fn main() {
         s.penetration
     );
     println!(
-        "checksum: length {:.9}, pairs {}, shapes the pass changed {}, excess over the template summed {:.9}, |deltas| summed {:.9}",
-        checksum.0, checksum.1, checksum.2, checksum.3, checksum.4
+        "checksum: length {:.9}, pairs {}, shapes the pass changed {}, excess over the template summed {:.9}, |deltas| summed {:.9}; \
+         local re-solves {}; bits {:016x}",
+        checksum.0, checksum.1, checksum.2, checksum.3, checksum.4, checksum.5, checksum.6
     );
 }

@@ -72,6 +72,40 @@ impl SymmetricMatrix {
         y
     }
 
+    /// Every row of the whole matrix (both triangles), entries in increasing column: a row's
+    /// products with a vector summed in this order give [`Self::apply`]'s entry to the bit
+    /// (the same products, added in the same order), for the rows one needs only.
+    pub fn rows(&self) -> MatrixRows {
+        let mut offsets = vec![0usize; self.n + 1];
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                offsets[self.row_idx[k] + 1] += 1;
+                if self.row_idx[k] != c {
+                    offsets[c + 1] += 1;
+                }
+            }
+        }
+        for v in 0..self.n {
+            offsets[v + 1] += offsets[v];
+        }
+        // Filled column by column: row r gets column c's entry at c's turn, and column c's
+        // own row gets its entries below the diagonal in increasing row, after its diagonal.
+        let mut fill = offsets.clone();
+        let mut entries = vec![(0usize, 0.0); offsets[self.n]];
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = self.row_idx[k];
+                entries[fill[r]] = (c, self.values[k]);
+                fill[r] += 1;
+                if r != c {
+                    entries[fill[c]] = (r, self.values[k]);
+                    fill[c] += 1;
+                }
+            }
+        }
+        MatrixRows { offsets, entries }
+    }
+
     /// A fill-reducing elimination order (AMD) of all unknowns: compute it once and hand it
     /// to every factorisation of this pattern or of its principal submatrices.
     pub fn fill_reducing_order(&self) -> ShapesmithResult<Vec<usize>> {
@@ -160,6 +194,20 @@ impl SymmetricMatrix {
     }
 }
 
+/// The rows of a [`SymmetricMatrix`] ([`SymmetricMatrix::rows`]).
+#[derive(Clone, Debug)]
+pub struct MatrixRows {
+    offsets: Vec<usize>,
+    entries: Vec<(usize, f64)>,
+}
+
+impl MatrixRows {
+    /// Row `v`'s stored entries `(column, value)`, in increasing column.
+    pub fn row(&self, v: usize) -> &[(usize, f64)] {
+        &self.entries[self.offsets[v]..self.offsets[v + 1]]
+    }
+}
+
 /// A sparse `L L^T` factor, sequential inside.
 pub struct Cholesky {
     symbolic: SymbolicCholesky<usize>,
@@ -199,6 +247,29 @@ impl Cholesky {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A random symmetric pattern: each row's products summed in the rows' order equal
+    /// `apply`'s entries to the bit.
+    #[test]
+    fn rows_reproduce_apply_to_the_bit() {
+        let n = 40;
+        let mut entries = Vec::new();
+        for i in 0..n {
+            entries.push((i, i, 4.0 + (i as f64 * 0.37).sin()));
+            for j in [(i * 7 + 3) % n, (i * 11 + 5) % n] {
+                if j != i {
+                    entries.push((i, j, -0.1 - (i as f64 * j as f64 * 0.013).cos().abs()));
+                }
+            }
+        }
+        let a = SymmetricMatrix::from_triplets(n, entries);
+        let x: Vec<f64> = (0..n).map(|v| (v as f64 * 1.3).sin() * 1e3 + 1.0 / (v as f64 + 0.7)).collect();
+        let rows = a.rows();
+        let by_rows: Vec<f64> = (0..n).map(|v| rows.row(v).iter().fold(0.0, |s, &(c, w)| s + w * x[c])).collect();
+        assert!((0..n).all(|v| rows.row(v).windows(2).all(|p| p[0].0 < p[1].0)));
+        assert!((0..n).all(|v| rows.row(v).len() >= 3), "each row should hold its diagonal and neighbours");
+        assert_eq!(by_rows.iter().map(|y| y.to_bits()).collect::<Vec<_>>(), a.apply(&x).iter().map(|y| y.to_bits()).collect::<Vec<_>>());
+    }
 
     /// A path graph Laplacian plus a diagonal: whole and restricted solves have zero residual.
     #[test]

@@ -86,6 +86,7 @@ pub(super) struct PreparedTriangle {
     pub(super) ac: [f64; 3],
 }
 
+#[derive(Clone)]
 pub struct TriangleBvh {
     pub(super) nodes: Vec<Node>,
     /// In leaf order, with each one's box and index in the caller's triangle list.
@@ -222,6 +223,49 @@ impl TriangleBvh {
         }
     }
 
+    /// [`Self::refitted`] in place after only the triangles `changed` (indexed like the list
+    /// given to `build`) moved since the last refit: their boxes are recomputed, then every
+    /// node's bounds bottom-up. The same hierarchy, boxes and answers as `refitted(points)`
+    /// to the bit (a box is the exact min and max of its corners, in any order), without
+    /// gathering the corners of the triangles that stayed put: the collision pass re-sweeps a
+    /// shape after each local re-solve, which moves a few hundred of its triangles.
+    pub fn refit_changed(&mut self, points: &[[f64; 3]], triangles: &[[u32; 3]], changed: &[bool]) {
+        for (slot, &t) in self.original.iter().enumerate() {
+            if changed[t as usize] {
+                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+                self.boxes[slot] = Aabb::of_points(&[a, b, c]);
+                self.triangles[slot] = PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) };
+            }
+        }
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            let mut bounds = Aabb::EMPTY;
+            if count > 0 {
+                self.boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
+            } else {
+                bounds.grow(&self.nodes[first as usize].bounds);
+                bounds.grow(&self.nodes[first as usize + 1].bounds);
+            }
+            self.nodes[i].bounds = bounds;
+        }
+    }
+
+    /// Per node, whether its subtree holds a `marked` triangle (indexed like the list given
+    /// to `build`): the pruning mask [`Self::closest_point_among`] takes.
+    pub fn nodes_holding(&self, marked: &[bool]) -> Vec<bool> {
+        let mut holds = vec![false; self.nodes.len()];
+        // Children come after their parent in the array.
+        for i in (0..self.nodes.len()).rev() {
+            let Node { first, count, .. } = self.nodes[i];
+            holds[i] = if count > 0 {
+                self.original[first as usize..(first + count) as usize].iter().any(|&t| marked[t as usize])
+            } else {
+                holds[first as usize] || holds[first as usize + 1]
+            };
+        }
+        holds
+    }
+
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
     /// whose bounding box overlaps `query`.
     pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
@@ -268,13 +312,14 @@ impl TriangleBvh {
         if self.triangles.is_empty() {
             return Vec::new();
         }
-        let is_marked = |k: usize| marked[self.original[k] as usize];
+        // The marks in leaf order, read without going through `original`.
+        let slot_marked: Vec<bool> = self.original.iter().map(|&t| marked[t as usize]).collect();
         // Whether a node's subtree holds a marked triangle (children follow their parent).
         let mut has_marked = vec![false; self.nodes.len()];
         for i in (0..self.nodes.len()).rev() {
             let Node { first, count, .. } = self.nodes[i];
             has_marked[i] = if count > 0 {
-                (first as usize..(first + count) as usize).any(is_marked)
+                slot_marked[first as usize..(first + count) as usize].iter().any(|&m| m)
             } else {
                 has_marked[first as usize] || has_marked[first as usize + 1]
             };
@@ -286,11 +331,13 @@ impl TriangleBvh {
             (has_marked[i as usize] || has_marked[j as usize])
                 && (i == j || self.nodes[i as usize].bounds.overlaps(&self.nodes[j as usize].bounds))
         };
-        let split = |i: u32, j: u32| -> Option<Vec<(u32, u32)>> {
+        // The node pairs a pair splits into (the first `count` of the array), without a heap
+        // allocation per step of the descent.
+        let split = |i: u32, j: u32| -> Option<([(u32, u32); 3], usize)> {
             let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
             if i == j {
                 let [l, r] = children(i);
-                return (a.count == 0).then(|| vec![(l, l), (r, r), (l, r)]);
+                return (a.count == 0).then_some(([(l, l), (r, r), (l, r)], 3));
             }
             // Split the internal node with the larger box (both when leaves: none).
             let first = match (a.count == 0, b.count == 0) {
@@ -299,7 +346,8 @@ impl TriangleBvh {
                 (false, true) => false,
                 (true, true) => a.bounds.half_area() >= b.bounds.half_area(),
             };
-            Some(if first { children(i).map(|c| (c, j)).to_vec() } else { children(j).map(|c| (i, c)).to_vec() })
+            let [x, y] = if first { children(i).map(|c| (c, j)) } else { children(j).map(|c| (i, c)) };
+            Some(([x, y, (0, 0)], 2))
         };
         let mut tasks = vec![(0u32, 0u32)];
         while tasks.len() < 256 {
@@ -307,9 +355,9 @@ impl TriangleBvh {
             let mut grew = false;
             for &(i, j) in &tasks {
                 match split(i, j) {
-                    Some(pairs) => {
+                    Some((pairs, count)) => {
                         grew = true;
-                        next.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b)));
+                        next.extend(pairs[..count].iter().copied().filter(|&(a, b)| worth(a, b)));
                     }
                     None => next.push((i, j)),
                 }
@@ -326,15 +374,18 @@ impl TriangleBvh {
                 let mut stack = vec![task];
                 while let Some((i, j)) = stack.pop() {
                     match split(i, j) {
-                        Some(pairs) => stack.extend(pairs.into_iter().filter(|&(a, b)| worth(a, b))),
+                        Some((pairs, count)) => stack.extend(pairs[..count].iter().copied().filter(|&(a, b)| worth(a, b))),
                         None => {
                             // Two leaves, or one leaf against itself.
                             let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
+                            let b_end = (b.first + b.count) as usize;
                             for p in a.first as usize..(a.first + a.count) as usize {
                                 let from = if i == j { p + 1 } else { b.first as usize };
-                                for q in from..(b.first + b.count) as usize {
-                                    if (is_marked(p) || is_marked(q)) && self.boxes[p].overlaps(&self.boxes[q]) {
-                                        visit(&mut found, self.original[p], self.original[q]);
+                                let (p_marked, p_box) = (slot_marked[p], &self.boxes[p]);
+                                let others = slot_marked[from..b_end].iter().zip(&self.boxes[from..b_end]).zip(&self.original[from..b_end]);
+                                for ((&q_marked, q_box), &q) in others {
+                                    if (p_marked || q_marked) && p_box.overlaps(q_box) {
+                                        visit(&mut found, self.original[p], q);
                                     }
                                 }
                             }
@@ -404,7 +455,34 @@ impl TriangleBvh {
     /// [`Self::closest_point`] among the triangles `t` (indices into the list given to
     /// `build`) with `accept(t)`.
     pub fn closest_point_where(&self, query: &[f64; 3], max_distance: f64, accept: impl Fn(u32) -> bool) -> Option<SurfacePoint> {
-        if self.triangles.is_empty() {
+        self.closest_point_pruned(query, max_distance, None, accept)
+    }
+
+    /// [`Self::closest_point_where`] among the triangles of `holding` ([`Self::nodes_holding`]
+    /// of those `accept` takes): subtrees without one are never entered. The same point to the
+    /// bit: a skipped subtree would only have tested triangles `accept` refuses, and the others
+    /// are visited in the same order. Until a first accepted triangle bounds the search, the
+    /// unpruned query descends every subtree of a large piece (the skin) looking for a small
+    /// one (the teeth).
+    pub fn closest_point_among(
+        &self,
+        query: &[f64; 3],
+        max_distance: f64,
+        holding: &[bool],
+        accept: impl Fn(u32) -> bool,
+    ) -> Option<SurfacePoint> {
+        self.closest_point_pruned(query, max_distance, Some(holding), accept)
+    }
+
+    fn closest_point_pruned(
+        &self,
+        query: &[f64; 3],
+        max_distance: f64,
+        holding: Option<&[bool]>,
+        accept: impl Fn(u32) -> bool,
+    ) -> Option<SurfacePoint> {
+        let enter = |node: u32| holding.is_none_or(|h| h[node as usize]);
+        if self.triangles.is_empty() || !enter(0) {
             return None;
         }
         let mut best: Option<SurfacePoint> = None;
@@ -437,9 +515,12 @@ impl TriangleBvh {
             let (left, right) = (node.first, node.first + 1);
             let (dl, dr) = (self.nodes[left as usize].bounds.distance_squared(query), self.nodes[right as usize].bounds.distance_squared(query));
             let (near, far) = if dl <= dr { (left, right) } else { (right, left) };
-            stack[top] = far;
-            stack[top + 1] = near;
-            top += 2;
+            for child in [far, near] {
+                if enter(child) {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
         }
         best
     }
@@ -673,6 +754,41 @@ mod tests {
             found.sort_unstable();
             let expect: Vec<u32> = (0..triangles.len() as u32).filter(|&t| moved_boxes[t as usize].overlaps(query)).collect();
             assert_eq!(found, expect);
+        }
+    }
+
+    /// Random triangles moved in part: refitting in place only the moved ones gives the
+    /// boxes of a refit of all of them, and the pruned closest-point query among a subset
+    /// gives the unpruned filtered query's answer to the bit.
+    #[test]
+    fn partial_refit_and_pruned_closest_point_match_the_full_ones() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let points: Vec<[f64; 3]> = (0..900).map(|_| std::array::from_fn(|_| rng.random::<f64>())).collect();
+        let triangles: Vec<[u32; 3]> = (0..300).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let bvh = TriangleBvh::build(&points, &triangles);
+        let changed: Vec<bool> = (0..triangles.len()).map(|_| rng.random::<f64>() < 0.2).collect();
+        let moved: Vec<[f64; 3]> = points
+            .iter()
+            .enumerate()
+            .map(|(v, p)| if changed[v / 3] { [p[0] + 0.3, p[1] - 0.1 * p[2], p[2]] } else { *p })
+            .collect();
+        let full = bvh.refitted(&moved, &triangles);
+        let mut partial = bvh.clone();
+        partial.refit_changed(&moved, &triangles, &changed);
+        let boxes = |b: &TriangleBvh| b.nodes.iter().map(|n| (n.bounds.lo, n.bounds.hi)).chain(b.boxes.iter().map(|x| (x.lo, x.hi))).collect::<Vec<_>>();
+        assert_eq!(boxes(&partial), boxes(&full));
+        assert!(partial.triangles.iter().zip(&full.triangles).all(|(a, b)| (a.a, a.ab, a.ac) == (b.a, b.ab, b.ac)));
+        // The subset: a third of the triangles, mostly in one corner of the cube.
+        let accept = |t: u32| t % 3 == 0 && moved[3 * t as usize][0] < 0.6;
+        let marked: Vec<bool> = (0..triangles.len() as u32).map(accept).collect();
+        let holding = full.nodes_holding(&marked);
+        assert!(holding.iter().any(|&h| !h), "some subtree should hold none of the subset");
+        for _ in 0..500 {
+            let q: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.5..1.5));
+            let (a, b) = (full.closest_point_where(&q, f64::INFINITY, accept), full.closest_point_among(&q, f64::INFINITY, &holding, accept));
+            let key = |p: Option<SurfacePoint>| p.map(|p| (p.triangle, p.point, p.barycentric, p.distance_squared));
+            assert!(a.is_some_and(|p| accept(p.triangle)));
+            assert_eq!(key(a), key(b));
         }
     }
 

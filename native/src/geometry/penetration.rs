@@ -123,11 +123,8 @@ fn total(pairs: &[(u32, u32, f64)], piece: &[u32]) -> Penetration {
 /// pair is tested lower index first, as a sweep of every pair would, so the lengths are the
 /// same to the bit whatever `moved` is. Candidate pairs come from one descent of the
 /// hierarchy against itself ([`TriangleBvh::overlapping_pairs`]), not one query per triangle.
-
 pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
     let corners = |t: usize| triangles[t].map(|v| points[v as usize]);
-    // The normals of the triangles a test can involve, each computed once instead of per pair.
-    let normals: Vec<Vec3> = (0..triangles.len()).into_par_iter().map(|t| normal(corners(t))).collect();
     let everything;
     let marked = match moved {
         Some(moved) => moved,
@@ -136,6 +133,13 @@ pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, mov
             &everything
         }
     };
+    // The normals of the triangles a test can involve, each computed once instead of per
+    // pair; when few triangles are marked (a re-sweep after a local change) they meet few
+    // others, and each pair computes its own (the same arithmetic: the same lengths).
+    let few = marked.iter().filter(|&&m| m).count() * FEW_MARKED < triangles.len();
+    let normals: Vec<Vec3> =
+        if few { Vec::new() } else { (0..triangles.len()).into_par_iter().map(|t| normal(corners(t))).collect() };
+    let normal_of = |t: usize| if few { normal(corners(t)) } else { normals[t] };
     let per_task = bvh.overlapping_pairs(marked, Vec::new, |found, a, b| {
         let (a, b) = (a as usize, b as usize);
         if triangles[a].iter().any(|v| triangles[b].contains(v)) {
@@ -143,7 +147,7 @@ pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, mov
         }
         // Lower index first, as a sweep of every pair would.
         let (lo, hi) = (a.min(b), a.max(b));
-        if let Some(len) = crossing_length(corners(lo), normals[lo], corners(hi), normals[hi]) {
+        if let Some(len) = crossing_length(corners(lo), normal_of(lo), corners(hi), normal_of(hi)) {
             found.push((lo as u32, hi as u32, len));
         }
     });
@@ -151,6 +155,9 @@ pub fn crossings(points: &[Vec3], triangles: &[[u32; 3]], bvh: &TriangleBvh, mov
     all.sort_by_key(|&(a, b, _)| (a, b));
     all
 }
+
+/// Below one marked triangle in this many, [`crossings`] computes normals per pair.
+const FEW_MARKED: usize = 16;
 
 /// The length of the segment where two triangles cross, or `None` when they do not cross
 /// (or are coplanar).

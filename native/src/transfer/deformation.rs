@@ -115,12 +115,23 @@ impl DeformationTransfer {
         let (piece, n_pieces) = connected_components(n, triangles);
         let piece_scale = piece_scales(&source, &target, &piece, n_pieces);
 
-        let edges_start = Instant::now();
-        let virtual_edges = match &params.virtual_edges {
-            Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
-            _ => Vec::new(),
-        };
-        let virtual_edge_seconds = edges_start.elapsed().as_secs_f64();
+        // The virtual-edge search and the collision pass's view of the neutrals (hierarchies,
+        // rest sweeps) need nothing of each other: side by side, the sequential parts of each
+        // (the thinning, the hierarchy builds) overlap. Their wall time is split between the
+        // two in proportion to the seconds each took, as the shapes' solves and pass are.
+        let joined_start = Instant::now();
+        let ((virtual_edges, edge_own), (collisions, guard_own)) = rayon::join(
+            || {
+                timed(|| match &params.virtual_edges {
+                    Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
+                    _ => Vec::new(),
+                })
+            },
+            || timed(|| params.collisions.map(|c| CollisionGuard::new(&source, &target, target_neutral, triangles, c))),
+        );
+        let joined = joined_start.elapsed().as_secs_f64();
+        let edge_share = if edge_own + guard_own > 0.0 { edge_own / (edge_own + guard_own) } else { 1.0 };
+        let (virtual_edge_seconds, collision_setup_seconds) = (joined * edge_share, joined * (1.0 - edge_share));
         // A_t = E_target E_source^{-1}, the rest-to-rest deformation gradient (S&P Eq. 1).
         let rest_maps: Vec<Mat3> = (0..triangles.len())
             .map(|t| mat_mul(&edge_frame(corners(&target, None, &triangles[t])), &source_rest_inverse[t]))
@@ -133,9 +144,6 @@ impl DeformationTransfer {
             })
             .collect();
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
-        let guard_start = Instant::now();
-        let collisions = params.collisions.map(|c| CollisionGuard::new(&source, &target, target_neutral, triangles, c));
-        let collision_setup_seconds = guard_start.elapsed().as_secs_f64();
         Ok(Self {
             triangles: triangles.to_vec(),
             source_diagonal: bbox_diagonal(source_neutral),
@@ -545,6 +553,13 @@ pub const MAX_MARGIN: f64 = 2.0;
 
 /// The largest least margin accepted, in bounding-box diagonals (1% of a head is 3-4 mm).
 pub const MAX_MIN_MARGIN: f64 = 0.02;
+
+/// `work()` and the wall-clock seconds it took.
+fn timed<T>(work: impl FnOnce() -> T) -> (T, f64) {
+    let start = Instant::now();
+    let result = work();
+    (result, start.elapsed().as_secs_f64())
+}
 
 fn length32(d: &[f32; 3]) -> f64 {
     super::gradients::length(to_f64(d))

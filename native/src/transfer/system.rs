@@ -17,12 +17,14 @@
 
 use super::gradients::{add, dot, scale, sub, HatGradients, Vec3};
 use crate::error::ShapesmithResult;
-use crate::sparse::{Cholesky, SymmetricMatrix};
+use crate::sparse::{Cholesky, MatrixRows, SymmetricMatrix};
 
 /// The symmetric normal matrix and a fill-reducing order of all vertices.
 #[derive(Clone, Debug)]
 pub struct NormalMatrix {
     matrix: SymmetricMatrix,
+    /// The matrix's rows, for the local re-solve's coupling to the vertices held outside.
+    rows: MatrixRows,
     /// A fill-reducing elimination order of all vertices (AMD), restricted per solve.
     order: Vec<usize>,
 }
@@ -56,7 +58,7 @@ impl NormalMatrix {
         }
         let matrix = SymmetricMatrix::from_triplets(n, entries);
         let order = matrix.fill_reducing_order()?;
-        Ok(Self { matrix, order })
+        Ok(Self { rows: matrix.rows(), matrix, order })
     }
 
     /// `A x` for a vector stored per vertex (residual checks in tests).
@@ -100,17 +102,23 @@ impl NormalMatrix {
         for (slot, &v) in sorted.iter().enumerate() {
             position[v] = slot as u32;
         }
-        // A_R,out d_out: the product with the region's rows zeroed, read on the region.
-        let mut coupling = vec![[0.0; 3]; n];
-        for axis in 0..3 {
-            let outside: Vec<f64> = (0..n).map(|v| if position[v] == u32::MAX { current[v][axis] } else { 0.0 }).collect();
-            for (v, x) in self.matrix.apply(&outside).into_iter().enumerate() {
-                coupling[v][axis] = x;
+        // A_R,out d_out on the region's rows only: each row's products with the vertices
+        // outside, in increasing column (the product of the whole matrix with the region's
+        // entries zeroed, to the bit: the zeros it adds change no sum).
+        let coupling = |v: usize| {
+            let mut sum = [0.0; 3];
+            for &(u, a) in self.rows.row(v) {
+                if position[u] == u32::MAX {
+                    for axis in 0..3 {
+                        sum[axis] += a * current[u][axis];
+                    }
+                }
             }
-        }
+            sum
+        };
         let extra: Vec<(usize, f64)> = constraints.iter().map(|&(u, w, _)| (u, w)).collect();
         let factor = self.matrix.factor_restricted_plus_diagonal(&position, sorted.len(), &self.order, &extra)?;
-        let mut local: Vec<Vec3> = sorted.iter().map(|&v| sub(rhs[v], coupling[v])).collect();
+        let mut local: Vec<Vec3> = sorted.iter().map(|&v| sub(rhs[v], coupling(v))).collect();
         for &(u, w, target) in constraints {
             let slot = position[u] as usize;
             local[slot] = add(local[slot], scale(target, w));

@@ -93,9 +93,8 @@ impl DeformationTransfer {
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
     fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32, margin: f64) -> Option<Vec3> {
-        let in_piece = |t: u32| self.triangle_piece(t) == piece;
         let side_at = |q: Vec3| -> Option<(f64, Vec3, Vec3)> {
-            let hit = guard.bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
+            let hit = guard.closest_on_piece(&q, piece)?;
             let normal = self.surface_normal(guard, hit.triangle, &hit.barycentric)?;
             Some((dot(normal, sub(q, hit.point)), hit.point, normal))
         };

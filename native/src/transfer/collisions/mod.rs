@@ -51,7 +51,11 @@
 //! **Attempts.** A shape still worse than the template after the rounds is tried again from
 //! its plain solve with other holds (`ATTEMPTS`): twice the margin, then ten times the
 //! stiffness; the attempt with least excess is kept, and the next is tried only while the
-//! shape is still worse. No single setting clears every shape (Deviations).
+//! shape is still worse. No single setting clears every shape (Deviations). Every attempt
+//! starts from the plain solve, so its sweep and the template shape's contacts are found once
+//! per shape (`PlainRound`); the two later attempts run side by side (the few shapes needing
+//! them are a dozen rounds each, the last to finish otherwise) and are then taken in order,
+//! so the result is the same as one after the other.
 //!
 //! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
 //! `scripts/save_collision_arrays.py`; shapes worse than the template after the
@@ -87,7 +91,10 @@ mod contacts;
 mod holds;
 
 use std::cmp::Ordering;
-use std::collections::{BTreeMap, BinaryHeap, HashMap};
+use std::collections::{BTreeMap, BinaryHeap};
+use std::sync::OnceLock;
+
+use rayon::prelude::*;
 
 pub use contacts::AddedCurve;
 use contacts::TemplateContacts;
@@ -97,6 +104,7 @@ use super::gradients::{add, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::closest_point::SurfacePoint;
 use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, Penetration};
 use crate::geometry::topology::Adjacency;
 
@@ -177,6 +185,9 @@ pub(super) struct CollisionGuard {
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
     ring_triangles: Vec<u32>,
+    /// Per piece, which nodes of `bvh` hold one of its triangles, made on the first query
+    /// against that piece ([`CollisionGuard::closest_on_piece`]).
+    piece_nodes: Vec<OnceLock<Vec<bool>>>,
 }
 
 impl CollisionGuard {
@@ -222,7 +233,9 @@ impl CollisionGuard {
             }
         }
         let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
+        let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
         Self {
+            piece_nodes: (0..n_pieces).map(|_| OnceLock::new()).collect(),
             params,
             diagonal,
             written_neutral: written_neutral.to_vec(),
@@ -250,6 +263,17 @@ impl CollisionGuard {
         near.sort_unstable();
         near.dedup();
         near
+    }
+
+    /// The point of piece `piece`'s surface on the target neutral closest to `query`: the
+    /// hierarchy's query among that piece's triangles, never entering a subtree without one
+    /// (the same point to the bit as filtering the whole hierarchy's triangles).
+    fn closest_on_piece(&self, query: &Vec3, piece: u32) -> Option<SurfacePoint> {
+        let holding = self.piece_nodes.get(piece as usize)?.get_or_init(|| {
+            let marked: Vec<bool> = self.triangle_piece.iter().map(|&p| p == piece).collect();
+            self.bvh.nodes_holding(&marked)
+        });
+        self.bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
     }
 
     /// The distance kept from the other surface at vertex `u`.
@@ -290,13 +314,26 @@ impl DeformationTransfer {
         out: &mut Vec<Vec3>,
     ) -> ShapesmithResult<CollisionOutcome> {
         let plain = out.clone();
-        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, factor, out, &ATTEMPTS[0])?;
+        let shared = PlainRound::new(self, guard, shape, factor);
+        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0])?;
         let mut solves = outcome.solves;
-        for attempt in &ATTEMPTS[1..] {
-            // Only a shape still worse than the template (its excess known) tries again.
-            let Some(least) = excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal) else { break };
+        let worse = |excess: Option<f64>| excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal);
+        if worse(excess).is_none() {
+            return Ok(outcome);
+        }
+        // The later attempts, each from the plain solve, side by side: a shape that needs them
+        // (a few mouth shapes, each a dozen rounds) is the last to finish otherwise. They are
+        // then taken in order as if run one after the other: the next only while the shape is
+        // still worse (its excess known), so the result does not depend on the threads.
+        let run = |attempt: &Attempt| {
             let mut again = plain.clone();
-            let (next, next_excess) = self.collision_rounds(guard, shape, factor, &mut again, attempt)?;
+            self.collision_rounds(guard, shape, &shared, &mut again, attempt).map(|(next, next_excess)| (next, next_excess, again))
+        };
+        let later: Vec<_> = ATTEMPTS[1..].par_iter().map(run).collect();
+        for tried in later {
+            // Only a shape still worse than the template (its excess known) tries again.
+            let Some(least) = worse(excess) else { break };
+            let (next, next_excess, again) = tried?;
             solves += next.solves;
             if next_excess.is_some_and(|e| e < least) {
                 *out = again;
@@ -315,28 +352,14 @@ impl DeformationTransfer {
         &self,
         guard: &CollisionGuard,
         shape: &ShapeSystem<'_>,
-        factor: &RestrictedFactor,
+        shared: &PlainRound,
         out: &mut Vec<Vec3>,
         attempt: &Attempt,
     ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
-        let moved: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
-        let free: Vec<bool> =
-            (0..out.len()).map(|v| factor.is_kept(v) && !shape.pinned[self.piece[v] as usize]).collect();
-        // A piece none of whose vertices moves is a static obstacle: exactly where the
-        // target's neutral has it.
-        let mut static_piece = vec![true; shape.pinned.len()];
-        for (v, &m) in shape.moving.iter().enumerate() {
-            if m {
-                static_piece[self.piece[v] as usize] = false;
-            }
-        }
+        let PlainRound { moved, free, static_piece, swept_rest, .. } = shared;
         let mut outcome = CollisionOutcome::default();
         let piece_of = |t: u32| self.triangle_piece(t);
-        // The rest curve the sweeps see again: all of it but the rest pairs whose triangles
-        // both stay put (those cross exactly as at rest and are not swept).
         let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
-        let swept_rest =
-            AddedCurve::of(rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]), piece_of, AddedCurve::default());
         let tolerance = JUDGE_TOLERANCE * guard.diagonal;
         let meets = |added: &AddedCurve, template: &Option<AddedCurve>| template.is_some_and(|t| added.excess(&t) <= tolerance);
         let mut template_added = shape.template_added;
@@ -344,7 +367,10 @@ impl DeformationTransfer {
         let mut region = vec![false; out.len()];
         let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         let mut last: Option<Vec<Vec3>> = None;
-        let mut template: Option<TemplateContacts> = None;
+        let mut template: Option<&TemplateContacts> = None;
+        // The hierarchy refitted to the last sweep's positions (after the plain solve's sweep,
+        // only in the attempt that made it), refitted in place where a re-solve moved triangles.
+        let mut sweep_bvh: Option<TriangleBvh> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
         // template's is not known), the deltas that add it (empty: the plain solve), the
@@ -360,7 +386,16 @@ impl DeformationTransfer {
             // takes these numbers as they are.
             let written = self.written_positions(guard, out);
             crossing = match &last {
-                None => self.crossing_pairs(guard, &written, &moved, None),
+                // The plain solve, swept once per shape: every attempt starts from it.
+                None => shared
+                    .crossing
+                    .get_or_init(|| {
+                        let bvh = guard.bvh.refitted(&written, &self.triangles);
+                        let pairs = crossings(&written, &self.triangles, &bvh, Some(moved));
+                        sweep_bvh = Some(bvh);
+                        pairs
+                    })
+                    .clone(),
                 Some(previous) => {
                     // After a re-solve, only triangles with a corner written elsewhere than
                     // at the last sweep are tested again (against every triangle); the others
@@ -369,15 +404,25 @@ impl DeformationTransfer {
                     let changed_vertex: Vec<bool> = (0..written.len()).map(|v| written[v] != previous[v]).collect();
                     let changed: Vec<bool> =
                         self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
+                    let bvh = match sweep_bvh.take() {
+                        Some(mut bvh) => {
+                            bvh.refit_changed(&written, &self.triangles, &changed);
+                            bvh
+                        }
+                        None => guard.bvh.refitted(&written, &self.triangles),
+                    };
                     let mut pairs: Vec<(u32, u32, f64)> =
                         crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
-                    pairs.extend(self.crossing_pairs(guard, &written, &changed, Some(&moved)));
+                    // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
+                    let swept = crossings(&written, &self.triangles, &bvh, Some(&changed));
+                    pairs.extend(swept.into_iter().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]));
                     pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
+                    sweep_bvh = Some(bvh);
                     pairs
                 }
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
-            let added = AddedCurve::of(crossing.iter().copied(), piece_of, swept_rest);
+            let added = AddedCurve::of(crossing.iter().copied(), piece_of, *swept_rest);
             if first.is_none() {
                 first = Some(added);
                 first_crossing = crossing.clone();
@@ -402,7 +447,8 @@ impl DeformationTransfer {
                 break;
             }
             if template.is_none() {
-                let contacts = self.template_contacts(guard, shape.delta, &moved);
+                // The template shape's contacts, swept once per shape.
+                let contacts = shared.template.get_or_init(|| self.template_contacts(guard, shape.delta, moved));
                 if template_added.is_none() {
                     // Only the plain solve was judged so far (by added curve): judge it by
                     // its excess over the template.
@@ -447,7 +493,7 @@ impl DeformationTransfer {
                 break;
             }
             held = true;
-            let found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece, attempt);
+            let found = self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt);
             if found.is_empty() {
                 break;
             }
@@ -458,7 +504,7 @@ impl DeformationTransfer {
                 seeds.push((u, reach));
                 targets.insert(u, target);
             }
-            self.grow_region(guard, &seeds, &free, &mut region);
+            self.grow_region(guard, &seeds, free, &mut region);
             let members: Vec<usize> = (0..out.len()).filter(|&v| region[v]).collect();
             let constraints: Vec<(usize, f64, Vec3)> = targets
                 .iter()
@@ -473,7 +519,7 @@ impl DeformationTransfer {
         // out exactly as without the pass.
         let excess = if held { template_added.and(best.as_ref().map(|b| b.0)) } else { None };
         let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
-        let penetration = |pairs: &[(u32, u32, f64)]| shape_penetration(pairs, &rest, &moved, &guard.triangle_piece);
+        let penetration = |pairs: &[(u32, u32, f64)]| shape_penetration(pairs, &rest, moved, &guard.triangle_piece);
         outcome.plain_penetration = Some(penetration(&first_crossing));
         if let Some((_, kept, left, pairs)) = best {
             outcome.penetration = Some(penetration(&pairs));
@@ -503,22 +549,23 @@ impl DeformationTransfer {
                 self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
             }
         }
-        let mut best: HashMap<usize, f64> = HashMap::new();
+        // Per vertex, the most budget it was reached with (none yet: below any budget).
+        let mut best = vec![f64::NEG_INFINITY; region.len()];
         let mut heap = BinaryHeap::new();
         for &(u, reach) in seeds {
             let budget = (REGION_RINGS * guard.edge_length[u]).max(REGION_SPREAD * reach);
             heap.push(Budget(budget, u));
         }
         while let Some(Budget(budget, v)) = heap.pop() {
-            if best.get(&v).is_some_and(|&b| b >= budget) {
+            if best[v] >= budget {
                 continue;
             }
-            best.insert(v, budget);
+            best[v] = budget;
             region[v] = true;
             for &w in guard.adjacency.neighbours(v) {
                 let w = w as usize;
                 let left = budget - length(sub(self.target_neutral[w], self.target_neutral[v]));
-                if free[w] && left >= 0.0 && best.get(&w).is_none_or(|&b| b < left) {
+                if free[w] && left >= 0.0 && best[w] < left {
                     heap.push(Budget(left, w));
                 }
             }
@@ -531,18 +578,44 @@ impl DeformationTransfer {
         guard.written_neutral.iter().zip(self.to_target_frame(out)).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect()
     }
 
-    /// Pairs crossing at `positions` (written positions) with a triangle in `tested` (and, when
-    /// `moved` is given, the other in it too or anywhere when the other is in `tested`), sorted.
-    fn crossing_pairs(&self, guard: &CollisionGuard, positions: &[Vec3], tested: &[bool], moved: Option<&[bool]>) -> Vec<(u32, u32, f64)> {
-        let bvh = guard.bvh.refitted(positions, &self.triangles);
-        let pairs = crossings(positions, &self.triangles, &bvh, Some(tested)).into_iter();
-        match moved {
-            // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
-            Some(moved) => pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect(),
-            None => pairs.collect(),
-        }
-    }
+}
 
+/// What every attempt of one shape's pass shares (each starts from the plain solve): which
+/// triangles moved and which vertices the solve is free to move, the pieces that stay put, the
+/// rest curve the sweeps see again, and, once the first attempt has found them, the plain
+/// solve's crossing pairs and the template shape's contacts, so that a later attempt does not
+/// sweep them again.
+struct PlainRound {
+    moved: Vec<bool>,
+    free: Vec<bool>,
+    /// Per piece: none of its vertices moves, so it is an obstacle exactly where the target's
+    /// neutral has it.
+    static_piece: Vec<bool>,
+    /// The rest curve the sweeps see again: all of it but the rest pairs whose triangles both
+    /// stay put (those cross exactly as at rest and are not swept).
+    swept_rest: AddedCurve,
+    crossing: OnceLock<Vec<(u32, u32, f64)>>,
+    template: OnceLock<TemplateContacts>,
+}
+
+impl PlainRound {
+    fn new(dt: &DeformationTransfer, guard: &CollisionGuard, shape: &ShapeSystem<'_>, factor: &RestrictedFactor) -> Self {
+        let moved: Vec<bool> = dt.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
+        let free = (0..dt.piece.len()).map(|v| factor.is_kept(v) && !shape.pinned[dt.piece[v] as usize]).collect();
+        let mut static_piece = vec![true; shape.pinned.len()];
+        for (v, &m) in shape.moving.iter().enumerate() {
+            if m {
+                static_piece[dt.piece[v] as usize] = false;
+            }
+        }
+        let rest_pairs = guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
+        let swept_rest = AddedCurve::of(
+            rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]),
+            |t| dt.triangle_piece(t),
+            AddedCurve::default(),
+        );
+        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), template: OnceLock::new() }
+    }
 }
 
 /// One way of holding the vertices that went through (see the module's "Attempts"): the
