@@ -28,6 +28,7 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 import bench_personalise  # noqa: E402
 import bench_transfer  # noqa: E402
+import makehuman  # noqa: E402
 
 
 def main():
@@ -42,7 +43,7 @@ def main():
     template = bpy.data.objects["Template"]
     rig = mesh_arrays.read_rig(template)
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
-    region = face_region(rig)
+    region = FaceRegion(rig)
     for target in targets:
         rest = transfer.rest_positions(target)
         bench_transfer.save_arrays(rig, rest, os.path.join(out, target.name))
@@ -56,7 +57,7 @@ def main():
         dense_rig, dense_rest = mesh_arrays.read_rig(source), transfer.rest_positions(target)
         bench_transfer.save_arrays(dense_rig, dense_rest, os.path.join(out, head))
         if head == "19k":
-            dense_region = face_region(dense_rig)
+            dense_region = FaceRegion(dense_rig)
             bench_transfer.save_arrays(dense_region.cut(dense_rig), dense_rest[dense_region.kept], os.path.join(out, "face_19k"))
     truth = bench_personalise.WarpGroundTruth(shapesmith.native.module(), rig, {})
     bench_transfer.save_arrays(rig, truth.target, os.path.join(out, "warp"))
@@ -66,7 +67,7 @@ def main():
     print(f"wrote {2 * len(targets) + 4} heads to {out}")
 
 
-class face_region:
+class FaceRegion:
     """The skin's face as one surface: the vertices of the largest connected piece that move
     in some shape (more than 1e-4 of the diagonal), grown by two rings over the skin's
     triangles, and the triangles with every corner among them."""
@@ -74,21 +75,8 @@ class face_region:
     def __init__(self, rig):
         triangles = rig.triangles.astype(np.int64)
         n = len(rig.neutral)
-        parent = np.arange(n)
-
-        def root(v):
-            while parent[v] != v:
-                parent[v] = parent[parent[v]]
-                v = parent[v]
-            return v
-
-        for a, b, c in triangles:
-            for u, w in ((a, b), (b, c)):
-                ru, rw = root(u), root(w)
-                if ru != rw:
-                    parent[ru] = rw
-        roots = np.array([root(v) for v in range(n)])
-        skin = roots == np.bincount(roots).argmax()
+        skin = np.zeros(n, dtype=bool)
+        skin[makehuman.largest_piece(n, triangles)] = True
         diagonal = np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0))
         chosen = skin & (np.linalg.norm(rig.deltas, axis=2).max(0) > 1e-4 * diagonal)
         for _ in range(2):
