@@ -90,10 +90,10 @@ use std::cmp::Ordering;
 use std::collections::{BTreeMap, BinaryHeap, HashMap};
 
 pub use contacts::AddedCurve;
-use contacts::TemplateContacts;
+use contacts::{piece_key, pieces_grown, TemplateContacts};
 
 use super::deformation::DeformationTransfer;
-use super::gradients::{add, length, sub, Vec3};
+use super::gradients::{add, length, sub, to_f64, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -345,6 +345,7 @@ impl DeformationTransfer {
         let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         let mut last: Option<Vec<Vec3>> = None;
         let mut template: Option<TemplateContacts> = None;
+        let mut template_positions: Option<Vec<Vec3>> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
         // template's is not known), the deltas that add it (empty: the plain solve), the
@@ -436,7 +437,15 @@ impl DeformationTransfer {
             // Only the part (inside one piece, between pieces) adding more than the template's
             // is acted on: pushing the other part's pairs moves vertices for nothing and can
             // add curve where the shape met the criterion.
-            let new_pairs: Vec<(u32, u32)> = new_pairs.into_iter().filter(in_excess).collect();
+            // Of those, only the pairs of two pieces (or of one piece with itself) whose own curve
+            // grew: skin sliding out of the teeth it rests in while its lids slide into the
+            // eyeballs adds between pieces, yet pushing it off the teeth does nothing for the
+            // eyeballs and presses the lips into each other (OldMan's mouthClose).
+            let swept_rest_pairs = rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]);
+            let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs, piece_of, 0.5 * tolerance);
+            let grew = |&(a, b): &(u32, u32)| grown.contains(&piece_key(piece_of(a), piece_of(b)));
+            let acted_on = |pairs: &[(u32, u32)]| -> Vec<(u32, u32)> { pairs.iter().copied().filter(in_excess).filter(grew).collect() };
+            let new_pairs = acted_on(&new_pairs);
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
@@ -447,7 +456,17 @@ impl DeformationTransfer {
                 break;
             }
             held = true;
-            let found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece, attempt);
+            let template_positions = template_positions.get_or_insert_with(|| {
+                self.source_neutral.iter().zip(shape.delta).map(|(p, d)| add(*p, to_f64(d))).collect()
+            });
+            let mut found = self.offending_vertices(guard, &positions, &new_pairs, &free, &static_piece, attempt, template_positions);
+            if found.is_empty() {
+                // The pairs away from the template's contacts hold no vertex (the template's
+                // shape crosses where they are, or they sit on rest pairs): act on all pairs of
+                // the part in excess (OldMan's jawForward, skin sliding deeper into the upper
+                // teeth than the template's does).
+                found = self.offending_vertices(guard, &positions, &acted_on(&candidates), &free, &static_piece, attempt, template_positions);
+            }
             if found.is_empty() {
                 break;
             }
