@@ -1,5 +1,6 @@
 //! Which vertices went through another surface, and where each is held: the module docs' "Which
-//! vertices, and where to" (`collisions/mod.rs`).
+//! vertices, and where to" (`collisions/mod.rs`). A vertex the template's own shape takes
+//! across the same obstacle is not held (`template_crosses`).
 
 use std::collections::BTreeMap;
 
@@ -13,7 +14,8 @@ impl DeformationTransfer {
     /// pairs' corners to the vertices beyond the crossing. Against a static piece (teeth,
     /// an eyeball, lashes where the target has them) the target is the closest point of
     /// that piece's surface plus the margin along its normal; against a surface that moves
-    /// too (lip through lip), a push along the obstacle triangle's normal.
+    /// too (lip through lip), a push along the obstacle triangle's normal. `template` is the
+    /// template's shape (positions): a vertex it takes across the same obstacle is not held.
     pub(super) fn offending_vertices(
         &self,
         guard: &CollisionGuard,
