@@ -66,7 +66,7 @@ impl DeformationTransfer {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
                         Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
-                        None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin)),
+                        None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin, attempt.strip)),
                     };
                     if let Some(push) = push {
                         keep(u, push, obstacle, &mut pushes, &mut queue);
@@ -87,7 +87,7 @@ impl DeformationTransfer {
                     continue;
                 }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
-                if let Some(push) = hold(w, beneath, None, self.push_out(guard, positions, w, beneath as usize, free, margin)) {
+                if let Some(push) = hold(w, beneath, None, self.push_out(guard, positions, w, beneath as usize, free, margin, attempt.strip)) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
@@ -170,8 +170,9 @@ impl DeformationTransfer {
     }
 
     /// The push of vertex `u` back across triangle `t`'s plane to the side it was on at rest,
-    /// plus its margin, when it is on the other side now (half of it when `t` can move too).
-    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool], margin: f64) -> Option<Vec3> {
+    /// plus its margin, when it is on the other side now (half of it when `t` can move too);
+    /// with `strip`, also when it is on its rest side but nearer than the margin.
+    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool], margin: f64, strip: bool) -> Option<Vec3> {
         let tri = self.triangles[t];
         let rest = tri.map(|v| self.target_neutral[v as usize]);
         let rest_side = dot(cross(sub(rest[1], rest[0]), sub(rest[2], rest[0])), sub(self.target_neutral[u], rest[0]));
@@ -183,9 +184,11 @@ impl DeformationTransfer {
         }
         let (side, normal) = (rest_side.signum(), scale(normal, 1.0 / norm));
         let height = dot(normal, sub(positions[u], now[0]));
-        // On its rest side, or so far behind the plane that it is not this triangle it went
-        // through (a fold of the plane's far extension).
-        if side * height >= 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
+        // On its rest side (farther than the margin, when the whole contact strip is held), or
+        // so far behind the plane that it is not this triangle it went through (a fold of the
+        // plane's far extension).
+        let in_strip = strip && side * height >= 0.0 && side * height < margin * guard.margin(u);
+        if !in_strip && (side * height >= 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u]) {
             return None;
         }
         let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
@@ -238,7 +241,7 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{CollisionGuard, CollisionParams, ATTEMPTS};
+    use super::super::{Attempt, CollisionGuard, CollisionParams, ATTEMPTS};
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
@@ -278,5 +281,46 @@ mod tests {
         let pressed = held(0.06);
         assert!(!pressed.is_empty() && pressed.keys().all(|v| open.contains_key(v)));
         assert!(pressed.keys().all(|&v| bump(v) < 0.95), "{pressed:?}");
+    }
+
+    #[test]
+    fn the_strip_attempt_also_holds_lip_vertices_nearer_than_the_margin() {
+        // The target's lips (0.04 apart) closed by 0.02 each where the bump is full: they
+        // touch in the middle and cross nowhere else, so near the crossing some vertices are
+        // on their own side but nearer the other lip than the margin (a quarter of the 0.1
+        // edges).
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let delta = lip_closing(&target, 0.04, 0.024);
+        let positions: Vec<Vec3> = dt.target_neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let bvh = TriangleBvh::build(&positions, &tris);
+        let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        assert!(!pairs.is_empty());
+        let free = vec![true; positions.len()];
+        // The template's shape leaves its lips apart: nothing is filtered.
+        let template = dt.source_neutral.clone();
+        let held = |strip: bool| {
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip };
+            dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
+        };
+        let (through, strip) = (held(false), held(true));
+        assert!(!through.is_empty() && through.keys().all(|v| strip.contains_key(v)));
+        // Each layer's vertex and the one facing it on the other layer (folded_strip: 22
+        // profile points a cross-section, the upper layer's in reverse).
+        let gap = |v: usize| {
+            let (i, r) = (v / 22, v % 22);
+            let (lower, upper) = if r < 11 { (v, i * 22 + 21 - r) } else { (i * 22 + 21 - r, v) };
+            positions[upper][2] - positions[lower][2]
+        };
+        let near: Vec<usize> = strip.keys().copied().filter(|v| !through.contains_key(v)).collect();
+        assert!(!near.is_empty(), "the strip holds more than the vertices that went through");
+        for v in near {
+            // On its own side, within the margin, and held away from the other lip.
+            assert!(gap(v) > 0.0 && gap(v) < 0.05, "vertex {v}: gap {}", gap(v));
+            let away = if v % 22 < 11 { positions[v][2] - strip[&v][2] } else { strip[&v][2] - positions[v][2] };
+            assert!(away > 0.0, "vertex {v} is held towards the other lip");
+        }
     }
 }

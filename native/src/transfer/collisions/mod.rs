@@ -597,19 +597,23 @@ impl DeformationTransfer {
 
 /// One way of holding the vertices that went through (see the module's "Attempts"): the
 /// targets' weights are `stiffness` x [`CollisionParams::stiffness`], the margin `margin` x
-/// [`CollisionGuard::margin`].
-struct Attempt {
+/// [`CollisionGuard::margin`]; with `strip`, a lip vertex on its rest side of the other lip
+/// but nearer than the margin is held at the margin too (the whole contact strip, not only
+/// the vertices that went through).
+pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
+    pub(super) strip: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 3] = [
-    Attempt { stiffness: 1.0, margin: 1.0 },
-    Attempt { stiffness: 1.0, margin: 2.0 },
-    Attempt { stiffness: 10.0, margin: 1.0 },
+const ATTEMPTS: [Attempt; 4] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
