@@ -2,7 +2,7 @@
 //! adds: issue 9's criterion ([`AddedCurve::excess`]) and the template's contacts the pass
 //! leaves alone ([`TemplateContacts::near`]).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use super::CollisionGuard;
 use crate::geometry::penetration::{crossings, Penetration};
@@ -104,9 +104,45 @@ impl TemplateContacts {
     }
 }
 
+/// The pairs of pieces `(p, q)`, `p <= q` (`p == q`: inside one piece), whose crossing curve
+/// in `pairs` is longer than in `rest` by more than `noise`.
+pub(super) fn pieces_grown(
+    pairs: impl Iterator<Item = (u32, u32, f64)>,
+    rest: impl Iterator<Item = (u32, u32, f64)>,
+    piece_of: impl Fn(u32) -> u32,
+    noise: f64,
+) -> HashSet<(u32, u32)> {
+    let mut curve: HashMap<(u32, u32), f64> = HashMap::new();
+    for (a, b, l) in pairs {
+        *curve.entry(piece_key(piece_of(a), piece_of(b))).or_default() += l;
+    }
+    for (a, b, l) in rest {
+        *curve.entry(piece_key(piece_of(a), piece_of(b))).or_default() -= l;
+    }
+    curve.into_iter().filter(|&(_, grown)| grown > noise).map(|(key, _)| key).collect()
+}
+
+pub(super) fn piece_key(p: u32, q: u32) -> (u32, u32) {
+    (p.min(q), p.max(q))
+}
+
 #[cfg(test)]
 mod tests {
-    use super::AddedCurve;
+    use super::{pieces_grown, AddedCurve};
+
+    #[test]
+    fn pieces_grown_names_the_pairs_of_pieces_whose_own_curve_grew() {
+        // Triangles 0, 1 in piece 0; 2 in piece 1; 3 in piece 2. Skin (0) slides out of the
+        // teeth (1) it rests in and into the eyeball (2): between pieces grows by 0.125 in
+        // all, yet only the skin-eyeball pair grew; inside the skin nothing changed.
+        let piece = |t: u32| [0, 0, 1, 2][t as usize];
+        let rest = [(0, 1, 0.25), (0, 2, 0.5), (1, 3, 0.125)];
+        let shape = [(0, 1, 0.25), (0, 2, 0.25), (2, 1, 0.125), (1, 3, 0.375)];
+        let grown = pieces_grown(shape.into_iter(), rest.into_iter(), piece, 1e-9);
+        assert_eq!(grown.into_iter().collect::<Vec<_>>(), vec![(0, 2)]);
+        // Below the noise, nothing grew.
+        assert!(pieces_grown(shape.into_iter(), rest.into_iter(), piece, 0.5).is_empty());
+    }
 
     #[test]
     fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_gain_only() {

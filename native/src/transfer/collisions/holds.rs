@@ -1,5 +1,6 @@
 //! Which vertices went through another surface, and where each is held: the module docs' "Which
-//! vertices, and where to" (`collisions/mod.rs`).
+//! vertices, and where to" (`collisions/mod.rs`). A vertex the template's own shape takes
+//! across the same obstacle is not held (`template_crosses`).
 
 use std::collections::BTreeMap;
 
@@ -13,7 +14,8 @@ impl DeformationTransfer {
     /// pairs' corners to the vertices beyond the crossing. Against a static piece (teeth,
     /// an eyeball, lashes where the target has them) the target is the closest point of
     /// that piece's surface plus the margin along its normal; against a surface that moves
-    /// too (lip through lip), a push along the obstacle triangle's normal.
+    /// too (lip through lip), a push along the obstacle triangle's normal. `template` is the
+    /// template's shape (positions): a vertex it takes across the same obstacle is not held.
     pub(super) fn offending_vertices(
         &self,
         guard: &CollisionGuard,
@@ -22,8 +24,14 @@ impl DeformationTransfer {
         free: &[bool],
         static_piece: &[bool],
         attempt: &Attempt,
+        template: &[Vec3],
     ) -> Targets {
         let margin = attempt.margin;
+        // A vertex the template's own shape takes to the other side of the corresponding
+        // obstacle is left where the solve put it: the target only follows the artist there.
+        let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
+            push.filter(|_| !self.template_crosses(guard, template, u, obstacle, piece))
+        };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
         let keep = |u: usize, push: Vec3, obstacle: u32, pushes: &mut BTreeMap<usize, Vec3>, queue: &mut Vec<(u32, u32)>| {
@@ -57,8 +65,8 @@ impl DeformationTransfer {
                         Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
-                        Some(piece) => self.push_off_piece(guard, positions, u, piece, margin),
-                        None => self.push_out(guard, positions, u, obstacle as usize, free, margin),
+                        Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
+                        None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin, attempt.strip)),
                     };
                     if let Some(push) = push {
                         keep(u, push, obstacle, &mut pushes, &mut queue);
@@ -73,13 +81,13 @@ impl DeformationTransfer {
                     continue;
                 }
                 if let Some(piece) = obstacle_piece(w, obstacle) {
-                    if let Some(push) = self.push_off_piece(guard, positions, w, piece, margin) {
+                    if let Some(push) = hold(w, obstacle, Some(piece), self.push_off_piece(guard, positions, w, piece, margin)) {
                         keep(w, push, obstacle, &mut pushes, &mut queue);
                     }
                     continue;
                 }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
-                if let Some(push) = self.push_out(guard, positions, w, beneath as usize, free, margin) {
+                if let Some(push) = hold(w, beneath, None, self.push_out(guard, positions, w, beneath as usize, free, margin, attempt.strip)) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
@@ -107,12 +115,45 @@ impl DeformationTransfer {
         Some(sub(target, positions[u]))
     }
 
+    /// Whether the template's own shape (`template`, its positions) has vertex `u` on the
+    /// other side of the obstacle than at the template's rest: of the static piece `piece`'s
+    /// surface (read at the closest point, as [`Self::push_off_piece`] reads the target's), or
+    /// else of triangle `obstacle`'s plane (as [`Self::push_out`] reads it). Template and
+    /// target share the topology, so the corresponding vertex and obstacle are the same indices.
+    fn template_crosses(&self, guard: &CollisionGuard, template: &[Vec3], u: usize, obstacle: u32, piece: Option<u32>) -> bool {
+        let rest = &self.source_neutral;
+        match piece {
+            Some(piece) => {
+                let in_piece = |t: u32| self.triangle_piece(t) == piece;
+                let side_at = |q: Vec3| -> Option<f64> {
+                    let hit = guard.template_bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
+                    let normal = self.surface_normal_of(rest, guard, hit.triangle, &hit.barycentric)?;
+                    Some(dot(normal, sub(q, hit.point)))
+                };
+                side_at(rest[u]).zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
+            }
+            None => {
+                let tri = self.triangles[obstacle as usize];
+                let side = |p: &[Vec3]| {
+                    let c = tri.map(|v| p[v as usize]);
+                    dot(cross(sub(c[1], c[0]), sub(c[2], c[0])), sub(p[u], c[0]))
+                };
+                side(rest) * side(template) < 0.0
+            }
+        }
+    }
+
     /// The unit normal of the target's neutral surface at a point of triangle `t`: the face's
     /// inside it, the mean of the faces around the nearest corner on an edge or a corner
     /// (where the face's own normal can point the wrong way for a point outside).
     fn surface_normal(&self, guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
+        self.surface_normal_of(&self.target_neutral, guard, t, barycentric)
+    }
+
+    /// The same on the neutral `points` (the template's, for [`Self::template_crosses`]).
+    fn surface_normal_of(&self, points: &[Vec3], guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
         let unit = |t: u32| {
-            let p = self.triangles[t as usize].map(|v| self.target_neutral[v as usize]);
+            let p = self.triangles[t as usize].map(|v| points[v as usize]);
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
             let l = length(n);
             (l > 0.0).then(|| scale(n, 1.0 / l))
@@ -128,8 +169,9 @@ impl DeformationTransfer {
     }
 
     /// The push of vertex `u` back across triangle `t`'s plane to the side it was on at rest,
-    /// plus its margin, when it is on the other side now (half of it when `t` can move too).
-    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool], margin: f64) -> Option<Vec3> {
+    /// plus its margin, when it is on the other side now (half of it when `t` can move too);
+    /// with `strip`, also when it is on its rest side but nearer than the margin.
+    fn push_out(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, t: usize, free: &[bool], margin: f64, strip: bool) -> Option<Vec3> {
         let tri = self.triangles[t];
         let rest = tri.map(|v| self.target_neutral[v as usize]);
         let rest_side = dot(cross(sub(rest[1], rest[0]), sub(rest[2], rest[0])), sub(self.target_neutral[u], rest[0]));
@@ -141,9 +183,11 @@ impl DeformationTransfer {
         }
         let (side, normal) = (rest_side.signum(), scale(normal, 1.0 / norm));
         let height = dot(normal, sub(positions[u], now[0]));
-        // On its rest side, or so far behind the plane that it is not this triangle it went
-        // through (a fold of the plane's far extension).
-        if side * height >= 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
+        // On its rest side (farther than the margin, when the whole contact strip is held), or
+        // so far behind the plane that it is not this triangle it went through (a fold of the
+        // plane's far extension).
+        let in_strip = strip && side * height >= 0.0 && side * height < margin * guard.margin(u);
+        if !in_strip && (side * height >= 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u]) {
             return None;
         }
         let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
@@ -192,4 +236,90 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
     let coordinate = |i: usize| dot(cross(sub(p[(i + 2) % 3], p[(i + 1) % 3]), sub(q, p[(i + 1) % 3])), normal) / area2;
     let smallest = coordinate(0).min(coordinate(1)).min(coordinate(2));
     Some((smallest, dot(normal, sub(q, p[0])) / area2.sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Attempt, CollisionGuard, CollisionParams, ATTEMPTS};
+    use crate::geometry::bvh::TriangleBvh;
+    use crate::geometry::penetration::crossings;
+    use crate::transfer::gradients::{add, to_f64, Vec3};
+    use crate::transfer::tests::{lip_closing, lips};
+    use crate::transfer::{DeformationTransfer, TransferParams};
+
+    #[test]
+    fn vertices_the_templates_own_shape_takes_through_the_other_lip_are_not_held() {
+        // Template lips 0.1 apart, the target's 0.04: the target's lips closed by 0.045 each
+        // cross wherever the bump f (lip_closing's along^2 x across^2) exceeds 0.44.
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let posed = |neutral: &[Vec3], delta: Vec<[f32; 3]>| -> Vec<Vec3> { neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect() };
+        let positions = posed(&dt.target_neutral, lip_closing(&target, 0.04, 0.045));
+        let bvh = TriangleBvh::build(&positions, &tris);
+        let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        assert!(!pairs.is_empty());
+        let free = vec![true; positions.len()];
+        let held = |amount: f32| {
+            let template = posed(&dt.source_neutral, lip_closing(&source, 0.1, amount));
+            dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &ATTEMPTS[0], &template)
+        };
+        let bump = |v: usize| {
+            let p = source[v];
+            let along = (std::f32::consts::PI * p[0] / 1.5).sin().max(0.0);
+            let across = (std::f32::consts::PI * (p[1] + 0.5)).sin().max(0.0);
+            along.powi(2) * across.powi(2)
+        };
+        // A template closing 90% of its gap crosses nowhere: the crossing target vertices are
+        // held, the middle of the lips among them.
+        let open = held(0.045);
+        assert!(open.keys().any(|&v| bump(v) > 0.95), "{open:?}");
+        // A template pressing its lips 0.02 into each other crosses where f > 0.83: the target
+        // follows it there and is held only around it.
+        let pressed = held(0.06);
+        assert!(!pressed.is_empty() && pressed.keys().all(|v| open.contains_key(v)));
+        assert!(pressed.keys().all(|&v| bump(v) < 0.95), "{pressed:?}");
+    }
+
+    #[test]
+    fn the_strip_attempt_also_holds_lip_vertices_nearer_than_the_margin() {
+        // The target's lips (0.04 apart) closed by 0.02 each where the bump is full: they
+        // touch in the middle and cross nowhere else, so near the crossing some vertices are
+        // on their own side but nearer the other lip than the margin (a quarter of the 0.1
+        // edges).
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let delta = lip_closing(&target, 0.04, 0.024);
+        let positions: Vec<Vec3> = dt.target_neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let bvh = TriangleBvh::build(&positions, &tris);
+        let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        assert!(!pairs.is_empty());
+        let free = vec![true; positions.len()];
+        // The template's shape leaves its lips apart: nothing is filtered.
+        let template = dt.source_neutral.clone();
+        let held = |strip: bool| {
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip };
+            dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
+        };
+        let (through, strip) = (held(false), held(true));
+        assert!(!through.is_empty() && through.keys().all(|v| strip.contains_key(v)));
+        // Each layer's vertex and the one facing it on the other layer (folded_strip: 22
+        // profile points a cross-section, the upper layer's in reverse).
+        let gap = |v: usize| {
+            let (i, r) = (v / 22, v % 22);
+            let (lower, upper) = if r < 11 { (v, i * 22 + 21 - r) } else { (i * 22 + 21 - r, v) };
+            positions[upper][2] - positions[lower][2]
+        };
+        let near: Vec<usize> = strip.keys().copied().filter(|v| !through.contains_key(v)).collect();
+        assert!(!near.is_empty(), "the strip holds more than the vertices that went through");
+        for v in near {
+            // On its own side, within the margin, and held away from the other lip.
+            assert!(gap(v) > 0.0 && gap(v) < 0.05, "vertex {v}: gap {}", gap(v));
+            let away = if v % 22 < 11 { positions[v][2] - strip[&v][2] } else { strip[&v][2] - positions[v][2] };
+            assert!(away > 0.0, "vertex {v} is held towards the other lip");
+        }
+    }
 }
