@@ -22,6 +22,7 @@ from mathutils import Vector
 SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
+import pictures  # noqa: E402
 from bench_transfer import batch_cache  # noqa: E402
 
 SIZE = (360, 300)
@@ -51,46 +52,17 @@ def paint_crossings(obj, shape, crossings):
 
 
 def render(obj, shape, centre, extent, path):
-    scene = bpy.context.scene
-    for other in scene.objects:
-        other.hide_render = other != obj and other.type == "MESH"
     obj.data.shape_keys.key_blocks[shape].value = 1.0
-    camera = bpy.data.objects.get("RenderCamera")
-    if camera is None:
-        camera = bpy.data.objects.new("RenderCamera", bpy.data.cameras.new("RenderCamera"))
-        scene.collection.objects.link(camera)
-    camera.data.type = "ORTHO"
-    camera.data.ortho_scale = extent
-    world_centre = obj.matrix_world @ Vector(centre)
-    # from the front (-Y), a little from below, where lips and lids show their overlap
-    camera.location = world_centre + Vector((0.0, -1.0, -0.25))
-    camera.rotation_euler = (Vector((0.0, 1.0, 0.25))).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = camera
-    scene.render.engine = "BLENDER_WORKBENCH"
-    scene.display.shading.light = "STUDIO"
-    scene.display.shading.show_cavity = True
-    scene.display.shading.color_type = "VERTEX"
+    shading = bpy.context.scene.display.shading
+    shading.light = "STUDIO"
+    shading.show_cavity = True
+    shading.color_type = "VERTEX"
     # half-transparent skin: the teeth and the far lip, where most crossings hide, show through
-    scene.display.shading.show_xray = True
-    scene.display.shading.xray_alpha = 0.55
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def side_by_side(paths, output):
-    images = [bpy.data.images.load(p) for p in paths]
-    width, height = images[0].size
-    pixels = [np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4) for image in images]
-    gap = np.ones((height, 6, 4), dtype=np.float32)
-    combined = np.concatenate([part for p in pixels for part in (p, gap)][:-1], axis=1)
-    result = bpy.data.images.new("side_by_side", combined.shape[1], height, alpha=False)
-    result.pixels = combined.ravel()
-    # save through the scene's output settings: 8-bit RGB, full compression (a small PNG)
-    settings = bpy.context.scene.render.image_settings
-    settings.file_format, settings.color_mode, settings.color_depth, settings.compression = "PNG", "RGB", "8", 100
-    result.save_render(output)
+    shading.show_xray = True
+    shading.xray_alpha = 0.55
+    # from the front (-Y), a little from below, where lips and lids show their overlap
+    world_centre = obj.matrix_world @ Vector(centre)
+    pictures.render_alone(obj, world_centre + Vector((0.0, -1.0, -0.25)), Vector((0.0, 1.0, 0.25)), extent, SIZE, path)
 
 
 def main():
@@ -125,7 +97,7 @@ def main():
         path = os.path.join(batch_cache(), "render", f"{label}.png")
         render(copy, args.shape, centre, extent, path)
         paths.append(path)
-    side_by_side(paths, output)
+    pictures.tiled(paths, output)
     print(f"wrote {output}")
 
 

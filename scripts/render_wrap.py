@@ -36,6 +36,7 @@ from mathutils import Vector  # noqa: E402
 SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
+import pictures  # noqa: E402
 from bench_transfer import batch_cache  # noqa: E402
 
 TEMPLATE, CHARACTER = "Template", "Character_YoungWoman"
@@ -98,48 +99,13 @@ def frame(obj):
 
 
 def render(obj, centre, extent, distance, path, *, side=False, attribute=False):
-    scene = bpy.context.scene
-    for other in scene.objects:
-        other.hide_render = other != obj and other.type == "MESH"
-    camera = bpy.data.objects.get("RenderCamera")
-    if camera is None:
-        camera = bpy.data.objects.new("RenderCamera", bpy.data.cameras.new("RenderCamera"))
-        scene.collection.objects.link(camera)
-    camera.data.type = "ORTHO"
-    camera.data.ortho_scale = extent
-    camera.data.clip_end = 10 * distance
-    # the front is -Y; the side view looks from the character's left (+X)
-    direction = Vector((1.0, 0.0, 0.0)) if side else Vector((0.0, -1.0, 0.0))
-    camera.location = centre + distance * direction
-    camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = camera
-    scene.render.engine = "BLENDER_WORKBENCH"
-    shading = scene.display.shading
+    shading = bpy.context.scene.display.shading
     shading.light = "STUDIO"
     shading.show_cavity = not attribute
     shading.color_type = "VERTEX" if attribute else "MATERIAL"
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def tiled(paths, output):
-    """The tiles side by side with a white gap, saved as an 8-bit RGB PNG (as render_transfer.py)."""
-    images = [bpy.data.images.load(p, check_existing=False) for p in paths]
-    width, height = images[0].size
-    gap = np.ones((height, 6, 4), dtype=np.float32)
-    row = []
-    for image in images:
-        row += [np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4), gap]
-        bpy.data.images.remove(image)
-    combined = np.concatenate(row[:-1], axis=1)
-    result = bpy.data.images.new("tiled", combined.shape[1], height, alpha=False)
-    result.pixels = combined.ravel()
-    settings = bpy.context.scene.render.image_settings
-    settings.file_format, settings.color_mode, settings.color_depth, settings.compression = "PNG", "RGB", "8", 100
-    result.save_render(output)
-    bpy.data.images.remove(result)
+    # the front is -Y; the side view looks from the character's left (+X)
+    direction = Vector((1.0, 0.0, 0.0)) if side else Vector((0.0, -1.0, 0.0))
+    pictures.render_alone(obj, centre + distance * direction, -direction, extent, SIZE, path, clip_end=10 * distance)
 
 
 def main():
@@ -170,7 +136,7 @@ def main():
         path = os.path.join(scratch, f"character_{shape or 'neutral'}.png")
         render(character, centre, extent, distance, path)
         paths.append(path)
-    tiled(paths, os.path.join(out, "wrap_character.png"))
+    pictures.tiled(paths, os.path.join(out, "wrap_character.png"))
 
     # smooth shading for the picture only: the colour, not the facets, should show
     wrapped_object.data.shade_smooth()
@@ -179,7 +145,7 @@ def main():
         path = os.path.join(scratch, f"fit_{'side' if side else 'front'}.png")
         render(wrapped_object, centre, extent, distance, path, side=side, attribute=True)
         paths.append(path)
-    tiled(paths, os.path.join(out, "wrap_fit.png"))
+    pictures.tiled(paths, os.path.join(out, "wrap_fit.png"))
     print(f"wrote {os.path.join(out, 'wrap_character.png')} and {os.path.join(out, 'wrap_fit.png')}")
 
 

@@ -12,7 +12,7 @@ use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, Ca
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, *, align_only=False, stiffness=None,
-///               iterations=3, landmark_weight=100.0, max_angle=45.0, max_distance=0.1,
+///               iterations=3, landmark_weight=100.0, max_angle=60.0, max_distance=0.1,
 ///               progress=None)
 ///     -> (wrapped float32 (Nt, 3) in the character's space, report dict)
 ///
@@ -21,7 +21,7 @@ use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, Ca
 #[pyfunction]
 #[pyo3(signature = (template_neutral, template_triangles, character_neutral, character_triangles, template_points,
                     character_points, *, align_only=false, stiffness=None, iterations=3, landmark_weight=100.0,
-                    max_angle=45.0, max_distance=0.1, progress=None))]
+                    max_angle=60.0, max_distance=0.1, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn wrap_template<'py>(
     py: Python<'py>,

@@ -57,13 +57,6 @@
 //!   0.52% and 0.47%, the lids smooth. The arc-length places themselves are 0.53-0.58% from
 //!   the truth (a MakeHuman identity stretches its lids unevenly), so the pull has weight 1,
 //!   like a closest point, and the skin around it has its say.
-//! - **Normal compatibility chooses the closest point, it does not reject it.** SPEC (after
-//!   Amberg et al.) sets `w_i = 0` where the closest point's normal disagrees by more than 60
-//!   degrees; here the closest point is searched among the character's triangles within 45
-//!   degrees of the template vertex's normal (`nricp::closest_points`), so a vertex whose
-//!   nearest sheet faces the other way (closed lips, the mouth's inside) keeps a data term on
-//!   its own sheet. Keys on `scripts/bench_wrap.py`'s 25k character 1.28e-3 -> 1.23e-3 of the
-//!   diagonal (10k 1.24e-3 -> 1.25e-3; `blender_tests/test_wrap.py`'s case 1.35e-3 -> 1.29e-3).
 //! - **Only the character's largest piece is fitted to by the skin.** The character's eyes, teeth or
 //!   lashes, if any, would otherwise catch the template's eyelids and lips.
 //! - **The carry is screened towards the barycentric copy.** Pure gradient integration
@@ -117,8 +110,7 @@ pub struct FitParams {
     pub iterations: usize,
     /// `beta / alpha`: the landmark term's weight decays with the stiffness.
     pub landmark_weight: f64,
-    /// Closest points are searched among the character's triangles whose normal differs from
-    /// the template vertex's by at most this (`nricp::closest_points`).
+    /// Closest points whose surface normal differs from the template's by more are rejected.
     pub max_angle_degrees: f64,
     /// Closest points farther than this fraction of the character's bbox diagonal are rejected.
     pub max_distance: f64,
@@ -136,7 +128,7 @@ impl Default for FitParams {
             stiffness: vec![100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.5],
             iterations: 3,
             landmark_weight: 100.0,
-            max_angle_degrees: 45.0,
+            max_angle_degrees: 60.0,
             max_distance: 0.1,
             rim_weight: 1.0,
             tolerance: 1e-4,

@@ -225,20 +225,8 @@ fn bending_entries(n: usize, edges: &[(usize, usize)]) -> Vec<(usize, usize, f64
     entries
 }
 
-/// Each skin vertex's closest compatible point on the character: the closest point among the
-/// character's triangles whose normal lies within the angle of the template's vertex normal,
-/// within `max_distance`, rejected on the boundary.
-///
-/// The normal test chooses among the triangles before the nearest is taken (the search), not
-/// after (Amberg et al.'s rejection, SPEC: `w_i = 0` where the closest point's normal
-/// disagrees). Where two sheets of the character face each other (the closed lips, the
-/// mouth's inside, a lid over the eye) the nearest point often lies on the sheet facing the
-/// other way; rejected, the vertex had no data term and the stiffness alone placed it, while
-/// the search finds its own sheet a little farther on. Measured on `scripts/bench_wrap.py`'s
-/// 25k character (decimated `Target_OldMan`): the true keys sampled where the fit put each
-/// template vertex are 1.01e-3 of the diagonal from its own with the rejection at 60 degrees,
-/// 9.5e-4 with the search at 60 and 9.1e-4 at 45 (30: 9.6e-4, the lids lose their data);
-/// the carried keys 1.28e-3 -> 1.23e-3 (10k: 1.24e-3 -> 1.25e-3).
+/// Each skin vertex's accepted closest point on the character: within `max_distance`, the
+/// surface normal within the angle of the template's vertex normal, not on the boundary.
 fn closest_points(
     positions: &[Vec3],
     skin: &[u32],
@@ -251,55 +239,16 @@ fn closest_points(
     skin.par_iter()
         .map(|&v| {
             let v = v as usize;
-            let compatible = |t: u32| dot(normals[v], surface.normals[t as usize]) >= cos_max_angle;
-            let hit = surface.bvh.closest_point_where(&positions[v], max_distance, compatible)?;
-            (!surface.on_boundary(&hit)).then_some(hit)
+            let hit = surface.bvh.closest_point(&positions[v], max_distance)?;
+            let compatible = dot(normals[v], surface.normals[hit.triangle as usize]) >= cos_max_angle;
+            (compatible && !surface.on_boundary(&hit)).then_some(hit)
         })
         .collect()
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{bending_entries, closest_points, TargetSurface};
-    use crate::geometry::mat3::Vec3;
-
-    /// Two facing sheets of the character, as closed lips are: the floor `z = 0` facing up and
-    /// the roof `z = 1` facing down. A template patch at `z = 0.7` facing up lies nearer the
-    /// roof, whose normal is opposite: its compatible closest point is on the floor below it
-    /// (the search), not none (a rejection) and never the roof. Facing down, the same patch
-    /// takes the roof.
-    #[test]
-    fn closest_points_search_the_sheet_facing_the_same_way() {
-        let square = |z: f64, up: bool, first: u32| -> (Vec<Vec3>, Vec<[u32; 3]>) {
-            let points = vec![[-5.0, -5.0, z], [5.0, -5.0, z], [5.0, 5.0, z], [-5.0, 5.0, z]];
-            let triangles = if up {
-                vec![[first, first + 1, first + 2], [first, first + 2, first + 3]]
-            } else {
-                vec![[first, first + 2, first + 1], [first, first + 3, first + 2]]
-            };
-            (points, triangles)
-        };
-        let (mut points, mut triangles) = square(0.0, true, 0);
-        let (roof, roof_triangles) = square(1.0, false, 4);
-        points.extend(roof);
-        triangles.extend(roof_triangles);
-        let surface = TargetSurface::new(&points, &triangles);
-        for (up, expected_z) in [(true, 0.0), (false, 1.0)] {
-            // A small template triangle around (0.3, 0.2, 0.7), wound to face up or down.
-            let patch: Vec<Vec3> = vec![[0.3, 0.2, 0.7], [0.4, 0.2, 0.7], [0.3, 0.3, 0.7]];
-            let patch_triangles = if up { vec![[0u32, 1, 2]] } else { vec![[0u32, 2, 1]] };
-            let hits = closest_points(&patch, &[0, 1, 2], &patch_triangles, &surface, 10.0, 45f64.to_radians().cos());
-            for (hit, p) in hits.iter().zip(&patch) {
-                let hit = hit.expect("a compatible sheet lies within reach");
-                assert!((hit.point[2] - expected_z).abs() < 1e-12, "facing up {up}: {:?}", hit.point);
-                assert!((hit.point[0] - p[0]).abs() < 1e-12 && (hit.point[1] - p[1]).abs() < 1e-12);
-            }
-        }
-        // Out of reach of the compatible sheet (the floor is 0.7 away): rejected.
-        let patch: Vec<Vec3> = vec![[0.3, 0.2, 0.7], [0.4, 0.2, 0.7], [0.3, 0.3, 0.7]];
-        let hits = closest_points(&patch, &[0, 1, 2], &[[0, 1, 2]], &surface, 0.5, 45f64.to_radians().cos());
-        assert!(hits.iter().all(Option::is_none));
-    }
+    use super::bending_entries;
 
     /// `L^T L` from the entries against the dense product on a small graph (a square with a
     /// diagonal and a pendant vertex): every entry, both triangles summed once.
