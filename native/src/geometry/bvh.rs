@@ -169,31 +169,19 @@ impl TriangleBvh {
     pub fn restricted(&self, keep: &[bool]) -> Self {
         let root = Node { bounds: Aabb::EMPTY, first: 0, count: 0 };
         let mut out = Self { nodes: vec![root], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
-        if self.triangles.is_empty() {
-            // The root of an empty hierarchy is no internal node.
-            return out;
-        }
-        let mut kept = vec![0u32; self.nodes.len()];
-        for i in (0..self.nodes.len()).rev() {
-            let Node { first, count, .. } = self.nodes[i];
-            kept[i] = if count > 0 {
-                self.original[first as usize..(first + count) as usize].iter().filter(|&&t| keep[t as usize]).count() as u32
-            } else {
-                kept[first as usize] + kept[first as usize + 1]
-            };
-        }
-        if kept.first().is_some_and(|&k| k > 0) {
-            self.restrict_into(0, 0, keep, &kept, &mut out);
+        let holding = self.nodes_holding(keep);
+        if holding[0] {
+            self.restrict_into(0, 0, keep, &holding, &mut out);
         }
         out
     }
 
-    /// Writes the restriction of node `index` (`kept[index] > 0`) into `out.nodes[slot]`,
-    /// its subtree after it (children side by side, after their parent).
-    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], kept: &[u32], out: &mut Self) {
+    /// Writes the restriction of node `index` (`holding[index]`, [`Self::nodes_holding`]) into
+    /// `out.nodes[slot]`, its subtree after it (children side by side, after their parent).
+    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], holding: &[bool], out: &mut Self) {
         while self.nodes[index].count == 0 {
             let left = self.nodes[index].first as usize;
-            match (kept[left] > 0, kept[left + 1] > 0) {
+            match (holding[left], holding[left + 1]) {
                 (true, false) => index = left,
                 (false, true) => index = left + 1,
                 _ => break,
@@ -216,7 +204,7 @@ impl TriangleBvh {
             let children = out.nodes.len();
             out.nodes.extend([Node { bounds: Aabb::EMPTY, first: 0, count: 0 }; 2]);
             for side in 0..2 {
-                self.restrict_into(first as usize + side, children + side, keep, kept, out);
+                self.restrict_into(first as usize + side, children + side, keep, holding, out);
                 bounds.grow(&out.nodes[children + side].bounds);
             }
             out.nodes[slot] = Node { bounds, first: children as u32, count: 0 };
@@ -237,23 +225,17 @@ impl TriangleBvh {
                 self.triangles[slot] = PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) };
             }
         }
-        for i in (0..self.nodes.len()).rev() {
-            let Node { first, count, .. } = self.nodes[i];
-            let mut bounds = Aabb::EMPTY;
-            if count > 0 {
-                self.boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
-            } else {
-                bounds.grow(&self.nodes[first as usize].bounds);
-                bounds.grow(&self.nodes[first as usize + 1].bounds);
-            }
-            self.nodes[i].bounds = bounds;
-        }
+        refit_bounds(&mut self.nodes, &self.boxes);
     }
 
     /// Per node, whether its subtree holds a `marked` triangle (indexed like the list given
     /// to `build`): the pruning mask [`Self::closest_point_among`] takes.
     pub fn nodes_holding(&self, marked: &[bool]) -> Vec<bool> {
         let mut holds = vec![false; self.nodes.len()];
+        if self.triangles.is_empty() {
+            // The root of an empty hierarchy is no internal node.
+            return holds;
+        }
         // Children come after their parent in the array.
         for i in (0..self.nodes.len()).rev() {
             let Node { first, count, .. } = self.nodes[i];
@@ -526,8 +508,6 @@ impl TriangleBvh {
     }
 }
 
-/// Splits node `index` (covering `order[start..start + count]`) by the binned SAH, or makes it
-/// a leaf when no split is cheaper than testing its triangles.
 /// Recomputes every node's box bottom-up from the triangles' `boxes` (children come after
 /// their parent in the array); a tree without triangles keeps its empty root.
 fn refit_bounds(nodes: &mut [Node], boxes: &[Aabb]) {
@@ -547,6 +527,8 @@ fn refit_bounds(nodes: &mut [Node], boxes: &[Aabb]) {
     }
 }
 
+/// Splits node `index` (covering `order[start..start + count]`) by the binned SAH, or makes it
+/// a leaf when no split is cheaper than testing its triangles.
 fn split(
     nodes: &mut Vec<Node>,
     index: usize,
