@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{Attempt, CollisionGuard, Targets};
+use super::{Attempt, CollisionGuard, Neutral, Targets};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, cross, dot, length, scale, sub, Vec3};
 
@@ -101,13 +101,8 @@ impl DeformationTransfer {
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
     fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32, margin: f64) -> Option<Vec3> {
-        let side_at = |q: Vec3| -> Option<(f64, Vec3, Vec3)> {
-            let hit = guard.closest_on_piece(&q, piece)?;
-            let normal = self.surface_normal(guard, hit.triangle, &hit.barycentric)?;
-            Some((dot(normal, sub(q, hit.point)), hit.point, normal))
-        };
-        let (rest_height, _, _) = side_at(self.target_neutral[u])?;
-        let (height, point, normal) = side_at(positions[u])?;
+        let (rest_height, _, _) = self.piece_side(guard, Neutral::Target, self.target_neutral[u], piece)?;
+        let (height, point, normal) = self.piece_side(guard, Neutral::Target, positions[u], piece)?;
         if rest_height == 0.0 || rest_height * height > 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
             return None;
         }
@@ -124,12 +119,7 @@ impl DeformationTransfer {
         let rest = &self.source_neutral;
         match piece {
             Some(piece) => {
-                let in_piece = |t: u32| self.triangle_piece(t) == piece;
-                let side_at = |q: Vec3| -> Option<f64> {
-                    let hit = guard.template_bvh.closest_point_where(&q, f64::INFINITY, in_piece)?;
-                    let normal = self.surface_normal_of(rest, guard, hit.triangle, &hit.barycentric)?;
-                    Some(dot(normal, sub(q, hit.point)))
-                };
+                let side_at = |q: Vec3| self.piece_side(guard, Neutral::Template, q, piece).map(|(height, _, _)| height);
                 side_at(rest[u]).zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
             }
             None => {
@@ -143,15 +133,22 @@ impl DeformationTransfer {
         }
     }
 
-    /// The unit normal of the target's neutral surface at a point of triangle `t`: the face's
-    /// inside it, the mean of the faces around the nearest corner on an edge or a corner
-    /// (where the face's own normal can point the wrong way for a point outside).
-    fn surface_normal(&self, guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
-        self.surface_normal_of(&self.target_neutral, guard, t, barycentric)
+    /// Which side of the static piece `piece`'s surface on `neutral` the point `q` is on: its
+    /// signed height over the surface's closest point, that point and the normal there.
+    fn piece_side(&self, guard: &CollisionGuard, neutral: Neutral, q: Vec3, piece: u32) -> Option<(f64, Vec3, Vec3)> {
+        let hit = guard.closest_on_piece(neutral, &q, piece)?;
+        let points = match neutral {
+            Neutral::Target => &self.target_neutral,
+            Neutral::Template => &self.source_neutral,
+        };
+        let normal = self.surface_normal(points, guard, hit.triangle, &hit.barycentric)?;
+        Some((dot(normal, sub(q, hit.point)), hit.point, normal))
     }
 
-    /// The same on the neutral `points` (the template's, for [`Self::template_crosses`]).
-    fn surface_normal_of(&self, points: &[Vec3], guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
+    /// The unit normal of the neutral surface `points` at a point of triangle `t`: the face's
+    /// inside it, the mean of the faces around the nearest corner on an edge or a corner
+    /// (where the face's own normal can point the wrong way for a point outside).
+    fn surface_normal(&self, points: &[Vec3], guard: &CollisionGuard, t: u32, barycentric: &[f64; 3]) -> Option<Vec3> {
         let unit = |t: u32| {
             let p = self.triangles[t as usize].map(|v| points[v as usize]);
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));

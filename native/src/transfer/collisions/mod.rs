@@ -223,9 +223,17 @@ pub(super) struct CollisionGuard {
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
     ring_triangles: Vec<u32>,
-    /// Per piece, which nodes of `bvh` hold one of its triangles, made on the first query
-    /// against that piece ([`CollisionGuard::closest_on_piece`]).
-    piece_nodes: Vec<OnceLock<Vec<bool>>>,
+    /// Per neutral (`bvh`, `template_bvh`) and piece, which nodes hold one of the piece's
+    /// triangles, made on the first query against that piece
+    /// ([`CollisionGuard::closest_on_piece`]).
+    piece_nodes: [Vec<OnceLock<Vec<bool>>>; 2],
+}
+
+/// Which of the two neutrals a query reads.
+#[derive(Clone, Copy)]
+pub(super) enum Neutral {
+    Target = 0,
+    Template = 1,
 }
 
 impl CollisionGuard {
@@ -273,7 +281,7 @@ impl CollisionGuard {
         let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
         let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
         Self {
-            piece_nodes: (0..n_pieces).map(|_| OnceLock::new()).collect(),
+            piece_nodes: [0, 1].map(|_| (0..n_pieces).map(|_| OnceLock::new()).collect()),
             params,
             diagonal,
             written_neutral: written_neutral.to_vec(),
@@ -303,15 +311,19 @@ impl CollisionGuard {
         near
     }
 
-    /// The point of piece `piece`'s surface on the target neutral closest to `query`: the
-    /// hierarchy's query among that piece's triangles, never entering a subtree without one
-    /// (the same point to the bit as filtering the whole hierarchy's triangles).
-    fn closest_on_piece(&self, query: &Vec3, piece: u32) -> Option<SurfacePoint> {
-        let holding = self.piece_nodes.get(piece as usize)?.get_or_init(|| {
+    /// The point of piece `piece`'s surface on `neutral` closest to `query`: the hierarchy's
+    /// query among that piece's triangles, never entering a subtree without one (the same
+    /// point to the bit as filtering the whole hierarchy's triangles).
+    fn closest_on_piece(&self, neutral: Neutral, query: &Vec3, piece: u32) -> Option<SurfacePoint> {
+        let bvh = match neutral {
+            Neutral::Target => &self.bvh,
+            Neutral::Template => &self.template_bvh,
+        };
+        let holding = self.piece_nodes[neutral as usize].get(piece as usize)?.get_or_init(|| {
             let marked: Vec<bool> = self.triangle_piece.iter().map(|&p| p == piece).collect();
-            self.bvh.nodes_holding(&marked)
+            bvh.nodes_holding(&marked)
         });
-        self.bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
+        bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
     }
 
     /// The distance kept from the other surface at vertex `u`.
