@@ -244,19 +244,30 @@ mod tests {
     use crate::transfer::tests::{lip_closing, lips};
     use crate::transfer::{DeformationTransfer, TransferParams};
 
-    #[test]
-    fn vertices_the_templates_own_shape_takes_through_the_other_lip_are_not_held() {
-        // Template lips 0.1 apart, the target's 0.04: the target's lips closed by 0.045 each
-        // cross wherever the bump f (lip_closing's along^2 x across^2) exceeds 0.44.
+    /// `neutral + delta` as positions.
+    fn posed(neutral: &[Vec3], delta: Vec<[f32; 3]>) -> Vec<Vec3> {
+        neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect()
+    }
+
+    /// Template lips 0.1 apart, the target's 0.04 closed by `amount` each: the transfer, its
+    /// guard, the target's positions and their crossing pairs (some).
+    fn closed_target_lips(amount: f32) -> (Vec<[f32; 3]>, DeformationTransfer, CollisionGuard, Vec<Vec3>, Vec<(u32, u32)>) {
         let (source, tris) = lips(0.1);
         let (target, _) = lips(0.04);
         let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
         let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
-        let posed = |neutral: &[Vec3], delta: Vec<[f32; 3]>| -> Vec<Vec3> { neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect() };
-        let positions = posed(&dt.target_neutral, lip_closing(&target, 0.04, 0.045));
+        let positions = posed(&dt.target_neutral, lip_closing(&target, 0.04, amount));
         let bvh = TriangleBvh::build(&positions, &tris);
         let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
         assert!(!pairs.is_empty());
+        (source, dt, guard, positions, pairs)
+    }
+
+    #[test]
+    fn vertices_the_templates_own_shape_takes_through_the_other_lip_are_not_held() {
+        // The target's lips closed by 0.045 each cross wherever the bump f (lip_closing's
+        // along^2 x across^2) exceeds 0.44.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
         let free = vec![true; positions.len()];
         let held = |amount: f32| {
             let template = posed(&dt.source_neutral, lip_closing(&source, 0.1, amount));
@@ -285,15 +296,7 @@ mod tests {
         // touch in the middle and cross nowhere else, so near the crossing some vertices are
         // on their own side but nearer the other lip than the margin (a quarter of the 0.1
         // edges).
-        let (source, tris) = lips(0.1);
-        let (target, _) = lips(0.04);
-        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
-        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
-        let delta = lip_closing(&target, 0.04, 0.024);
-        let positions: Vec<Vec3> = dt.target_neutral.iter().zip(&delta).map(|(p, d)| add(*p, to_f64(d))).collect();
-        let bvh = TriangleBvh::build(&positions, &tris);
-        let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
-        assert!(!pairs.is_empty());
+        let (_, dt, guard, positions, pairs) = closed_target_lips(0.024);
         let free = vec![true; positions.len()];
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.source_neutral.clone();
