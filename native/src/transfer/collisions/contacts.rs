@@ -79,16 +79,17 @@ impl DeformationTransfer {
         // Template and target share the topology, hence the pieces.
         let piece_of = |t: u32| self.triangle_piece(t);
         let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
-        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest) }
+        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest), positions: points }
     }
-
 }
 
-/// The template shape's crossing pairs, per triangle its partners, and the curve the shape
-/// adds to the template's neutral.
+/// The template shape's crossing pairs, per triangle its partners, the curve the shape adds
+/// to the template's neutral, and the shape's positions (what the holds compare the target's
+/// sides with).
 pub(super) struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
     pub(super) added: AddedCurve,
+    pub(super) positions: Vec<Vec3>,
 }
 
 impl TemplateContacts {

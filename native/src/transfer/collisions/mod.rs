@@ -138,7 +138,7 @@ pub use contacts::AddedCurve;
 use contacts::{piece_key, pieces_grown, TemplateContacts};
 
 use super::deformation::DeformationTransfer;
-use super::gradients::{add, length, sub, to_f64, Vec3};
+use super::gradients::{add, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -426,7 +426,6 @@ impl DeformationTransfer {
         // The hierarchy refitted to the last sweep's positions (after the plain solve's sweep,
         // only in the attempt that made it), refitted in place where a re-solve moved triangles.
         let mut sweep_bvh: Option<TriangleBvh> = None;
-        let mut template_positions: Option<Vec<Vec3>> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
         // template's is not known), the deltas that add it (empty: the plain solve), the
@@ -556,10 +555,10 @@ impl DeformationTransfer {
             if new_pairs.is_empty() || round == guard.params.max_iterations {
                 break;
             }
+            // The template's contacts are known once a round gets here (judged above).
+            let Some(contacts) = template else { break };
+            let template_positions = &contacts.positions;
             held = true;
-            let template_positions = template_positions.get_or_insert_with(|| {
-                self.source_neutral.iter().zip(shape.delta).map(|(p, d)| add(*p, to_f64(d))).collect()
-            });
             let mut found = self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt, template_positions);
             if found.is_empty() {
                 // The pairs away from the template's contacts hold no vertex (the template's
