@@ -151,10 +151,10 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
     print(f"carry {carry_error:.2e}, nearest vertex {nearest_error:.2e}, barycentric {barycentric_error:.2e} of the diagonal")
     # Measured: carry 1.33e-3, nearest vertex 1.50e-3, barycentric 1.44e-3 (a search among
     # normal-compatible triangles gave 1.29e-3 but folded a mouth corner on the bundled
-    # character, docs/wrap.md; before the bending stiffness and the pieces fitted onto the character's own, 1.95e-3, 2.43e-3,
-    # 2.61e-3). The rest is the skin fit's slide along the surface between the pairs, a floor
-    # every copy shares: with the true correspondence in place of the fit, the carry is 4.1e-4
-    # from the truth (docs/wrap.md).
+    # character, docs/wrap.md; before the bending stiffness and the pieces fitted onto the
+    # character's own, 1.95e-3, 2.43e-3, 2.61e-3). The rest is the skin fit's slide along the
+    # surface between the pairs, a floor every copy shares: with the true correspondence in
+    # place of the fit, the carry is 4.1e-4 from the truth (docs/wrap.md).
     assert carry_error < 1.45e-3, carry_error
     assert carry_error < nearest_error and carry_error < barycentric_error, (carry_error, nearest_error, barycentric_error)
 
