@@ -6,6 +6,7 @@ use good_lp::solvers::highs::highs;
 use good_lp::{variable, Expression, ProblemVariables, SolverModel, Variable};
 use highs::{HighsModelStatus, HighsSolutionStatus};
 use serde::Serialize;
+use std::sync::{mpsc, Mutex};
 
 use crate::error::{ShapesmithError, ShapesmithResult};
 
@@ -98,13 +99,62 @@ pub struct IlpSolution {
 /// on programs it has solved to optimality.
 pub const OPTIMALITY_GAP: f64 = 1e-9;
 
-/// HiGHS keeps process-wide state (its task scheduler); one solve at a time.
-static HIGHS: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
 /// Solves the program with HiGHS (gaps set to zero so that "optimal" means proven optimal).
 /// Errors: [`ShapesmithError::Infeasible`] when no 0/1 point satisfies the rows,
 /// [`ShapesmithError::Solver`] for anything else HiGHS reports.
 pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<IlpSolution> {
+    let (program, options) = (program.clone(), options.clone());
+    on_solver_thread(move || solve_here(&program, &options))
+}
+
+type SolverJob = Box<dyn FnOnce() + Send>;
+
+/// The queue of [`SOLVER_THREAD`]'s jobs; `None` until the first solve.
+static SOLVER_QUEUE: Mutex<Option<mpsc::Sender<SolverJob>>> = Mutex::new(None);
+
+/// Name of the one thread that runs HiGHS.
+const SOLVER_THREAD: &str = "shapesmith-highs";
+
+/// Runs `job` on one thread kept for the life of the process, one job at a time, and waits.
+///
+/// HiGHS gives each calling thread a task scheduler of its own and shuts it down from a C++
+/// thread-local destructor when that thread exits (HiGHS pull request 818). Solving on
+/// short-lived threads (a rayon pool dropped after a parallel section, a test harness's thread
+/// per test) runs that destructor every time; in the Windows build, with MinGW's runtime linked
+/// statically, it hung or crashed at thread exit under wine (`scripts/test-windows`, issue of
+/// 2026-11-30). On this thread the scheduler is made once and never torn down, and the solves
+/// are serialised, which HiGHS's process-wide state needs anyway.
+fn on_solver_thread<R: Send + 'static>(
+    job: impl FnOnce() -> ShapesmithResult<R> + Send + 'static,
+) -> ShapesmithResult<R> {
+    let (reply, answer) = mpsc::sync_channel(1);
+    let job: SolverJob = Box::new(move || {
+        let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job))
+            .unwrap_or_else(|_| Err(ShapesmithError::Solver("the 0/1 solve panicked".into())));
+        // The caller waits on `answer` until this send; it cannot have gone.
+        let _ = reply.send(result);
+    });
+    {
+        let mut queue = SOLVER_QUEUE.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let unsent = match queue.as_ref() {
+            Some(sender) => sender.send(job).err().map(|mpsc::SendError(job)| job),
+            None => Some(job),
+        };
+        if let Some(job) = unsent {
+            let (sender, jobs) = mpsc::channel::<SolverJob>();
+            std::thread::Builder::new()
+                .name(SOLVER_THREAD.into())
+                .spawn(move || jobs.into_iter().for_each(|job| job()))
+                .map_err(|e| ShapesmithError::Solver(format!("cannot start the solver thread: {e}")))?;
+            sender.send(job).map_err(|_| ShapesmithError::Solver("the solver thread stopped".into()))?;
+            *queue = Some(sender);
+        }
+    }
+    answer.recv().unwrap_or_else(|_| Err(ShapesmithError::Solver("the solver thread stopped".into())))
+}
+
+/// [`solve_binary`] on the calling thread.
+fn solve_here(program: &BinaryProgram, options: &IlpOptions) -> ShapesmithResult<IlpSolution> {
     if program.n_variables() == 0 {
         let feasible = program.rows.iter().all(|r| r.lower <= 0.0 && r.upper >= 0.0);
         return if feasible {
@@ -147,10 +197,7 @@ pub fn solve_binary(program: &BinaryProgram, options: &IlpOptions) -> Shapesmith
     if let Some(limit) = options.time_limit {
         highs_model.set_option("time_limit", limit);
     }
-    let solved = {
-        let _one_at_a_time = HIGHS.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        highs_model.try_solve().map_err(|e| ShapesmithError::Solver(format!("HiGHS failed: {e:?}")))?
-    };
+    let solved = highs_model.try_solve().map_err(|e| ShapesmithError::Solver(format!("HiGHS failed: {e:?}")))?;
     let status = match solved.status() {
         HighsModelStatus::Optimal if solved.mip_gap().is_finite() && solved.mip_gap() > OPTIMALITY_GAP => {
             SolveStatus::GapLimit
@@ -224,6 +271,25 @@ mod tests {
                 (got, want) => panic!("trial {trial}: solver {got:?}, brute force {want:?}"),
             }
         }
+    }
+
+    #[test]
+    fn every_solve_runs_on_the_one_solver_thread() {
+        // Callers on threads that come and go (here short-lived rayon pools, dropped after use)
+        // all reach the same long-lived thread, never their own.
+        let runner = || on_solver_thread(|| Ok((std::thread::current().id(), std::thread::current().name().map(String::from))));
+        let mut seen = Vec::new();
+        for threads in 1..4 {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (caller, ran) = pool.install(|| (std::thread::current().id(), runner().unwrap()));
+            assert_ne!(caller, ran.0);
+            seen.push(ran);
+        }
+        assert!(seen.iter().all(|ran| *ran == seen[0]), "{seen:?}");
+        assert_eq!(seen[0].1.as_deref(), Some(SOLVER_THREAD));
+        let failed: ShapesmithResult<()> = on_solver_thread(|| panic!("a solve that panics"));
+        assert!(matches!(failed, Err(ShapesmithError::Solver(_))));
+        assert_eq!(runner().unwrap(), seen[0], "the thread survives a panicking job");
     }
 
     #[test]
