@@ -35,7 +35,7 @@
 
 use rayon::prelude::*;
 
-use super::regions::{MovingRegion, Pose, PosedTriangles};
+use super::regions::{MovingRegion, Pose, PosedTriangles, RestHierarchy};
 use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::Vec3;
 use crate::geometry::penetration::{crossings, intersection_length};
@@ -92,16 +92,20 @@ struct Moved {
 }
 
 impl Moved {
+    /// `whole` is the mesh at rest (position t is triangle t): each corner is posed once, and
+    /// the swept boxes and the small pieces' part take the posed corners from `posed`.
     fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, whole: &PosedTriangles, k: usize) -> Self {
-        let (rest, pose) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
-        let swept = |t: &u32| {
-            let corners = rig.triangles[*t as usize];
-            Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { pose.at(corners[i - 3]) }))
+        let pose = Pose::of(rig, regions, &[k]);
+        let posed = whole.subset(|t| regions[k].contains(t), |t| rig.triangles[t as usize].map(|v| pose.at(v)));
+        let small = posed.part(|t| pieces.small(t));
+        let swept = |set: &PosedTriangles| -> Vec<Aabb> {
+            let with_rest = |t: u32, c: &[Vec3; 3]| {
+                let r = whole.corners[t as usize];
+                Aabb::of_points(&[r[0], r[1], r[2], c[0], c[1], c[2]])
+            };
+            set.triangles.iter().zip(&set.corners).map(|(&t, c)| with_rest(t, c)).collect()
         };
-        let posed_corners = |t: u32| rig.triangles[t as usize].map(|v| pose.at(v));
-        let posed = whole.subset(|t| regions[k].contains(t), posed_corners);
-        let small = posed.subset(|t| pieces.small(t), posed_corners);
-        Self { swept: posed.triangles.iter().map(swept).collect(), small_swept: small.triangles.iter().map(swept).collect(), posed, small }
+        Self { swept: swept(&posed), small_swept: swept(&small), posed, small }
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another
@@ -345,10 +349,12 @@ fn touching_both(list: &Crossings, ra: &MovingRegion, rb: &MovingRegion) -> f64 
 
 /// The candidate pairs that collide: E(A, B) > `tolerance` x diagonal. `regions` holds the
 /// moving region of every shape named in `candidates`; pairs whose boxes (grown by `margin`
-/// x diagonal) are apart are skipped. Returns the collisions, in the order of `candidates`,
-/// and how many pairs were tested.
+/// x diagonal) are apart are skipped; `rest_hierarchy` is the rig's, shared with the
+/// occlusion test. Returns the collisions, in the order of `candidates`, and how many pairs
+/// were tested.
 pub fn find_collisions(
     rig: &RigView,
+    rest_hierarchy: &RestHierarchy,
     regions: &[MovingRegion],
     candidates: &[(usize, usize)],
     tolerance: f64,
@@ -364,8 +370,8 @@ pub fn find_collisions(
     let triangles = rig.triangles;
     let pieces = Pieces::new(rig);
     let points: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
-    let rest = PosedTriangles::whole(&points, triangles);
-    let rest_small = rest.subset(|t| pieces.small(t), |t| rest.corners[t as usize]);
+    let rest = PosedTriangles::whole(rest_hierarchy, &points, triangles);
+    let rest_small = rest.part(|t| pieces.small(t));
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let moved: Vec<Option<Moved>> =
