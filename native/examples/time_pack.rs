@@ -6,8 +6,8 @@
 //! Prints the best of RUNS (default 3) runs' native seconds with the collision and occlusion
 //! conflicts on and off, the poseability tests' parts, and what they found (the conflict
 //! edges and their values, the symmetric pairs, antagonists and expressions, J and the fewest
-//! count), so that two builds run one after the
-//! other can be compared for both speed and sameness. A profiler can watch it alone.
+//! count), so that two builds run one after the other can be compared for both speed and
+//! sameness. A profiler can watch it alone.
 
 use std::time::Instant;
 
