@@ -5,8 +5,9 @@
 //!
 //! Prints the best of RUNS (default 3) runs' native seconds with the collision and occlusion
 //! conflicts on and off, the poseability tests' parts, and what they found (the conflict
-//! edges and their values, J and the fewest count), so that two builds run one after the
-//! other can be compared for both speed and sameness. A profiler can watch it alone.
+//! edges and their values, the symmetric pairs, antagonists and expressions, J and the fewest
+//! count), so that two builds run one after the other can be compared for both speed and
+//! sameness. A profiler can watch it alone.
 
 use std::time::Instant;
 
@@ -54,6 +55,11 @@ fn main() {
     );
     let fewest = |p: &Packing| p.fewest.as_ref().map_or(0, |f| f.count);
     println!("J {} fewest {} (off: J {} fewest {})", packing.expressions.len(), fewest(&packing), without.expressions.len(), fewest(&without));
+    println!("pairs {:?}", packing.pairs);
+    println!("antagonists {:?}", packing.antagonists);
+    for (j, e) in packing.expressions.iter().enumerate() {
+        println!("expression {} {:?} importance {:.12} optimal {}", j + 1, e.shapes, e.importance, e.optimal);
+    }
     for c in &p.collisions {
         println!("collision {} {} added {:.9} between {:.9}", c.first, c.second, c.added, c.between_pieces);
     }

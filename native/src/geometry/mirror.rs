@@ -283,9 +283,9 @@ fn mirrored_difference_norm(map: &MirrorMap, a: &[[f32; 3]], b: &[[f32; 3]]) -> 
         .sqrt()
 }
 
-/// Vertices per block of [`delta_inner_products`]: both 3B x K operands (about 1.3 MB each
-/// for K = 52) stay in cache, and the memory used does not grow with N.
-const GRAM_BLOCK_VERTICES: usize = 1024;
+/// Vertices per block of [`delta_inner_products`]: a block's two 3B x K operands stay in
+/// cache, and the memory used does not grow with N.
+const GRAM_BLOCK_VERTICES: usize = 256;
 
 /// What [`delta_inner_products`] returns.
 pub struct InnerProducts {
@@ -301,28 +301,73 @@ pub struct InnerProducts {
 /// every delta field `D_j`, in f64, and the squared norms of both. One matrix product per
 /// block of vertices replaces K^2 scalar passes over the mesh: the cost stays linear in N
 /// and runs at the speed of the matrix kernel.
+///
+/// A shape of a face moves a small part of it (a quarter of the (vertex, shape) deltas of a
+/// 26k-vertex ARKit head are non-zero), and a column that is zero over a block adds nothing
+/// to any product. So the vertices are taken in the order of which fields are non-zero at
+/// them (vertices moved by the same shapes fall in the same blocks), and each block's
+/// product has only the columns non-zero in it: the same sums over fewer terms (about a
+/// fifth of the dense product's on that head), in another order.
 pub fn delta_inner_products(rig: &RigView, left: impl Fn(usize, usize) -> [f64; 3]) -> InnerProducts {
     let (n_vertices, k_count) = (rig.n_vertices(), rig.n_shapes());
     let mut gram = Mat::<f64>::zeros(k_count, k_count);
     let (mut left_norms_sq, mut right_norms_sq) = (vec![0.0; k_count], vec![0.0; k_count]);
+    // Per vertex, which left and right fields are non-zero there: one bit per shape, for the
+    // left fields then the right ones.
+    let words = (2 * k_count).div_ceil(64);
+    let mut pattern = vec![0u64; n_vertices * words];
+    for k in 0..k_count {
+        let delta = rig.delta(k);
+        for n in 0..n_vertices {
+            let bits = &mut pattern[n * words..(n + 1) * words];
+            if left(k, n) != [0.0; 3] {
+                bits[k / 64] |= 1 << (k % 64);
+            }
+            if delta[n] != [0.0; 3] {
+                bits[(k_count + k) / 64] |= 1 << ((k_count + k) % 64);
+            }
+        }
+    }
+    let of = |n: usize| &pattern[n * words..(n + 1) * words];
+    let mut order: Vec<usize> = (0..n_vertices).filter(|&n| of(n).iter().any(|&w| w != 0)).collect();
+    order.sort_by(|&a, &b| of(a).cmp(of(b)));
     let capacity = 3 * GRAM_BLOCK_VERTICES.min(n_vertices) * k_count;
-    let (mut left_block, mut right_block) = (vec![0.0; capacity], vec![0.0; capacity]);
-    for start in (0..n_vertices).step_by(GRAM_BLOCK_VERTICES) {
-        let end = (start + GRAM_BLOCK_VERTICES).min(n_vertices);
-        let rows = 3 * (end - start);
-        for k in 0..k_count {
-            let columns = k * rows..(k + 1) * rows;
-            let (l, r) = (&mut left_block[columns.clone()], &mut right_block[columns]);
-            for (v, d) in rig.delta(k)[start..end].iter().enumerate() {
-                l[3 * v..3 * v + 3].copy_from_slice(&left(k, start + v));
-                r[3 * v..3 * v + 3].copy_from_slice(&d.map(f64::from));
+    let (mut left_block, mut right_block, mut products) = (vec![0.0; capacity], vec![0.0; capacity], Mat::<f64>::zeros(0, 0));
+    for block in order.chunks(GRAM_BLOCK_VERTICES) {
+        let mut union = vec![0u64; words];
+        for &n in block {
+            union.iter_mut().zip(of(n)).for_each(|(u, w)| *u |= w);
+        }
+        let set = |bit: usize| union[bit / 64] >> (bit % 64) & 1 == 1;
+        let lefts: Vec<usize> = (0..k_count).filter(|&k| set(k)).collect();
+        let rights: Vec<usize> = (0..k_count).filter(|&k| set(k_count + k)).collect();
+        let rows = 3 * block.len();
+        for (c, &k) in lefts.iter().enumerate() {
+            let l = &mut left_block[c * rows..(c + 1) * rows];
+            for (v, &n) in block.iter().enumerate() {
+                l[3 * v..3 * v + 3].copy_from_slice(&left(k, n));
             }
             left_norms_sq[k] += l.iter().map(|x| x * x).sum::<f64>();
+        }
+        for (c, &k) in rights.iter().enumerate() {
+            let (r, delta) = (&mut right_block[c * rows..(c + 1) * rows], rig.delta(k));
+            for (v, &n) in block.iter().enumerate() {
+                r[3 * v..3 * v + 3].copy_from_slice(&delta[n].map(f64::from));
+            }
             right_norms_sq[k] += r.iter().map(|x| x * x).sum::<f64>();
         }
-        let l = MatRef::from_column_major_slice(&left_block[..rows * k_count], rows, k_count);
-        let r = MatRef::from_column_major_slice(&right_block[..rows * k_count], rows, k_count);
-        matmul(&mut gram, Accum::Add, l.transpose(), r, 1.0, Par::Seq);
+        if lefts.is_empty() || rights.is_empty() {
+            continue;
+        }
+        let l = MatRef::from_column_major_slice(&left_block[..rows * lefts.len()], rows, lefts.len());
+        let r = MatRef::from_column_major_slice(&right_block[..rows * rights.len()], rows, rights.len());
+        products.resize_with(lefts.len(), rights.len(), |_, _| 0.0);
+        matmul(&mut products, Accum::Replace, l.transpose(), r, 1.0, Par::Seq);
+        for (a, &i) in lefts.iter().enumerate() {
+            for (b, &j) in rights.iter().enumerate() {
+                gram[(i, j)] += products[(a, b)];
+            }
+        }
     }
     InnerProducts { gram, left_norms_sq, right_norms_sq }
 }
@@ -441,21 +486,33 @@ mod tests {
 
     #[test]
     fn blocked_inner_products_match_direct_sums_across_block_boundaries() {
-        // More vertices than one block, a lopsided mesh (many unmatched vertices) and
-        // irregular shapes: every <M D_i, D_j> must equal the plain sum over vertices.
-        let n = 2 * GRAM_BLOCK_VERTICES + 37;
+        // More vertices than one block, a lopsided mesh (many unmatched vertices), more
+        // shapes than one word of the non-zero patterns holds, and fields of every sparsity
+        // (dense, patchy, one vertex, none): every <M D_i, D_j> must equal the plain sum over
+        // vertices, whichever columns a block skips.
+        let (n, k_count) = (2 * GRAM_BLOCK_VERTICES + 37, 70);
         let pts: Vec<[f32; 3]> =
             (0..n).map(|v| [((v % 23) as f32 - 9.0) * 0.1, (v / 23) as f32 * 0.1, (v % 5) as f32 * 0.01]).collect();
-        let names: Vec<String> = (0..4).map(|k| format!("s{k}")).collect();
-        let deltas: Vec<[f32; 3]> =
-            (0..4 * n).map(|i| [((i * 7) % 11) as f32 - 5.0, ((i * 3) % 13) as f32 * 0.2, ((i * 5) % 7) as f32 - 3.0]).collect();
+        let names: Vec<String> = (0..k_count).map(|k| format!("s{k}")).collect();
+        let moves = |k: usize, v: usize| match k % 10 {
+            0 => true,
+            1 => v == 7 * k,
+            2 => false,
+            _ => (v * 31 + k * 17) % 97 < 5 + k % 40,
+        };
+        let deltas: Vec<[f32; 3]> = (0..k_count * n)
+            .map(|i| {
+                let value = [((i * 7) % 11) as f32 - 5.0, ((i * 3) % 13) as f32 * 0.2, ((i * 5) % 7) as f32 - 3.0];
+                if moves(i / n, i % n) { value } else { [0.0; 3] }
+            })
+            .collect();
         let rig = RigView::new(&pts, &deltas, &[], &names).unwrap();
         let map = MirrorMap::new(&pts, 0, 1e-3);
         assert!(!map.unmatched.is_empty() && map.unmatched.len() < n);
         let products = delta_inner_products(&rig, |k, v| map.mirrored_at(rig.delta(k), v).map(f64::from));
         let gram = &products.gram;
-        for i in 0..4 {
-            for j in 0..4 {
+        for i in 0..k_count {
+            for j in 0..k_count {
                 let direct: f64 = (0..n)
                     .map(|v| {
                         let (p, q) = (map.mirrored_at(rig.delta(i), v), rig.delta(j)[v]);
@@ -465,7 +522,7 @@ mod tests {
                 assert!((gram[(i, j)] - direct).abs() <= 1e-9 * direct.abs().max(1.0), "{i} {j}: {} vs {direct}", gram[(i, j)]);
             }
             let mirrored: f64 = (0..n).map(|v| norm(&map.mirrored_at(rig.delta(i), v)).powi(2)).sum();
-            assert!((products.left_norms_sq[i] - mirrored).abs() <= 1e-9 * mirrored);
+            assert!((products.left_norms_sq[i] - mirrored).abs() <= 1e-9 * mirrored.max(1.0));
             assert!((products.right_norms_sq[i] - field_norm(rig.delta(i)).powi(2)).abs() <= 1e-9 * mirrored.max(1.0));
         }
     }

@@ -35,7 +35,7 @@
 
 use rayon::prelude::*;
 
-use super::regions::{MovingRegion, Pose, PosedTriangles};
+use super::regions::{MovingRegion, Pose, PosedTriangles, RestHierarchy};
 use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::Vec3;
 use crate::geometry::penetration::{crossings, intersection_length};
@@ -92,16 +92,20 @@ struct Moved {
 }
 
 impl Moved {
+    /// `whole` is the mesh at rest (position t is triangle t): each corner is posed once, and
+    /// the swept boxes and the small pieces' part take the posed corners from `posed`.
     fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, whole: &PosedTriangles, k: usize) -> Self {
-        let (rest, pose) = (Pose::of(rig, regions, &[]), Pose::of(rig, regions, &[k]));
-        let swept = |t: &u32| {
-            let corners = rig.triangles[*t as usize];
-            Aabb::of_points(&[0, 1, 2, 3, 4, 5].map(|i| if i < 3 { rest.at(corners[i]) } else { pose.at(corners[i - 3]) }))
+        let pose = Pose::of(rig, regions, &[k]);
+        let posed = whole.subset(|t| regions[k].contains(t), |t| rig.triangles[t as usize].map(|v| pose.at(v)));
+        let small = posed.part(|t| pieces.small(t));
+        let swept = |set: &PosedTriangles| -> Vec<Aabb> {
+            let with_rest = |t: u32, c: &[Vec3; 3]| {
+                let r = whole.corners[t as usize];
+                Aabb::of_points(&[r[0], r[1], r[2], c[0], c[1], c[2]])
+            };
+            set.triangles.iter().zip(&set.corners).map(|(&t, c)| with_rest(t, c)).collect()
         };
-        let posed_corners = |t: u32| rig.triangles[t as usize].map(|v| pose.at(v));
-        let posed = whole.subset(|t| regions[k].contains(t), posed_corners);
-        let small = posed.subset(|t| pieces.small(t), posed_corners);
-        Self { swept: posed.triangles.iter().map(swept).collect(), small_swept: small.triangles.iter().map(swept).collect(), posed, small }
+        Self { swept: swept(&posed), small_swept: swept(&small), posed, small }
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another
@@ -260,24 +264,34 @@ impl Scene<'_> {
         total
     }
 
-    /// The crossings of shape k posed alone that involve a triangle it moves, in every piece.
-    fn alone(&self, k: usize) -> Crossings {
-        let (region, mut found) = (&self.regions[k], Vec::new());
+    /// The crossings of shape k posed alone, in every piece, that touch a triangle k moves
+    /// and one `other` moves: those of k's crossings that [`touching_both`] keeps for the
+    /// pair, in the order a search over all of k's crossings finds them (so its sum is the
+    /// same to the bit). A triangle only k moves can meet one `other` moves at rest only
+    /// inside `other`'s box, and one both move only when k and `other` share a triangle.
+    fn alone_touching(&self, k: usize, other: usize, margin: f64) -> Crossings {
+        let (region, near, mut found) = (&self.regions[k], &self.regions[other], Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
         let posed = &moved.posed;
+        let (reach, share) = (grown(near, margin), posed.triangles.iter().any(|&t| near.contains(t)));
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
-            self.rest.for_each_overlap(&query, |t| {
-                if !region.contains(t) && !self.shares_corner(s, t) {
-                    found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
-                }
-            });
-            posed.for_each_overlap(&query, |j| {
-                let t = posed.triangles[j as usize];
-                if t > s && !self.shares_corner(s, t) {
-                    found.extend(intersection_length(corners, posed.corners[j as usize]).map(|len| (s, t, len)));
-                }
-            });
+            let shared = near.contains(s);
+            if shared || query.overlaps(&reach) {
+                self.rest.for_each_overlap(&query, |t| {
+                    if !region.contains(t) && (shared || near.contains(t)) && !self.shares_corner(s, t) {
+                        found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
+                    }
+                });
+            }
+            if shared || share {
+                posed.for_each_overlap(&query, |j| {
+                    let t = posed.triangles[j as usize];
+                    if t > s && (shared || near.contains(t)) && !self.shares_corner(s, t) {
+                        found.extend(intersection_length(corners, posed.corners[j as usize]).map(|len| (s, t, len)));
+                    }
+                });
+            }
         }
         found
     }
@@ -345,10 +359,12 @@ fn touching_both(list: &Crossings, ra: &MovingRegion, rb: &MovingRegion) -> f64 
 
 /// The candidate pairs that collide: E(A, B) > `tolerance` x diagonal. `regions` holds the
 /// moving region of every shape named in `candidates`; pairs whose boxes (grown by `margin`
-/// x diagonal) are apart are skipped. Returns the collisions, in the order of `candidates`,
-/// and how many pairs were tested.
+/// x diagonal) are apart are skipped; `rest_hierarchy` is the rig's, shared with the
+/// occlusion test. Returns the collisions, in the order of `candidates`, and how many pairs
+/// were tested.
 pub fn find_collisions(
     rig: &RigView,
+    rest_hierarchy: &RestHierarchy,
     regions: &[MovingRegion],
     candidates: &[(usize, usize)],
     tolerance: f64,
@@ -364,8 +380,8 @@ pub fn find_collisions(
     let triangles = rig.triangles;
     let pieces = Pieces::new(rig);
     let points: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
-    let rest = PosedTriangles::whole(&points, triangles);
-    let rest_small = rest.subset(|t| pieces.small(t), |t| rest.corners[t as usize]);
+    let rest = PosedTriangles::whole(rest_hierarchy, &points, triangles);
+    let rest_small = rest.part(|t| pieces.small(t));
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let moved: Vec<Option<Moved>> =
@@ -389,26 +405,28 @@ pub fn find_collisions(
 }
 
 /// The collisions with their total E (every piece) beside the part between pieces that
-/// decided them: each shape's crossings in full, and those at rest among the triangles the
-/// colliding shapes move.
+/// decided them: per colliding pair, each shape's crossings that touch the other's region,
+/// and those at rest among the triangles of the smaller of the two regions (a crossing that
+/// touches both regions has a triangle in each).
 fn total_curve(scene: &Scene, between: &[((usize, usize), f64)], margin: f64, diagonal: f64) -> Vec<Collision> {
     if between.is_empty() {
         return Vec::new();
     }
     let (rig, regions) = (scene.rig, scene.regions);
-    let mut colliding = vec![false; rig.n_shapes()];
-    between.iter().for_each(|&((a, b), _)| (colliding[a], colliding[b]) = (true, true));
-    let alone: Vec<Crossings> = (0..rig.n_shapes()).into_par_iter().map(|k| if colliding[k] { scene.alone(k) } else { Vec::new() }).collect();
-    let union: Vec<bool> = (0..rig.triangles.len() as u32).map(|t| regions.iter().zip(&colliding).any(|(r, &c)| c && r.contains(t))).collect();
+    let smaller = |a: usize, b: usize| if regions[a].triangles.len() <= regions[b].triangles.len() { a } else { b };
+    let mut marked = vec![false; rig.triangles.len()];
+    for &((a, b), _) in between {
+        regions[smaller(a, b)].triangles.iter().for_each(|&t| marked[t as usize] = true);
+    }
     let rest: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
     // `scene.rest` holds triangle t at position t: its hierarchy answers triangle indices.
-    let at_rest = crossings(&rest, rig.triangles, &scene.rest.bvh, Some(&union));
+    let at_rest = crossings(&rest, rig.triangles, &scene.rest.bvh, Some(&marked));
     between
         .par_iter()
         .map(|&((a, b), between_pieces)| {
             let (ra, rb) = (&regions[a], &regions[b]);
-            let added = scene.mixed(a, b, margin) - touching_both(&alone[a], ra, rb) - touching_both(&alone[b], ra, rb)
-                + touching_both(&at_rest, ra, rb);
+            let alone = |k: usize, other: usize| touching_both(&scene.alone_touching(k, other, margin), ra, rb);
+            let added = scene.mixed(a, b, margin) - alone(a, b) - alone(b, a) + touching_both(&at_rest, ra, rb);
             Collision { first: a, second: b, added: added / diagonal, between_pieces }
         })
         .collect()

@@ -27,7 +27,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
-use super::regions::{MovingRegion, Pose, PosedTriangles};
+use super::regions::{MovingRegion, Pose, PosedTriangles, RestHierarchy};
 use crate::geometry::bvh::Aabb;
 use crate::geometry::mat3::{cross, dot, length, scale, Vec3};
 use crate::rig::RigView;
@@ -268,10 +268,12 @@ impl Scene<'_> {
 
 /// The candidate pairs, in both directions, where one shape hides the other's motion:
 /// V(A + B) < `keep` V(A). `regions` and `active` hold every shape named in `candidates`;
-/// `toward` points from the face to the camera. Returns the occlusions and how many
-/// directions were tested; `None` when `toward` is not a direction.
+/// `toward` points from the face to the camera; `rest_hierarchy` is the rig's, shared with
+/// the collision test. Returns the occlusions and how many directions were tested; `None`
+/// when `toward` is not a direction.
 pub fn find_occlusions(
     rig: &RigView,
+    rest_hierarchy: &RestHierarchy,
     regions: &[MovingRegion],
     active: &[Vec<u32>],
     candidates: &[(usize, usize)],
@@ -318,7 +320,7 @@ pub fn find_occlusions(
     let scene = Scene {
         rig,
         regions,
-        rest: PosedTriangles::whole(&rest, rig.triangles),
+        rest: PosedTriangles::whole(rest_hierarchy, &rest, rig.triangles),
         frame,
         epsilon: DEPTH_EPSILON * diagonal,
         reach,

@@ -14,6 +14,8 @@
 //! moved by both (its rest corners would lie in both boxes), and nothing A moves can meet
 //! anything B moves in any of the four poses.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
 use crate::geometry::bvh::{Aabb, TriangleBvh};
@@ -126,13 +128,36 @@ impl<'a> Pose<'a> {
     }
 }
 
+/// The hierarchy over the whole mesh at rest, built once, when a test first needs it, for
+/// both tests: the collision test uses it as it is, the occlusion test refits it to the rest
+/// pose in view coordinates ([`PosedTriangles::whole`]) instead of building its own (for the
+/// default front camera the view frame is the mesh's axes reordered, so the refitted tree
+/// is exactly as tight as one built there).
+pub struct RestHierarchy<'a> {
+    rig: &'a RigView<'a>,
+    bvh: OnceLock<TriangleBvh>,
+}
+
+impl<'a> RestHierarchy<'a> {
+    pub fn new(rig: &'a RigView<'a>) -> Self {
+        Self { rig, bvh: OnceLock::new() }
+    }
+
+    pub fn get(&self) -> &TriangleBvh {
+        self.bvh.get_or_init(|| {
+            let points: Vec<Vec3> = self.rig.neutral.iter().map(|p| p.map(f64::from)).collect();
+            TriangleBvh::build(&points, self.rig.triangles)
+        })
+    }
+}
+
 /// A hierarchy over some triangles at their positions in a pose: the triangles are stored
 /// corner by corner, so a query answers indices into `triangles`, mapped back here.
 ///
-/// Each is cut from a hierarchy over the whole mesh ([`PosedTriangles::whole`], built once
-/// per test) or from another one ([`PosedTriangles::subset`]), with [`TriangleBvh::subset`]:
-/// one pass over the nodes instead of a build per shape and per pair (the builds took about
-/// 40% of a cold packing of a 26k head).
+/// Each is cut from a hierarchy over the whole mesh ([`PosedTriangles::whole`], refitted
+/// from the one [`RestHierarchy`]) or from another one ([`PosedTriangles::subset`]), with
+/// [`TriangleBvh::subset`]: one pass over the nodes instead of a build per shape and per pair
+/// (the builds took about 40% of a cold packing of a 26k head).
 pub struct PosedTriangles {
     /// In the hierarchy's order (not ascending).
     pub triangles: Vec<u32>,
@@ -141,10 +166,12 @@ pub struct PosedTriangles {
 }
 
 impl PosedTriangles {
-    /// Every triangle of the mesh, at `points`: position `t` is triangle `t`.
-    pub fn whole(points: &[Vec3], all: &[[u32; 3]]) -> Self {
+    /// Every triangle of the mesh, at `points`, in a hierarchy refitted from `rest`'s tree
+    /// (the same tree with its boxes at these corners: exact for any points, as good as a
+    /// build for the rest pose in any axis-permuted frame): position `t` is triangle `t`.
+    pub fn whole(rest: &RestHierarchy, points: &[Vec3], all: &[[u32; 3]]) -> Self {
         Self {
-            bvh: TriangleBvh::build(points, all),
+            bvh: rest.get().refitted(points, all),
             triangles: (0..all.len() as u32).collect(),
             corners: all.iter().map(|t| t.map(|v| points[v as usize])).collect(),
         }
@@ -153,7 +180,17 @@ impl PosedTriangles {
     /// The triangles of this set that `keep` picks, with corners `corners(t)` (t a triangle
     /// of the mesh), in a hierarchy cut from this one's.
     pub fn subset(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [Vec3; 3]) -> Self {
-        let (bvh, positions, corners) = self.bvh.subset(|p| keep(self.triangles[p as usize]), |p| corners(self.triangles[p as usize]));
+        self.subset_at_positions(keep, |p| corners(self.triangles[p as usize]))
+    }
+
+    /// The triangles of this set that `keep` picks, at their corners here.
+    pub fn part(&self, keep: impl Fn(u32) -> bool) -> Self {
+        self.subset_at_positions(keep, |p| self.corners[p as usize])
+    }
+
+    /// The triangles `keep` picks, at `corners(p)` for the one at position `p` here.
+    fn subset_at_positions(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [Vec3; 3]) -> Self {
+        let (bvh, positions, corners) = self.bvh.subset(|p| keep(self.triangles[p as usize]), corners);
         Self { triangles: positions.iter().map(|&p| self.triangles[p as usize]).collect(), corners, bvh }
     }
 

@@ -8,7 +8,7 @@ use std::time::Instant;
 use super::collisions::find_collisions;
 use super::conflicts::{overlapping, validate_shape_pairs, ConflictGraph, ShapeRelations};
 use super::occlusion::find_occlusions;
-use super::regions::moving_regions;
+use super::regions::{moving_regions, RestHierarchy};
 use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
 use super::collisions::Collision;
 use super::occlusion::Occlusion;
@@ -89,20 +89,21 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
         .collect();
 
     // Mirror antagonists are found whether or not pairs are used: they decide poseability.
-    let map = MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance);
-    let symmetry = find_symmetry_given(
-        rig,
-        &map,
-        &SymmetryParams {
-            pair_tolerance: params.pair_tolerance,
-            antagonist_iou: params.antagonist_iou,
-            mu: params.mu,
-            use_names: true,
+    // The symmetry (mirror map, mirrored Gram product, exact mirror errors) and the cosine
+    // Gram product are independent passes over N x K: one on each core.
+    let (symmetry, cosines) = rayon::join(
+        || {
+            let map = MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance);
+            let symmetry_params = SymmetryParams {
+                pair_tolerance: params.pair_tolerance,
+                antagonist_iou: params.antagonist_iou,
+                mu: params.mu,
+                use_names: true,
+            };
+            find_symmetry_given(rig, &map, &symmetry_params, &inert, &active)
         },
-        &inert,
-        &active,
+        || cosine_matrix(rig),
     );
-    let cosines = cosine_matrix(rig);
     let mut antagonists: Vec<(usize, usize)> =
         symmetry.antagonists.iter().map(|a| (a.first.min(a.second), a.first.max(a.second))).collect();
     for i in (0..k_count).filter(|k| !inert.contains(k)) {
@@ -176,13 +177,14 @@ fn poseability(
         missing(&known.occlusion_tested, &candidates).iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
     }
     let regions = moving_regions(rig, &wanted);
+    let rest_hierarchy = RestHierarchy::new(rig);
     report.seconds_regions = started.elapsed().as_secs_f64();
     progress.checkpoint(0.05)?;
     let position: HashMap<(usize, usize), usize> = candidates.iter().enumerate().map(|(i, &p)| (p, i)).collect();
     let mut rest = candidates.clone();
     if params.collision_conflicts {
         let started = Instant::now();
-        let (found, tested) = find_collisions(rig, &regions, &collision_missing, params.collision_tolerance, INTERACTION_MARGIN);
+        let (found, tested) = find_collisions(rig, &rest_hierarchy, &regions, &collision_missing, params.collision_tolerance, INTERACTION_MARGIN);
         known.collision_tested.extend(&collision_missing);
         known.collisions.extend(&found);
         // In the order of the candidates, as a packing that tests them all finds them.
@@ -198,7 +200,7 @@ fn poseability(
         let started = Instant::now();
         let occlusion_missing = missing(&known.occlusion_tested, &rest);
         let (found, tested) =
-            find_occlusions(rig, &regions, active, &occlusion_missing, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction)
+            find_occlusions(rig, &rest_hierarchy, &regions, active, &occlusion_missing, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction)
                 .ok_or_else(|| invalid!("the camera direction must be a finite, non-zero vector, got {:?}", params.camera_direction))?;
         known.occlusion_tested.extend(&occlusion_missing);
         known.occlusions.extend(&found);
