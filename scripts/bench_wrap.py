@@ -10,8 +10,11 @@ fit (mean and max distance to the character, / bbox diagonal), and the error of 
 against the same-topology transfer onto the undecimated head sampled at the character's
 vertices (mean over shapes of the mean error on vertices moving more than 1e-3 of the
 diagonal, / diagonal), beside the nearest-vertex and plain barycentric copies of the
-wrapped template's keys measured in the same run; and the keys' roughness (mean norm of the
-uniform Laplacian of the deltas on moving vertices, / diagonal).
+wrapped template's keys measured in the same run, and the fit's floor (the same-topology
+keys copied from where the fit put each template vertex, as if the transfer onto the wrapped
+template were exact: the error the fit's slide along the surface alone causes); and the
+keys' roughness (mean norm of the uniform Laplacian of the deltas on moving vertices, /
+diagonal).
 """
 
 import argparse
@@ -119,6 +122,11 @@ def run_size(shapesmith, label, vertices, truth):
         "nearest vertex": nearest_vertex_copy(wrapped_positions, wrapped_deltas, points),
         "barycentric": barycentric_copy(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), wrapped_deltas),
     }
+    # The fit's floor: the same-topology keys themselves (template vertex order) copied from
+    # where the fit put each template vertex, as if the transfer onto the wrapped template
+    # were exact; what is left is where the fit slid the template along the surface.
+    true_keys = np.stack([makehuman.character_frame(r, SCALE) for r in truth])
+    fit_floor = barycentric_copy(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), true_keys)
     edges = np.array([tuple(e.vertices) for e in character.data.edges])
     row = {
         "vertices": len(points),
@@ -126,6 +134,7 @@ def run_size(shapesmith, label, vertices, truth):
         "seconds": seconds,
         "fit": {k: wrapped.report[k] for k in ("mean_distance", "max_distance", "pair_residuals", "fit")},
         "error": {name: moving_error(d, reference, diagonal) for name, d in copies.items()},
+        "fit_floor": moving_error(fit_floor, reference, diagonal),
         "roughness": {name: roughness(d, edges, reference, diagonal) for name, d in copies.items()},
     }
     row["roughness"]["same-topology (sampled)"] = roughness(reference, edges, reference, diagonal)
@@ -159,6 +168,7 @@ def main():
             f"largest pair residual {100 * max(fit['pair_residuals']):.3f}%"
         )
         print("    error vs same-topology transfer: " + ", ".join(f"{k} {v:.2e}" for k, v in row["error"].items()))
+        print(f"    the fit's floor (same-topology keys copied from the wrapped template, no transfer): {row['fit_floor']:.2e}")
         print("    roughness (Laplacian of deltas): " + ", ".join(f"{k} {v:.2e}" for k, v in row["roughness"].items()))
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
