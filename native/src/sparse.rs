@@ -143,34 +143,33 @@ impl SymmetricMatrix {
         order: &[usize],
         extra: &[(usize, f64)],
     ) -> ShapesmithResult<Cholesky> {
-        let (col_ptr, row_idx, mut values) = self.restricted(position, n_kept);
-        for &(v, w) in extra {
-            // Rows are sorted: a stored diagonal is the column's first entry.
-            let c = position[v] as usize;
-            if col_ptr[c] == col_ptr[c + 1] || row_idx[col_ptr[c]] != c {
-                return Err(ShapesmithError::Solver(format!("unknown {v} has no diagonal entry to add a constraint to")));
-            }
-            values[col_ptr[c]] += w;
-        }
+        let kept = (0..self.n).filter(|&c| position[c] != u32::MAX);
+        let submatrix = self.restricted(position, n_kept, kept);
         let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
-        let mut inverse = vec![0usize; n_kept];
-        for (slot, &p) in forward.iter().enumerate() {
-            inverse[p] = slot;
-        }
-        Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))
+        factor_plus_diagonal(position, submatrix, forward, extra)
     }
 
-    /// The principal submatrix on the unknowns with `position[v] != u32::MAX`, renumbered; the
-    /// lower triangle stays lower and rows stay sorted because `position` increases.
-    fn restricted(&self, position: &[u32], n_kept: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+    /// [`Self::factor_restricted_plus_diagonal`] for a few unknowns, in time proportional to
+    /// their columns instead of the whole matrix's: `kept` lists them increasing
+    /// (`position[kept[s]] == s`, `u32::MAX` elsewhere) and `rank` is the inverse of the
+    /// elimination order (`rank[order[s]] == s`). Same submatrix, same order restricted, so
+    /// the same factor to the bit.
+    pub fn factor_subset_plus_diagonal(&self, kept: &[usize], position: &[u32], rank: &[usize], extra: &[(usize, f64)]) -> ShapesmithResult<Cholesky> {
+        let submatrix = self.restricted(position, kept.len(), kept.iter().copied());
+        // The whole order restricted to the kept unknowns: them, sorted by rank.
+        let mut forward: Vec<usize> = (0..kept.len()).collect();
+        forward.sort_unstable_by_key(|&p| rank[kept[p]]);
+        factor_plus_diagonal(position, submatrix, forward, extra)
+    }
+
+    /// The principal submatrix on the unknowns `kept` (increasing), renumbered by `position`;
+    /// the lower triangle stays lower and rows stay sorted because `position` increases.
+    fn restricted(&self, position: &[u32], n_kept: usize, kept: impl Iterator<Item = usize>) -> Submatrix {
         let mut col_ptr = Vec::with_capacity(n_kept + 1);
         let mut row_idx = Vec::new();
         let mut values = Vec::new();
         col_ptr.push(0);
-        for c in 0..self.n {
-            if position[c] == u32::MAX {
-                continue;
-            }
+        for c in kept {
             for k in self.col_ptr[c]..self.col_ptr[c + 1] {
                 let r = position[self.row_idx[k]];
                 if r != u32::MAX {
@@ -180,7 +179,7 @@ impl SymmetricMatrix {
             }
             col_ptr.push(row_idx.len());
         }
-        (col_ptr, row_idx, values)
+        Submatrix { col_ptr, row_idx, values }
     }
 
     /// The diagonal entry `A_vv` (zero when it is not stored).
@@ -192,6 +191,33 @@ impl SymmetricMatrix {
             0.0
         }
     }
+}
+
+/// A principal submatrix's lower triangle in compressed columns.
+struct Submatrix {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+}
+
+/// The Cholesky factor of `submatrix + diag(extra)` (`extra` by original unknown, renumbered
+/// through `position`) eliminated in the order `forward` (new slot -> submatrix unknown).
+fn factor_plus_diagonal(position: &[u32], submatrix: Submatrix, forward: Vec<usize>, extra: &[(usize, f64)]) -> ShapesmithResult<Cholesky> {
+    let Submatrix { col_ptr, row_idx, mut values } = submatrix;
+    let n_kept = forward.len();
+    for &(v, w) in extra {
+        // Rows are sorted: a stored diagonal is the column's first entry.
+        let c = position[v] as usize;
+        if col_ptr[c] == col_ptr[c + 1] || row_idx[col_ptr[c]] != c {
+            return Err(ShapesmithError::Solver(format!("unknown {v} has no diagonal entry to add a constraint to")));
+        }
+        values[col_ptr[c]] += w;
+    }
+    let mut inverse = vec![0usize; n_kept];
+    for (slot, &p) in forward.iter().enumerate() {
+        inverse[p] = slot;
+    }
+    Cholesky::factor(n_kept, &col_ptr, &row_idx, &values, PermRef::new_checked(&forward, &inverse, n_kept))
 }
 
 /// The rows of a [`SymmetricMatrix`] ([`SymmetricMatrix::rows`]).
@@ -269,6 +295,44 @@ mod tests {
         assert!((0..n).all(|v| rows.row(v).windows(2).all(|p| p[0].0 < p[1].0)));
         assert!((0..n).all(|v| rows.row(v).len() >= 3), "each row should hold its diagonal and neighbours");
         assert_eq!(by_rows.iter().map(|y| y.to_bits()).collect::<Vec<_>>(), a.apply(&x).iter().map(|y| y.to_bits()).collect::<Vec<_>>());
+    }
+
+    /// The factor built from the kept columns only is the one built by scanning the whole
+    /// matrix: same solution to the bit, with and without added diagonal entries.
+    #[test]
+    fn subset_factor_is_the_restricted_factor_to_the_bit() {
+        let n = 60;
+        let mut entries = Vec::new();
+        for i in 0..n {
+            entries.push((i, i, 5.0 + (i as f64 * 0.21).cos()));
+            for j in [(i * 13 + 7) % n, (i + 1) % n] {
+                if j != i {
+                    entries.push((i, j, -0.3 - (i as f64 * 0.7 + j as f64).sin().abs()));
+                }
+            }
+        }
+        let a = SymmetricMatrix::from_triplets(n, entries);
+        let order = a.fill_reducing_order().unwrap();
+        let mut rank = vec![0; n];
+        for (slot, &v) in order.iter().enumerate() {
+            rank[v] = slot;
+        }
+        let kept: Vec<usize> = (0..n).filter(|v| v % 3 != 0 && v % 7 != 2).collect();
+        let mut position = vec![u32::MAX; n];
+        for (slot, &v) in kept.iter().enumerate() {
+            position[v] = slot as u32;
+        }
+        let rhs: Vec<[f64; 3]> = (0..kept.len()).map(|s| [(s as f64).sin(), 1.0 / (s as f64 + 1.0), -(s as f64)]).collect();
+        let bits = |x: Vec<[f64; 3]>| x.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for extra in [vec![], vec![(kept[2], 3.5), (kept[9], 0.25), (kept[2], 1.0)]] {
+            let whole = a.factor_restricted_plus_diagonal(&position, kept.len(), &order, &extra).unwrap().solve_points(&rhs);
+            let subset = a.factor_subset_plus_diagonal(&kept, &position, &rank, &extra).unwrap().solve_points(&rhs);
+            assert_eq!(bits(whole), bits(subset));
+        }
+        // A wrong answer would show: the added diagonal changes the solution.
+        let plain = a.factor_subset_plus_diagonal(&kept, &position, &rank, &[]).unwrap().solve_points(&rhs);
+        let held = a.factor_subset_plus_diagonal(&kept, &position, &rank, &[(kept[2], 3.5)]).unwrap().solve_points(&rhs);
+        assert_ne!(bits(plain), bits(held));
     }
 
     /// A path graph Laplacian plus a diagonal: whole and restricted solves have zero residual.

@@ -15,7 +15,7 @@ use super::system::NormalMatrix;
 use super::virtual_edges::find_virtual_edges;
 use super::{TransferParams, TransferResult};
 
-use crate::error::ShapesmithResult;
+use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::topology::connected_components;
 use crate::invalid;
 use crate::progress::Progress;
@@ -105,12 +105,15 @@ impl DeformationTransfer {
             let tri = triangles[t];
             invalid!("{side}: triangle {t} (vertices {}, {}, {}) is degenerate", tri[0], tri[1], tri[2])
         };
-        let source_rest_inverse = (0..triangles.len())
-            .map(|t| inverse(&edge_frame(corners(&source, None, &triangles[t]))).ok_or_else(|| degenerate("template", t)))
-            .collect::<ShapesmithResult<Vec<_>>>()?;
-        let target_operators = (0..triangles.len())
-            .map(|t| HatGradients::new(corners(&target, None, &triangles[t])).ok_or_else(|| degenerate("target", t)))
-            .collect::<ShapesmithResult<Vec<_>>>()?;
+        // Per triangle and independent: side by side, each error named by its first triangle.
+        let source_rest_inverse = first_degenerate(
+            triangles.par_iter().map(|tri| inverse(&edge_frame(corners(&source, None, tri)))).collect(),
+            |t| degenerate("template", t),
+        )?;
+        let target_operators = first_degenerate(
+            triangles.par_iter().map(|tri| HatGradients::new(corners(&target, None, tri))).collect(),
+            |t| degenerate("target", t),
+        )?;
 
         let (piece, n_pieces) = connected_components(n, triangles);
         let piece_scale = piece_scales(&source, &target, &piece, n_pieces);
@@ -133,8 +136,10 @@ impl DeformationTransfer {
         let edge_share = if edge_own + guard_own > 0.0 { edge_own / (edge_own + guard_own) } else { 1.0 };
         let (virtual_edge_seconds, collision_setup_seconds) = (joined * edge_share, joined * (1.0 - edge_share));
         // A_t = E_target E_source^{-1}, the rest-to-rest deformation gradient (S&P Eq. 1).
-        let rest_maps: Vec<Mat3> = (0..triangles.len())
-            .map(|t| mat_mul(&edge_frame(corners(&target, None, &triangles[t])), &source_rest_inverse[t]))
+        let rest_maps: Vec<Mat3> = triangles
+            .par_iter()
+            .zip(&source_rest_inverse)
+            .map(|(tri, rest_inverse)| mat_mul(&edge_frame(corners(&target, None, tri)), rest_inverse))
             .collect();
         let vertex_rest_maps = vertex_means(n, triangles, &rest_maps);
         let edge_rest_maps = virtual_edges
@@ -553,6 +558,14 @@ pub const MAX_MARGIN: f64 = 2.0;
 
 /// The largest least margin accepted, in bounding-box diagonals (1% of a head is 3-4 mm).
 pub const MAX_MIN_MARGIN: f64 = 0.02;
+
+/// Every per-triangle result, or the error of the first triangle that has none.
+fn first_degenerate<T>(per_triangle: Vec<Option<T>>, error: impl Fn(usize) -> ShapesmithError) -> ShapesmithResult<Vec<T>> {
+    match per_triangle.iter().position(Option::is_none) {
+        Some(t) => Err(error(t)),
+        None => Ok(per_triangle.into_iter().flatten().collect()),
+    }
+}
 
 /// `work()` and the wall-clock seconds it took.
 fn timed<T>(work: impl FnOnce() -> T) -> (T, f64) {

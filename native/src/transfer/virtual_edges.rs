@@ -166,6 +166,10 @@ fn entry(estimate: f64, vertex: usize) -> Entry {
 /// search costs the size of its ball, not N.
 struct SurfaceSearch {
     distance: Vec<f64>,
+    /// Per vertex: the bits of the estimate it was last queued with in [`Self::reaches_within`]
+    /// (set whenever its distance is), so that a popped entry is known stale without
+    /// measuring the distance to the target again.
+    queued_estimate: Vec<u64>,
     touched: Vec<u32>,
     /// Per vertex: the current source plus one when the vertex lies in its Euclidean ball.
     in_ball: Vec<u32>,
@@ -177,6 +181,7 @@ impl SurfaceSearch {
     fn new(n: usize) -> Self {
         Self {
             distance: vec![f64::INFINITY; n],
+            queued_estimate: vec![0; n],
             touched: Vec::new(),
             in_ball: vec![0; n],
             queue: Vec::new(),
@@ -254,12 +259,15 @@ impl SurfaceSearch {
         self.heap.clear();
         self.distance[source] = 0.0;
         self.touched.push(source as u32);
-        self.heap.push(entry(weight * to_target(source), source));
+        let start = entry(weight * to_target(source), source);
+        self.queued_estimate[source] = start.0 .0;
+        self.heap.push(start);
         let mut reached = false;
         'search: while let Some(Reverse((bits, v))) = self.heap.pop() {
             let v = v as usize;
             let g = self.distance[v];
-            if (g + weight * to_target(v)).to_bits() != bits {
+            // `g + weight x h(v)` as last queued: a different one means a shorter path since.
+            if self.queued_estimate[v] != bits {
                 continue; // superseded by a shorter path
             }
             let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
@@ -270,13 +278,19 @@ impl SurfaceSearch {
                     reached = true;
                     break 'search;
                 }
+                // The distance to the target only for a shorter path (most neighbours have one).
+                if next >= self.distance[u] {
+                    continue;
+                }
                 let h = to_target(u);
-                if next < self.distance[u] && next + h <= deadline {
+                if next + h <= deadline {
                     if self.distance[u].is_infinite() {
                         self.touched.push(u as u32);
                     }
                     self.distance[u] = next;
-                    self.heap.push(entry(next + weight * h, u));
+                    let queued = entry(next + weight * h, u);
+                    self.queued_estimate[u] = queued.0 .0;
+                    self.heap.push(queued);
                 }
             }
         }
