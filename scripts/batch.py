@@ -81,10 +81,18 @@ def cached_sample_path():
 
 
 def cached_sample():
-    """The cached sample.blend (`cached_sample_path`), built when missing."""
+    """The cached sample.blend (`cached_sample_path`), built when missing. Building it resets
+    Blender to factory settings, which disables add-ons: an enabled Shapesmith is enabled again
+    so that a bench run on a fresh cache finds its properties."""
+    import addon_utils
+
     path = cached_sample_path()
     if not os.path.isfile(path):
+        enabled = [m.__name__ for m in addon_utils.modules(refresh=False)
+                   if m.__name__.rsplit(".", 1)[-1] == "shapesmith" and addon_utils.check(m.__name__)[1]]
         run_sample(argparse.Namespace(output=path))
+        for name in enabled:
+            addon_utils.enable(name, default_set=True)
     return path
 
 
