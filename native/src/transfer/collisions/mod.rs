@@ -134,7 +134,8 @@
 mod contacts;
 mod holds;
 
-use std::cmp::Ordering;
+use std::cmp;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::collections::{BTreeMap, BinaryHeap};
 use std::sync::OnceLock;
 
@@ -398,7 +399,7 @@ impl DeformationTransfer {
     ) -> ShapesmithResult<CollisionOutcome> {
         let plain = out.clone();
         let shared = PlainRound::new(self, guard, shape, factor);
-        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0])?;
+        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0], None)?;
         let mut solves = outcome.solves;
         let worse = |excess: Option<f64>| excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal);
         if worse(excess).is_none() {
@@ -407,16 +408,25 @@ impl DeformationTransfer {
         // The later attempts, each from the plain solve, two side by side: a shape that needs
         // them (a few mouth shapes, each a dozen rounds) is the last to finish otherwise. They
         // are then taken in order as if run one after the other: the next only while the shape is
-        // still worse (its excess known), so the result does not depend on the threads.
-        let run = |attempt: &Attempt| {
+        // still worse (its excess known), so the result does not depend on the threads. Once
+        // the first of a pair clears the shape, the second's result is dropped: it stops at its
+        // next round (or does not start, when it waits for the same thread), so the other
+        // shapes get the thread.
+        let first_cleared = AtomicBool::new(false);
+        let run = |(index, attempt): (usize, &Attempt)| {
             let mut again = plain.clone();
-            self.collision_rounds(guard, shape, &shared, &mut again, attempt).map(|(next, next_excess)| (next, next_excess, again))
+            let dropped = (index == 1).then_some(&first_cleared);
+            let tried = self.collision_rounds(guard, shape, &shared, &mut again, attempt, dropped);
+            if index == 0 && matches!(tried, Ok((_, Some(e))) if worse(Some(e)).is_none()) {
+                first_cleared.store(true, Ordering::Relaxed);
+            }
+            tried.map(|(next, next_excess)| (next, next_excess, again))
         };
         for pair in ATTEMPTS[1..].chunks(2) {
             if worse(excess).is_none() {
                 break;
             }
-            let later: Vec<_> = pair.par_iter().map(run).collect();
+            let later: Vec<_> = pair.par_iter().enumerate().map(run).collect();
             for tried in later {
                 // Only a shape still worse than the template (its excess known) tries again.
                 let Some(least) = worse(excess) else { break };
@@ -435,7 +445,8 @@ impl DeformationTransfer {
     /// One attempt of the pass: up to `max_iterations` rounds of judging, holding and
     /// re-solving, from the plain solve in `out`; leaves the best round in `out` and returns
     /// its excess over the template (`None` when the template's numbers were never needed:
-    /// nothing new crosses, or the plain solve meets the criterion).
+    /// nothing new crosses, or the plain solve meets the criterion). Once `dropped` is set
+    /// (the caller will not take this attempt) it stops before its next round.
     fn collision_rounds(
         &self,
         guard: &CollisionGuard,
@@ -443,6 +454,7 @@ impl DeformationTransfer {
         shared: &PlainRound,
         out: &mut Vec<Vec3>,
         attempt: &Attempt,
+        dropped: Option<&AtomicBool>,
     ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
         let PlainRound { moved, free, static_piece, swept_rest, .. } = shared;
         let mut outcome = CollisionOutcome::default();
@@ -479,6 +491,9 @@ impl DeformationTransfer {
             (crossings(&written, &self.triangles, &bvh, Some(moved)), bvh)
         });
         for round in 0..=guard.params.max_iterations {
+            if dropped.is_some_and(|d| d.load(Ordering::Relaxed)) {
+                break;
+            }
             crossing = if round == 0 {
                 plain_crossing.clone()
             } else {
@@ -658,12 +673,12 @@ impl DeformationTransfer {
         struct Budget(f64, usize);
         impl Eq for Budget {}
         impl PartialOrd for Budget {
-            fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+            fn partial_cmp(&self, other: &Self) -> Option<cmp::Ordering> {
                 Some(self.cmp(other))
             }
         }
         impl Ord for Budget {
-            fn cmp(&self, other: &Self) -> Ordering {
+            fn cmp(&self, other: &Self) -> cmp::Ordering {
                 self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
             }
         }
