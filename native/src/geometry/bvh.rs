@@ -22,9 +22,12 @@ impl Aabb {
         b
     }
 
-    /// Closed boxes: touching counts as overlapping.
+    /// Closed boxes: touching counts as overlapping. All six comparisons are made and
+    /// combined without branching: in the pair sweeps about half the tests fail, at any
+    /// axis, and a mispredicted early exit costs more than the comparisons it skips.
     pub fn overlaps(&self, other: &Aabb) -> bool {
-        (0..3).all(|a| self.lo[a] <= other.hi[a] && other.lo[a] <= self.hi[a])
+        let axis = |a: usize| (self.lo[a] <= other.hi[a]) & (other.lo[a] <= self.hi[a]);
+        axis(0) & axis(1) & axis(2)
     }
 
     fn grow_point(&mut self, p: &[f64; 3]) {
@@ -95,7 +98,20 @@ pub struct TriangleBvh {
     original: Vec<u32>,
 }
 
+/// Where each triangle and node of a [`TriangleBvh`] sits: per triangle (indexed like the
+/// list given to `build`) its slot in leaf order, per slot its leaf, per node its parent (the
+/// root's: itself). [`TriangleBvh::refit_listed`] walks up from the leaves of the moved
+/// triangles with them.
+pub struct RefitLinks {
+    slot: Vec<u32>,
+    leaf: Vec<u32>,
+    parent: Vec<u32>,
+}
+
 const LEAF_SIZE: usize = 4;
+/// Subtrees of at most this many triangles meet each other in
+/// [`TriangleBvh::overlapping_pairs`] by testing every pair of their boxes.
+const SMALL_SUBTREE: usize = 8;
 const BINS: usize = 12;
 /// Deeper nodes become leaves, so that the traversal stack (one slot per level plus one)
 /// never overflows.
@@ -132,9 +148,14 @@ impl TriangleBvh {
     /// `build`): boxes recomputed bottom-up, the tree kept. Far cheaper than a build; the
     /// boxes only loosen as the pose departs from the one built on, the answers stay exact.
     pub fn refitted(&self, points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
-        let corners: Vec<[[f64; 3]; 3]> = self.original.iter().map(|&t| triangles[t as usize].map(|v| points[v as usize])).collect();
-        let boxes: Vec<Aabb> = corners.iter().map(|c| Aabb::of_points(c)).collect();
-        let prepared = corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
+        let (boxes, prepared): (Vec<Aabb>, Vec<PreparedTriangle>) = self
+            .original
+            .iter()
+            .map(|&t| {
+                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+                (Aabb::of_points(&[a, b, c]), PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) })
+            })
+            .unzip();
         let mut nodes = self.nodes.clone();
         refit_bounds(&mut nodes, &boxes);
         Self { nodes, triangles: prepared, boxes, original: self.original.clone() }
@@ -211,21 +232,68 @@ impl TriangleBvh {
         }
     }
 
-    /// [`Self::refitted`] in place after only the triangles `changed` (indexed like the list
-    /// given to `build`) moved since the last refit: their boxes are recomputed, then every
-    /// node's bounds bottom-up. The same hierarchy, boxes and answers as `refitted(points)`
-    /// to the bit (a box is the exact min and max of its corners, in any order), without
-    /// gathering the corners of the triangles that stayed put: the collision pass re-sweeps a
-    /// shape after each local re-solve, which moves a few hundred of its triangles.
-    pub fn refit_changed(&mut self, points: &[[f64; 3]], triangles: &[[u32; 3]], changed: &[bool]) {
-        for (slot, &t) in self.original.iter().enumerate() {
-            if changed[t as usize] {
-                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-                self.boxes[slot] = Aabb::of_points(&[a, b, c]);
-                self.triangles[slot] = PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) };
+    /// Where each triangle and node sits in this tree ([`RefitLinks`]), for
+    /// [`Self::refit_listed`]: made once, valid for every refit and clone of this hierarchy.
+    pub fn refit_links(&self) -> RefitLinks {
+        let mut slot = vec![u32::MAX; self.original.iter().max().map_or(0, |&t| t as usize + 1)];
+        for (s, &t) in self.original.iter().enumerate() {
+            slot[t as usize] = s as u32;
+        }
+        let mut leaf = vec![0u32; self.original.len()];
+        let mut parent = vec![0u32; self.nodes.len()];
+        if !self.triangles.is_empty() {
+            for (i, node) in self.nodes.iter().enumerate() {
+                let (first, count) = (node.first as usize, node.count as usize);
+                if count > 0 {
+                    leaf[first..first + count].fill(i as u32);
+                } else {
+                    parent[first] = i as u32;
+                    parent[first + 1] = i as u32;
+                }
             }
         }
-        refit_bounds(&mut self.nodes, &self.boxes);
+        RefitLinks { slot, leaf, parent }
+    }
+
+    /// [`Self::refitted`] in place after only the triangles `listed` (indexed like the list
+    /// given to `build`, each once) moved since the last refit: their boxes are recomputed,
+    /// then the bounds of their leaves and of those leaves' ancestors only. The same
+    /// hierarchy, boxes and answers as `refitted(points)` to the bit (a box is the exact min
+    /// and max of its corners, in any order; a node whose subtree kept its boxes keeps its
+    /// bounds), without a pass over every triangle or node: the collision pass re-sweeps a
+    /// shape after each local re-solve, which moves a few hundred of its triangles.
+    /// `links` is this hierarchy's [`Self::refit_links`] (or that of one it was refitted or
+    /// cloned from).
+    pub fn refit_listed(&mut self, links: &RefitLinks, points: &[[f64; 3]], triangles: &[[u32; 3]], listed: &[u32]) {
+        let mut stale = std::collections::BinaryHeap::with_capacity(listed.len());
+        for &t in listed {
+            let slot = links.slot[t as usize] as usize;
+            let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+            self.boxes[slot] = Aabb::of_points(&[a, b, c]);
+            self.triangles[slot] = PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) };
+            stale.push(links.leaf[slot]);
+        }
+        // Children come after their parent in the array, so taking the highest node first
+        // refits every child before its parent; a node pushed twice comes out twice in a row.
+        let mut last = None;
+        while let Some(i) = stale.pop() {
+            if last == Some(i) {
+                continue;
+            }
+            last = Some(i);
+            let Node { first, count, .. } = self.nodes[i as usize];
+            let mut bounds = Aabb::EMPTY;
+            if count > 0 {
+                self.boxes[first as usize..(first + count) as usize].iter().for_each(|b| bounds.grow(b));
+            } else {
+                bounds.grow(&self.nodes[first as usize].bounds);
+                bounds.grow(&self.nodes[first as usize + 1].bounds);
+            }
+            self.nodes[i as usize].bounds = bounds;
+            if i != 0 {
+                stale.push(links.parent[i as usize]);
+            }
+        }
     }
 
     /// Per node, whether its subtree holds a `marked` triangle (indexed like the list given
@@ -296,16 +364,21 @@ impl TriangleBvh {
         }
         // The marks in leaf order, read without going through `original`.
         let slot_marked: Vec<bool> = self.original.iter().map(|&t| marked[t as usize]).collect();
-        // Whether a node's subtree holds a marked triangle (children follow their parent).
+        // Whether a node's subtree holds a marked triangle, and the slots it holds (children
+        // follow their parent; a subtree's triangles are contiguous in leaf order, the left
+        // child's first).
         let mut has_marked = vec![false; self.nodes.len()];
+        let mut span = vec![(0usize, 0usize); self.nodes.len()];
         for i in (0..self.nodes.len()).rev() {
             let Node { first, count, .. } = self.nodes[i];
-            has_marked[i] = if count > 0 {
-                slot_marked[first as usize..(first + count) as usize].iter().any(|&m| m)
+            let (first, count) = (first as usize, count as usize);
+            (has_marked[i], span[i]) = if count > 0 {
+                (slot_marked[first..first + count].iter().any(|&m| m), (first, first + count))
             } else {
-                has_marked[first as usize] || has_marked[first as usize + 1]
+                (has_marked[first] || has_marked[first + 1], (span[first].0, span[first + 1].1))
             };
         }
+        let small = |i: u32| span[i as usize].1 - span[i as usize].0 <= SMALL_SUBTREE;
         // Node pairs `(i, j)` whose subtrees' triangles may overlap each other (`i == j`: a
         // subtree against itself); split into children until there are enough for the threads.
         let children = |i: u32| [self.nodes[i as usize].first, self.nodes[i as usize].first + 1];
@@ -317,6 +390,11 @@ impl TriangleBvh {
         // allocation per step of the descent.
         let split = |i: u32, j: u32| -> Option<([(u32, u32); 3], usize)> {
             let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
+            // Two small subtrees' triangles are tested against each other directly: the
+            // descent's steps between them would cost more than the box tests they save.
+            if small(i) && small(j) {
+                return None;
+            }
             if i == j {
                 let [l, r] = children(i);
                 return (a.count == 0).then_some(([(l, l), (r, r), (l, r)], 3));
@@ -358,12 +436,18 @@ impl TriangleBvh {
                     match split(i, j) {
                         Some((pairs, count)) => stack.extend(pairs[..count].iter().copied().filter(|&(a, b)| worth(a, b))),
                         None => {
-                            // Two leaves, or one leaf against itself.
-                            let (a, b) = (&self.nodes[i as usize], &self.nodes[j as usize]);
-                            let b_end = (b.first + b.count) as usize;
-                            for p in a.first as usize..(a.first + a.count) as usize {
-                                let from = if i == j { p + 1 } else { b.first as usize };
+                            // Two leaves or small subtrees, or one against itself, slot by
+                            // slot. A triangle of `i` outside `j`'s box, or unmarked against a
+                            // subtree without a marked triangle, meets none of `j`'s: skipped
+                            // without its loop.
+                            let ((a_start, a_end), (b_start, b_end)) = (span[i as usize], span[j as usize]);
+                            let (b_bounds, b_marked) = (&self.nodes[j as usize].bounds, has_marked[j as usize]);
+                            for p in a_start..a_end {
                                 let (p_marked, p_box) = (slot_marked[p], &self.boxes[p]);
+                                if !(p_marked || b_marked) || (i != j && !p_box.overlaps(b_bounds)) {
+                                    continue;
+                                }
+                                let from = if i == j { p + 1 } else { b_start };
                                 let others = slot_marked[from..b_end].iter().zip(&self.boxes[from..b_end]).zip(&self.original[from..b_end]);
                                 for ((&q_marked, q_box), &q) in others {
                                     if (p_marked || q_marked) && p_box.overlaps(q_box) {

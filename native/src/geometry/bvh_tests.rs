@@ -93,7 +93,8 @@ fn partial_refit_and_pruned_closest_point_match_the_full_ones() {
         .collect();
     let full = bvh.refitted(&moved, &triangles);
     let mut partial = bvh.clone();
-    partial.refit_changed(&moved, &triangles, &changed);
+    let listed: Vec<u32> = (0..triangles.len() as u32).filter(|&t| changed[t as usize]).collect();
+    partial.refit_listed(&bvh.refit_links(), &moved, &triangles, &listed);
     let boxes = |b: &TriangleBvh| b.nodes.iter().map(|n| (n.bounds.lo, n.bounds.hi)).chain(b.boxes.iter().map(|x| (x.lo, x.hi))).collect::<Vec<_>>();
     assert_eq!(boxes(&partial), boxes(&full));
     assert!(partial.triangles.iter().zip(&full.triangles).all(|(a, b)| (a.a, a.ab, a.ac) == (b.a, b.ab, b.ac)));
@@ -143,6 +144,48 @@ fn subset_answers_like_a_tree_built_on_the_kept_triangles() {
             assert_eq!(subset.any_hit(&origin, &direction, 2.0), hit, "share {share}, ray {t}");
         }
     }
+}
+
+/// The pair descent reports every pair of overlapping boxes with a marked triangle exactly
+/// once, on a built tree and on a restricted one (whose leaf order differs), for marks from
+/// none to all: the small subtrees it tests pair by pair included.
+#[test]
+fn overlapping_pairs_match_brute_force_once_each() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(19);
+    let points: Vec<[f64; 3]> = (0..1500)
+        .map(|i| {
+            let centre = ((i / 3) as f64 * 0.618).fract();
+            std::array::from_fn(|a| centre * (a + 1) as f64 % 1.0 + 0.12 * rng.random::<f64>())
+        })
+        .collect();
+    let triangles: Vec<[u32; 3]> = (0..500).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let boxes: Vec<Aabb> = triangles.iter().map(|t| Aabb::of_points(&t.map(|v| points[v as usize]))).collect();
+    let bvh = TriangleBvh::build(&points, &triangles);
+    let kept: Vec<bool> = (0..triangles.len()).map(|t| t % 4 != 1).collect();
+    let restricted = bvh.restricted(&kept);
+    let mut seen = 0;
+    for share in [0.0, 0.05, 0.5, 1.0] {
+        let marked: Vec<bool> = (0..triangles.len()).map(|_| rng.random::<f64>() < share).collect();
+        for (tree, keep) in [(&bvh, vec![true; triangles.len()]), (&restricted, kept.clone())] {
+            let mut found: Vec<(u32, u32)> = tree
+                .overlapping_pairs(&marked, Vec::new, |f: &mut Vec<(u32, u32)>, a, b| f.push((a.min(b), a.max(b))))
+                .into_iter()
+                .flatten()
+                .collect();
+            found.sort_unstable();
+            let mut expect = Vec::new();
+            for a in 0..triangles.len() {
+                for b in a + 1..triangles.len() {
+                    if keep[a] && keep[b] && (marked[a] || marked[b]) && boxes[a].overlaps(&boxes[b]) {
+                        expect.push((a as u32, b as u32));
+                    }
+                }
+            }
+            seen += expect.len();
+            assert_eq!(found, expect, "share {share}");
+        }
+    }
+    assert!(seen > 1000, "the boxes should overlap often: {seen} pairs");
 }
 
 #[test]

@@ -97,10 +97,10 @@ impl TemplateContacts {
     /// crosses some triangle sharing a corner with `b` in the template's shape (the target's
     /// contact may sit a triangle away from the template's). Lips the template presses into
     /// each other stay as the template has them.
-    pub(super) fn near(&self, dt: &DeformationTransfer, guard: &CollisionGuard, a: u32, b: u32) -> bool {
-        let near_b = guard.around(&dt.triangles[b as usize]);
-        guard.around(&dt.triangles[a as usize]).into_iter().any(|x| {
-            self.partners.get(&x).is_some_and(|ys| ys.iter().any(|y| near_b.binary_search(y).is_ok()))
+    pub(super) fn near(&self, guard: &CollisionGuard, a: u32, b: u32) -> bool {
+        let near_b = guard.around(b);
+        guard.around(a).iter().any(|x| {
+            self.partners.get(x).is_some_and(|ys| ys.iter().any(|y| near_b.binary_search(y).is_ok()))
         })
     }
 }

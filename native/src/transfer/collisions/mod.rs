@@ -67,6 +67,12 @@
 //! by side (the few shapes needing them are a dozen rounds each, the last to finish otherwise)
 //! and are then taken in order, so the result is the same as one after the other.
 //!
+//! **Re-sweeps.** A re-solve changes its region's rows only, so a round's positions, written
+//! positions and hierarchy are updated there only (`TriangleBvh::refit_listed` from a copy of
+//! the plain solve's), and only the triangles with a corner written elsewhere are swept
+//! again, one hierarchy query each (`crossings_of`); the other pairs are kept. Every number
+//! is the same to the bit as a full sweep's (tested in `geometry/`).
+//!
 //! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
 //! `scripts/save_collision_arrays.py`; shapes worse than the template after the
 //! pass on Boy / OldMan / YoungWoman, issue 9's criterion)
@@ -128,7 +134,8 @@
 mod contacts;
 mod holds;
 
-use std::cmp::Ordering;
+use std::cmp;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::collections::{BTreeMap, BinaryHeap};
 use std::sync::OnceLock;
 
@@ -141,9 +148,9 @@ use super::deformation::DeformationTransfer;
 use super::gradients::{add, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
-use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::bvh::{RefitLinks, TriangleBvh};
 use crate::geometry::closest_point::SurfacePoint;
-use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, Penetration};
+use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, triangle_pieces, Penetration};
 use crate::geometry::topology::Adjacency;
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
@@ -207,6 +214,8 @@ pub(super) struct CollisionGuard {
     template_rest_pairs: Vec<(u32, u32, f64)>,
     /// Over the target neutral: refitted to each result, and the static obstacles' surface.
     bvh: TriangleBvh,
+    /// Where `bvh`'s triangles and nodes sit, for refitting a few of them in place.
+    refit_links: RefitLinks,
     /// Over the template neutral, refitted to each template shape that needs it.
     template_bvh: TriangleBvh,
     /// Per vertex, the mean length of its edges on the target neutral.
@@ -223,6 +232,10 @@ pub(super) struct CollisionGuard {
     /// Triangles around each vertex (compressed rows).
     ring_offsets: Vec<usize>,
     ring_triangles: Vec<u32>,
+    /// Per triangle, itself and the triangles sharing a corner with it (compressed rows,
+    /// each sorted).
+    around_offsets: Vec<usize>,
+    around_triangles: Vec<u32>,
     /// Per neutral (`bvh`, `template_bvh`) and piece, which nodes hold one of the piece's
     /// triangles, made on the first query against that piece
     /// ([`CollisionGuard::closest_on_piece`]).
@@ -278,6 +291,20 @@ impl CollisionGuard {
                 fill[v as usize] += 1;
             }
         }
+        // Per triangle, itself and the triangles sharing a corner with it, sorted: the
+        // template-contact test reads them for every pair that crosses in every round.
+        let mut around_offsets = Vec::with_capacity(triangles.len() + 1);
+        around_offsets.push(0);
+        let mut around_triangles = Vec::with_capacity(13 * triangles.len());
+        let mut near = Vec::new();
+        for tri in triangles {
+            near.clear();
+            near.extend(tri.iter().flat_map(|&v| ring_triangles[ring_offsets[v as usize]..ring_offsets[v as usize + 1]].iter().copied()));
+            near.sort_unstable();
+            near.dedup();
+            around_triangles.extend_from_slice(&near);
+            around_offsets.push(around_triangles.len());
+        }
         let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
         let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
         Self {
@@ -290,12 +317,15 @@ impl CollisionGuard {
             rest_pairs,
             rest_lengths,
             template_rest_pairs,
+            refit_links: bvh.refit_links(),
             bvh,
             template_bvh,
             edge_length,
             adjacency,
             ring_offsets,
             ring_triangles,
+            around_offsets,
+            around_triangles,
         }
     }
 
@@ -304,11 +334,8 @@ impl CollisionGuard {
     }
 
     /// Triangle `t` and the triangles sharing a corner with it, sorted.
-    fn around(&self, triangle: &[u32; 3]) -> Vec<u32> {
-        let mut near: Vec<u32> = triangle.iter().flat_map(|&v| self.triangles_at(v).iter().copied()).collect();
-        near.sort_unstable();
-        near.dedup();
-        near
+    fn around(&self, t: u32) -> &[u32] {
+        &self.around_triangles[self.around_offsets[t as usize]..self.around_offsets[t as usize + 1]]
     }
 
     /// The point of piece `piece`'s surface on `neutral` closest to `query`: the hierarchy's
@@ -324,6 +351,13 @@ impl CollisionGuard {
             bvh.nodes_holding(&marked)
         });
         bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
+    }
+
+    /// [`DeformationTransfer::written_positions`] of the vertices `vertices` only, whose
+    /// deltas are `deltas` (in order): each vertex's the same to the bit.
+    fn written_at(&self, dt: &DeformationTransfer, vertices: &[usize], deltas: &[Vec3]) -> Vec<Vec3> {
+        let written = dt.to_target_frame(deltas);
+        vertices.iter().zip(written).map(|(&v, d)| [0, 1, 2].map(|a| (self.written_neutral[v][a] + d[a]) as f64)).collect()
     }
 
     /// The distance kept from the other surface at vertex `u`.
@@ -365,7 +399,7 @@ impl DeformationTransfer {
     ) -> ShapesmithResult<CollisionOutcome> {
         let plain = out.clone();
         let shared = PlainRound::new(self, guard, shape, factor);
-        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0])?;
+        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0], None)?;
         let mut solves = outcome.solves;
         let worse = |excess: Option<f64>| excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal);
         if worse(excess).is_none() {
@@ -374,16 +408,25 @@ impl DeformationTransfer {
         // The later attempts, each from the plain solve, two side by side: a shape that needs
         // them (a few mouth shapes, each a dozen rounds) is the last to finish otherwise. They
         // are then taken in order as if run one after the other: the next only while the shape is
-        // still worse (its excess known), so the result does not depend on the threads.
-        let run = |attempt: &Attempt| {
+        // still worse (its excess known), so the result does not depend on the threads. Once
+        // the first of a pair clears the shape, the second's result is dropped: it stops at its
+        // next round (or does not start, when it waits for the same thread), so the other
+        // shapes get the thread.
+        let first_cleared = AtomicBool::new(false);
+        let run = |(index, attempt): (usize, &Attempt)| {
             let mut again = plain.clone();
-            self.collision_rounds(guard, shape, &shared, &mut again, attempt).map(|(next, next_excess)| (next, next_excess, again))
+            let dropped = (index == 1).then_some(&first_cleared);
+            let tried = self.collision_rounds(guard, shape, &shared, &mut again, attempt, dropped);
+            if index == 0 && matches!(tried, Ok((_, Some(e))) if worse(Some(e)).is_none()) {
+                first_cleared.store(true, Ordering::Relaxed);
+            }
+            tried.map(|(next, next_excess)| (next, next_excess, again))
         };
         for pair in ATTEMPTS[1..].chunks(2) {
             if worse(excess).is_none() {
                 break;
             }
-            let later: Vec<_> = pair.par_iter().map(run).collect();
+            let later: Vec<_> = pair.par_iter().enumerate().map(run).collect();
             for tried in later {
                 // Only a shape still worse than the template (its excess known) tries again.
                 let Some(least) = worse(excess) else { break };
@@ -402,7 +445,8 @@ impl DeformationTransfer {
     /// One attempt of the pass: up to `max_iterations` rounds of judging, holding and
     /// re-solving, from the plain solve in `out`; leaves the best round in `out` and returns
     /// its excess over the template (`None` when the template's numbers were never needed:
-    /// nothing new crosses, or the plain solve meets the criterion).
+    /// nothing new crosses, or the plain solve meets the criterion). Once `dropped` is set
+    /// (the caller will not take this attempt) it stops before its next round.
     fn collision_rounds(
         &self,
         guard: &CollisionGuard,
@@ -410,6 +454,7 @@ impl DeformationTransfer {
         shared: &PlainRound,
         out: &mut Vec<Vec3>,
         attempt: &Attempt,
+        dropped: Option<&AtomicBool>,
     ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
         let PlainRound { moved, free, static_piece, swept_rest, .. } = shared;
         let mut outcome = CollisionOutcome::default();
@@ -421,10 +466,11 @@ impl DeformationTransfer {
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
         let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
-        let mut last: Option<Vec<Vec3>> = None;
+        // The vertices whose written position the last re-solve changed.
+        let mut changed_vertices: Vec<usize> = Vec::new();
         let mut template: Option<&TemplateContacts> = None;
-        // The hierarchy refitted to the last sweep's positions (after the plain solve's sweep,
-        // only in the attempt that made it), refitted in place where a re-solve moved triangles.
+        // The hierarchy refitted to the last re-sweep's positions, refitted in place where the
+        // next re-solve moves triangles.
         let mut sweep_bvh: Option<TriangleBvh> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
@@ -432,55 +478,56 @@ impl DeformationTransfer {
         // new pairs left in them and their crossing pairs.
         let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>)> = None;
         let mut first: Option<AddedCurve> = None;
-        let mut first_crossing: Vec<(u32, u32, f64)> = Vec::new();
         // Whether any vertices were sought: only then can another attempt differ.
         let mut held = false;
+        // The result's positions (working frame), and where it is written (the target's
+        // frame, f32): swept there, so the report takes these numbers as they are. A re-solve
+        // changes its region's rows only, and only those are computed again.
+        let mut positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
+        let mut written = self.written_positions(guard, out);
+        // The plain solve, swept once per shape: every attempt starts from it.
+        let (plain_crossing, plain_bvh) = shared.crossing.get_or_init(|| {
+            let bvh = guard.bvh.refitted(&written, &self.triangles);
+            (crossings(&written, &self.triangles, &bvh, Some(moved)), bvh)
+        });
         for round in 0..=guard.params.max_iterations {
-            let positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
-            // Swept where the result is written (the target's frame, f32), so the report
-            // takes these numbers as they are.
-            let written = self.written_positions(guard, out);
-            crossing = match &last {
-                // The plain solve, swept once per shape: every attempt starts from it.
-                None => shared
-                    .crossing
-                    .get_or_init(|| {
-                        let bvh = guard.bvh.refitted(&written, &self.triangles);
-                        let pairs = crossings(&written, &self.triangles, &bvh, Some(moved));
-                        sweep_bvh = Some(bvh);
-                        pairs
-                    })
-                    .clone(),
-                Some(previous) => {
-                    // After a re-solve, only triangles with a corner written elsewhere than
-                    // at the last sweep are tested again (against every triangle); the others
-                    // cross exactly as then and keep their pairs: the same pairs and lengths,
-                    // to the bit, as a sweep of every moved triangle.
-                    let changed_vertex: Vec<bool> = (0..written.len()).map(|v| written[v] != previous[v]).collect();
-                    let changed: Vec<bool> =
-                        self.triangles.iter().map(|t| t.iter().any(|&v| changed_vertex[v as usize])).collect();
-                    let bvh = match sweep_bvh.take() {
-                        Some(mut bvh) => {
-                            bvh.refit_changed(&written, &self.triangles, &changed);
-                            bvh
+            if dropped.is_some_and(|d| d.load(Ordering::Relaxed)) {
+                break;
+            }
+            crossing = if round == 0 {
+                plain_crossing.clone()
+            } else {
+                // After a re-solve, only triangles with a corner written elsewhere than
+                // at the last sweep are tested again (against every triangle); the others
+                // cross exactly as then and keep their pairs: the same pairs and lengths,
+                // to the bit, as a sweep of every moved triangle.
+                let mut changed = vec![false; self.triangles.len()];
+                let mut changed_list = Vec::new();
+                for &v in &changed_vertices {
+                    for &t in guard.triangles_at(v as u32) {
+                        if !changed[t as usize] {
+                            changed[t as usize] = true;
+                            changed_list.push(t);
                         }
-                        None => guard.bvh.refitted(&written, &self.triangles),
-                    };
-                    let mut pairs: Vec<(u32, u32, f64)> =
-                        crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
-                    // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
-                    let swept = crossings(&written, &self.triangles, &bvh, Some(&changed));
-                    pairs.extend(swept.into_iter().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]));
-                    pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
-                    sweep_bvh = Some(bvh);
-                    pairs
+                    }
                 }
+                // The hierarchy of the last sweep (at the first re-solve, the plain
+                // solve's, shared by every attempt) refitted where triangles moved.
+                let mut bvh = sweep_bvh.take().unwrap_or_else(|| plain_bvh.clone());
+                bvh.refit_listed(&guard.refit_links, &written, &self.triangles, &changed_list);
+                let mut pairs: Vec<(u32, u32, f64)> =
+                    crossing.iter().copied().filter(|&(a, b, _)| !changed[a as usize] && !changed[b as usize]).collect();
+                // An unmoved triangle against an unmoved one crosses as at rest: counted apart.
+                let swept = crossings_of(&written, &self.triangles, &bvh, &changed_list);
+                pairs.extend(swept.into_iter().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]));
+                pairs.sort_unstable_by_key(|&(a, b, _)| (a, b));
+                sweep_bvh = Some(bvh);
+                pairs
             };
             // The curve this result adds to the target's neutral (SPEC 3's criterion).
             let added = AddedCurve::of(crossing.iter().copied(), piece_of, *swept_rest);
             if first.is_none() {
                 first = Some(added);
-                first_crossing = crossing.clone();
             }
             let score = |a: &AddedCurve| template_added.map_or(a.inside + a.between, |t| a.excess(&t));
             let improved = best.as_ref().is_none_or(|(b, _, _, _)| score(&added) < *b);
@@ -524,7 +571,7 @@ impl DeformationTransfer {
                 None => true,
             };
             let mut new_pairs: Vec<(u32, u32)> = match &template {
-                Some(contacts) => candidates.iter().copied().filter(|&(a, b)| !contacts.near(self, guard, a, b)).collect(),
+                Some(contacts) => candidates.iter().copied().filter(|&(a, b)| !contacts.near(guard, a, b)).collect(),
                 None => candidates.clone(),
             };
             if !new_pairs.iter().any(in_excess) {
@@ -570,7 +617,6 @@ impl DeformationTransfer {
             if found.is_empty() {
                 break;
             }
-            last = Some(written);
             let mut seeds = Vec::with_capacity(found.len());
             for (u, target) in found {
                 let reach = length(sub(target, add(self.target_neutral[u], out[u])));
@@ -584,6 +630,16 @@ impl DeformationTransfer {
                 .map(|(&u, &target)| (u, attempt.stiffness * guard.params.stiffness * self.matrix.diagonal(u), sub(target, self.target_neutral[u])))
                 .collect();
             *out = self.matrix.solve_local(&members, &constraints, shape.rhs, out)?;
+            let region_deltas: Vec<Vec3> = members.iter().map(|&v| out[v]).collect();
+            let mut now_changed = Vec::new();
+            for ((&v, d), p) in members.iter().zip(&region_deltas).zip(guard.written_at(self, &members, &region_deltas)) {
+                positions[v] = add(self.target_neutral[v], *d);
+                if p != written[v] {
+                    written[v] = p;
+                    now_changed.push(v);
+                }
+            }
+            changed_vertices = now_changed;
             outcome.solves += 1;
             outcome.region_vertices = members.len();
         }
@@ -591,11 +647,15 @@ impl DeformationTransfer {
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
         let excess = if held { template_added.and(best.as_ref().map(|b| b.0)) } else { None };
-        let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
-        let penetration = |pairs: &[(u32, u32, f64)]| shape_penetration(pairs, &rest, moved, &guard.triangle_piece);
-        outcome.plain_penetration = Some(penetration(&first_crossing));
+        let penetration = |pairs: &[(u32, u32, f64)]| {
+            let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
+            shape_penetration(pairs, &rest, moved, &guard.triangle_piece)
+        };
+        // The plain solve's, once per shape (every attempt starts from it).
+        let plain_penetration = *shared.penetration.get_or_init(|| penetration(plain_crossing));
+        outcome.plain_penetration = Some(plain_penetration);
         if let Some((_, kept, left, pairs)) = best {
-            outcome.penetration = Some(penetration(&pairs));
+            outcome.penetration = Some(if kept.is_empty() { plain_penetration } else { penetration(&pairs) });
             outcome.remaining_pairs = left;
             outcome.applied = !kept.is_empty();
             *out = if kept.is_empty() { plain } else { kept };
@@ -613,12 +673,12 @@ impl DeformationTransfer {
         struct Budget(f64, usize);
         impl Eq for Budget {}
         impl PartialOrd for Budget {
-            fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+            fn partial_cmp(&self, other: &Self) -> Option<cmp::Ordering> {
                 Some(self.cmp(other))
             }
         }
         impl Ord for Budget {
-            fn cmp(&self, other: &Self) -> Ordering {
+            fn cmp(&self, other: &Self) -> cmp::Ordering {
                 self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
             }
         }
@@ -648,7 +708,8 @@ impl DeformationTransfer {
     /// `target neutral + out` where it is written: in the target's own frame, added in f32
     /// (as the report and Blender see the shape), as f64.
     fn written_positions(&self, guard: &CollisionGuard, out: &[Vec3]) -> Vec<Vec3> {
-        guard.written_neutral.iter().zip(self.to_target_frame(out)).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect()
+        let all: Vec<usize> = (0..out.len()).collect();
+        guard.written_at(self, &all, out)
     }
 
 }
@@ -667,7 +728,11 @@ struct PlainRound {
     /// The rest curve the sweeps see again: all of it but the rest pairs whose triangles both
     /// stay put (those cross exactly as at rest and are not swept).
     swept_rest: AddedCurve,
-    crossing: OnceLock<Vec<(u32, u32, f64)>>,
+    /// The plain solve's crossing pairs, and the hierarchy refitted to it (each attempt's
+    /// first re-sweep refits it only where the re-solve moved triangles).
+    crossing: OnceLock<(Vec<(u32, u32, f64)>, TriangleBvh)>,
+    /// The plain solve's penetration, from those pairs.
+    penetration: OnceLock<Penetration>,
     template: OnceLock<TemplateContacts>,
 }
 
@@ -687,7 +752,7 @@ impl PlainRound {
             |t| dt.triangle_piece(t),
             AddedCurve::default(),
         );
-        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), template: OnceLock::new() }
+        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new() }
     }
 }
 
