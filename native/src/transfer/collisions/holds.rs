@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 
+use super::contacts::TemplateContacts;
 use super::{Attempt, CollisionGuard, Neutral, Targets};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, cross, dot, length, scale, sub, Vec3};
@@ -24,13 +25,14 @@ impl DeformationTransfer {
         free: &[bool],
         static_piece: &[bool],
         attempt: &Attempt,
-        template: &[Vec3],
+        template: &TemplateContacts,
     ) -> Targets {
         let margin = attempt.margin;
+        let template_positions = &template.positions;
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| !self.template_crosses(guard, template, u, obstacle, piece))
+            push.filter(|_| !self.template_crosses(guard, template_positions, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -65,6 +67,12 @@ impl DeformationTransfer {
                         Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
+                        // Where the template's shape adds no curve against the piece, the
+                        // criterion allows none: a triangle at rest crosses a static piece
+                        // exactly as in the neutral, whatever side its corners rest on.
+                        Some(piece) if attempt.rest && moved_by > 0.0 && template.adds_none(self.piece[u], piece) => {
+                            Some(sub(self.target_neutral[u], positions[u]))
+                        }
                         Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
                         None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin, attempt.strip)),
                     };
@@ -81,7 +89,15 @@ impl DeformationTransfer {
                     continue;
                 }
                 if let Some(piece) = obstacle_piece(w, obstacle) {
-                    if let Some(push) = hold(w, obstacle, Some(piece), self.push_off_piece(guard, positions, w, piece, margin)) {
+                    let push = match self.push_off_piece(guard, positions, w, piece, margin) {
+                        // Gone through the piece, where the template's shape adds no curve
+                        // against it: back to rest, as the pairs' corners.
+                        Some(_) if attempt.rest && template.adds_none(self.piece[w], piece) => {
+                            Some(sub(self.target_neutral[w], positions[w]))
+                        }
+                        push => hold(w, obstacle, Some(piece), push),
+                    };
+                    if let Some(push) = push {
                         keep(w, push, obstacle, &mut pushes, &mut queue);
                     }
                     continue;
@@ -241,7 +257,7 @@ mod tests {
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
-    use crate::transfer::tests::{lip_closing, lips};
+    use crate::transfer::tests::{lip_closing, lips, skin_over_teeth};
     use crate::transfer::{DeformationTransfer, TransferParams};
 
     /// `neutral + delta` as positions.
@@ -270,7 +286,8 @@ mod tests {
         let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
         let free = vec![true; positions.len()];
         let held = |amount: f32| {
-            let template = posed(&dt.source_neutral, lip_closing(&source, 0.1, amount));
+            let moved = vec![true; dt.triangles.len()];
+            let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, amount), &moved);
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &ATTEMPTS[0], &template)
         };
         let bump = |v: usize| {
@@ -299,9 +316,9 @@ mod tests {
         let (_, dt, guard, positions, pairs) = closed_target_lips(0.024);
         let free = vec![true; positions.len()];
         // The template's shape leaves its lips apart: nothing is filtered.
-        let template = dt.source_neutral.clone();
+        let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));
@@ -321,5 +338,56 @@ mod tests {
             let away = if v % 22 < 11 { positions[v][2] - strip[&v][2] } else { strip[&v][2] - positions[v][2] };
             assert!(away > 0.0, "vertex {v} is held towards the other lip");
         }
+    }
+
+    #[test]
+    fn the_rest_attempt_sends_skin_through_a_piece_the_template_adds_nothing_to_back_to_rest() {
+        // The skin plane rests inside the teeth (it cuts their walls). A rise of `height` in
+        // the middle, 0.1 around (no closer to the walls than an edge, so the curve along them
+        // stays as at rest), of 0.06: it stays inside the template's teeth (top at 0.2) and
+        // pokes through the target's (0.02). Only the middle vertex moves more than half an
+        // edge (0.07): its neighbours go back to rest in every attempt.
+        let (source, tris) = skin_over_teeth(0.2);
+        let (target, _) = skin_over_teeth(0.02);
+        let n = source.len();
+        let rise = |height: f32| -> Vec<[f32; 3]> {
+            let bump = |p: &[f32; 3]| (1.0 - ((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).max(0.0).powi(2);
+            (0..n).map(|v| if v < 15 * 15 { [0.0, 0.0, height * bump(&source[v])] } else { [0.0; 3] }).collect()
+        };
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let positions = posed(&dt.target_neutral, rise(0.06));
+        let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
+        let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
+            crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
+        };
+        let rest = sweep(&dt.target_neutral);
+        let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
+        assert!(!pairs.is_empty());
+        let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
+        let mut static_piece = vec![false; 2];
+        static_piece[teeth as usize] = true;
+        let moved = vec![true; tris.len()];
+        let held = |height: f32, attempt: &Attempt| {
+            let contacts = dt.template_contacts(&guard, &rise(height), &moved);
+            let targets = dt.offending_vertices(&guard, &positions, &pairs, &free, &static_piece, attempt, &contacts);
+            (contacts.adds_none(skin, teeth), targets)
+        };
+        let at_rest = |targets: &super::super::Targets| {
+            targets.iter().all(|(&u, t)| (0..3).all(|a| (t[a] - dt.target_neutral[u][a]).abs() < 1e-9))
+        };
+        // The template's rise adds no curve against its teeth: the first attempt pushes the
+        // middle to the target's teeth top (a margin inside, the side it rests on); the rest
+        // attempt sends it back to rest, where it crosses the teeth exactly as in the neutral.
+        let (adds_none, first) = held(0.06, &ATTEMPTS[0]);
+        let (_, back) = held(0.06, &ATTEMPTS[4]);
+        assert!(adds_none && ATTEMPTS[4].rest);
+        assert!(first.len() == back.len() && !at_rest(&first), "{first:?}");
+        assert!(!back.is_empty() && at_rest(&back), "{back:?}");
+        // A template rising 0.3, through its own teeth's top, adds curve against them: the rest
+        // attempt holds as the first one does.
+        let (adds_none, through) = held(0.3, &ATTEMPTS[0]);
+        assert!(!adds_none);
+        assert_eq!(held(0.3, &ATTEMPTS[4]).1, through);
     }
 }
