@@ -32,7 +32,7 @@ impl DeformationTransfer {
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| !self.template_crosses(guard, template_positions, u, obstacle, piece))
+            push.filter(|_| attempt.follow || !self.template_crosses(guard, template_positions, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -74,7 +74,7 @@ impl DeformationTransfer {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
                         Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
-                        None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin, attempt.strip)),
+                        None => self.lip_hold(guard, positions, u, obstacle, free, attempt, template_positions, &hold),
                     };
                     if let Some(push) = push {
                         keep(u, push, obstacle, &mut pushes, &mut queue);
@@ -103,12 +103,67 @@ impl DeformationTransfer {
                     continue;
                 }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
-                if let Some(push) = hold(w, beneath, None, self.push_out(guard, positions, w, beneath as usize, free, margin, attempt.strip)) {
+                if let Some(push) = self.lip_hold(guard, positions, w, beneath, free, attempt, template_positions, &hold) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
         }
         pushes.into_iter().map(|(u, push)| (u, add(positions[u], push))).collect()
+    }
+
+    /// The push of vertex `u` against triangle `t` of a surface that moves too: across its
+    /// plane to the rest side ([`Self::push_out`]), or with `attempt.follow`, where `u`
+    /// went through, to where the template's shape (`template`) has `u` relative to the same
+    /// triangle: the same barycentric coordinates in its plane and the same height over it,
+    /// scaled by the triangles' size ratio (half of it when `t` can move too).
+    #[allow(clippy::too_many_arguments)]
+    fn lip_hold(
+        &self,
+        guard: &CollisionGuard,
+        positions: &[Vec3],
+        u: usize,
+        t: u32,
+        free: &[bool],
+        attempt: &Attempt,
+        template: &[Vec3],
+        hold: &dyn Fn(usize, u32, Option<u32>, Option<Vec3>) -> Option<Vec3>,
+    ) -> Option<Vec3> {
+        let push = self.push_out(guard, positions, u, t as usize, free, attempt.margin, attempt.strip);
+        if !attempt.follow {
+            return hold(u, t, None, push);
+        }
+        push?;
+        let tri = self.triangles[t as usize];
+        let frame = |p: &[Vec3]| {
+            let c = tri.map(|v| p[v as usize]);
+            let n = cross(sub(c[1], c[0]), sub(c[2], c[0]));
+            let area = length(n);
+            let size = length(sub(c[1], c[0])) + length(sub(c[2], c[1])) + length(sub(c[0], c[2]));
+            (area > 0.0).then(|| (c, scale(n, 1.0 / area), size))
+        };
+        let (s, s_normal, s_size) = frame(template)?;
+        let (c, normal, size) = frame(positions)?;
+        let offset = sub(template[u], s[0]);
+        let height = dot(offset, s_normal);
+        let (e1, e2) = (sub(s[1], s[0]), sub(s[2], s[0]));
+        let in_plane = sub(offset, scale(s_normal, height));
+        let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+        let (r1, r2) = (dot(in_plane, e1), dot(in_plane, e2));
+        let det = g11 * g22 - g12 * g12;
+        if det <= 0.0 {
+            return None;
+        }
+        let (b1, b2) = ((r1 * g22 - r2 * g12) / det, (r2 * g11 - r1 * g12) / det);
+        let at = add(add(c[0], add(scale(sub(c[1], c[0]), b1), scale(sub(c[2], c[0]), b2))), scale(normal, height * size / s_size));
+        // Where the template has `u` far from the triangle (beyond a triangle's width of it,
+        // or a target further than MAX_DEPTH edges), the triangle says nothing of `u`: held
+        // as the first attempt holds it.
+        let placed = sub(at, positions[u]);
+        if length(placed) > MAX_DEPTH * guard.edge_length[u] {
+            return hold(u, t, None, push);
+        }
+        let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
+        Some(scale(placed, share))
     }
 
     /// The push of vertex `u` out of the static piece `piece`, when it is on the other side
@@ -318,7 +373,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));
@@ -337,6 +392,33 @@ mod tests {
             assert!(gap(v) > 0.0 && gap(v) < 0.05, "vertex {v}: gap {}", gap(v));
             let away = if v % 22 < 11 { positions[v][2] - strip[&v][2] } else { strip[&v][2] - positions[v][2] };
             assert!(away > 0.0, "vertex {v} is held towards the other lip");
+        }
+    }
+
+    #[test]
+    fn the_follow_attempt_holds_lip_vertices_where_the_templates_own_shape_has_them() {
+        // The template presses its lips 0.02 through each other in the middle (0.06 each
+        // across its 0.1 gap); the target's, closed by 0.045 each across 0.04, go 0.05
+        // through. The first attempt leaves the middle alone (the template crosses there);
+        // the follow attempt holds it where the template has it against the other lip's
+        // triangle, half way (both lips move): still through, but less deep.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
+        let free = vec![true; positions.len()];
+        let moved = vec![true; dt.triangles.len()];
+        let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.06), &moved);
+        let held = |attempt: &Attempt| dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], attempt, &template);
+        let (first, follow) = (held(&ATTEMPTS[0]), held(&ATTEMPTS[5]));
+        assert!(ATTEMPTS[5].follow);
+        // The vertex facing `v` on the other layer (folded_strip: 22 profile points a
+        // cross-section, the upper layer's in reverse), and `v`'s signed gap to it at `z`.
+        let facing = |v: usize| v / 22 * 22 + 21 - v % 22;
+        let gap = |v: usize, z: f64| if v % 22 < 11 { positions[facing(v)][2] - z } else { z - positions[facing(v)][2] };
+        let middle: Vec<usize> = follow.keys().copied().filter(|&v| gap(v, positions[v][2]) < -0.049).collect();
+        assert!(!middle.is_empty(), "{follow:?}");
+        for v in middle {
+            assert!(!first.contains_key(&v), "vertex {v} is held by the first attempt");
+            let (now, then) = (gap(v, positions[v][2]), gap(v, follow[&v][2]));
+            assert!(now < then && then < -0.02 && then > -0.045, "vertex {v}: gap {now} held at {then}");
         }
     }
 

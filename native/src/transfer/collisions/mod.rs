@@ -531,7 +531,7 @@ impl DeformationTransfer {
                     .copied()
                     .filter(|&(a, b)| {
                         let (p, q) = (piece_of(a), piece_of(b));
-                        (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(self, guard, a, b)
+                        attempt.follow || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(self, guard, a, b)
                     })
                     .collect(),
                 None => candidates.clone(),
@@ -709,17 +709,19 @@ pub(super) struct Attempt {
     margin: f64,
     pub(super) strip: bool,
     pub(super) rest: bool,
+    pub(super) follow: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 5] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true },
+const ATTEMPTS: [Attempt; 6] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
