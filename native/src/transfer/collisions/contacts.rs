@@ -79,7 +79,9 @@ impl DeformationTransfer {
         // Template and target share the topology, hence the pieces.
         let piece_of = |t: u32| self.triangle_piece(t);
         let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
-        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest), positions: points }
+        let noise = 0.5 * super::JUDGE_TOLERANCE * guard.diagonal;
+        let adding = pieces_grown(all.iter().copied(), guard.template_rest_pairs.iter().copied(), piece_of, noise);
+        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest), positions: points, adding }
     }
 }
 
@@ -90,9 +92,18 @@ pub(super) struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
     pub(super) added: AddedCurve,
     pub(super) positions: Vec<Vec3>,
+    /// The pairs of pieces ([`piece_key`]) between which the shape's curve is longer than at
+    /// the template's rest (beyond the judging noise).
+    adding: HashSet<(u32, u32)>,
 }
 
 impl TemplateContacts {
+    /// Whether the template's shape adds no curve between pieces `p` and `q` (it keeps or
+    /// removes what its neutral has there): the criterion then allows the target none.
+    pub(super) fn adds_none(&self, p: u32, q: u32) -> bool {
+        !self.adding.contains(&piece_key(p, q))
+    }
+
     /// Whether the pair `(a, b)` is the artist's own: some triangle sharing a corner with `a`
     /// crosses some triangle sharing a corner with `b` in the template's shape (the target's
     /// contact may sit a triangle away from the template's). Lips the template presses into

@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 
+use super::contacts::TemplateContacts;
 use super::{Attempt, CollisionGuard, Neutral, Targets};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, cross, dot, length, scale, sub, Vec3};
@@ -24,13 +25,14 @@ impl DeformationTransfer {
         free: &[bool],
         static_piece: &[bool],
         attempt: &Attempt,
-        template: &[Vec3],
+        template: &TemplateContacts,
     ) -> Targets {
         let margin = attempt.margin;
+        let template_positions = &template.positions;
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| !self.template_crosses(guard, template, u, obstacle, piece))
+            push.filter(|_| attempt.follow || !self.template_crosses(guard, template_positions, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -65,8 +67,14 @@ impl DeformationTransfer {
                         Some(_) if moved_by > 0.0 && moved_by <= REST_SNAP * guard.edge_length[u] => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
+                        // Where the template's shape adds no curve against the piece, the
+                        // criterion allows none: a triangle at rest crosses a static piece
+                        // exactly as in the neutral, whatever side its corners rest on.
+                        Some(piece) if attempt.rest && moved_by > 0.0 && template.adds_none(self.piece[u], piece) => {
+                            Some(sub(self.target_neutral[u], positions[u]))
+                        }
                         Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
-                        None => hold(u, obstacle, None, self.push_out(guard, positions, u, obstacle as usize, free, margin, attempt.strip)),
+                        None => self.lip_hold(guard, positions, u, obstacle, free, attempt, template_positions, &hold),
                     };
                     if let Some(push) = push {
                         keep(u, push, obstacle, &mut pushes, &mut queue);
@@ -81,18 +89,81 @@ impl DeformationTransfer {
                     continue;
                 }
                 if let Some(piece) = obstacle_piece(w, obstacle) {
-                    if let Some(push) = hold(w, obstacle, Some(piece), self.push_off_piece(guard, positions, w, piece, margin)) {
+                    let push = match self.push_off_piece(guard, positions, w, piece, margin) {
+                        // Gone through the piece, where the template's shape adds no curve
+                        // against it: back to rest, as the pairs' corners.
+                        Some(_) if attempt.rest && template.adds_none(self.piece[w], piece) => {
+                            Some(sub(self.target_neutral[w], positions[w]))
+                        }
+                        push => hold(w, obstacle, Some(piece), push),
+                    };
+                    if let Some(push) = push {
                         keep(w, push, obstacle, &mut pushes, &mut queue);
                     }
                     continue;
                 }
                 let Some(beneath) = self.obstacle_below(guard, positions, w, obstacle) else { continue };
-                if let Some(push) = hold(w, beneath, None, self.push_out(guard, positions, w, beneath as usize, free, margin, attempt.strip)) {
+                if let Some(push) = self.lip_hold(guard, positions, w, beneath, free, attempt, template_positions, &hold) {
                     keep(w, push, beneath, &mut pushes, &mut queue);
                 }
             }
         }
         pushes.into_iter().map(|(u, push)| (u, add(positions[u], push))).collect()
+    }
+
+    /// The push of vertex `u` against triangle `t` of a surface that moves too: across its
+    /// plane to the rest side ([`Self::push_out`]), or with `attempt.follow`, where `u`
+    /// went through, to where the template's shape (`template`) has `u` relative to the same
+    /// triangle: the same barycentric coordinates in its plane and the same height over it,
+    /// scaled by the triangles' size ratio (half of it when `t` can move too).
+    #[allow(clippy::too_many_arguments)]
+    fn lip_hold(
+        &self,
+        guard: &CollisionGuard,
+        positions: &[Vec3],
+        u: usize,
+        t: u32,
+        free: &[bool],
+        attempt: &Attempt,
+        template: &[Vec3],
+        hold: &dyn Fn(usize, u32, Option<u32>, Option<Vec3>) -> Option<Vec3>,
+    ) -> Option<Vec3> {
+        let push = self.push_out(guard, positions, u, t as usize, free, attempt.margin, attempt.strip);
+        if !attempt.follow {
+            return hold(u, t, None, push);
+        }
+        push?;
+        let tri = self.triangles[t as usize];
+        let frame = |p: &[Vec3]| {
+            let c = tri.map(|v| p[v as usize]);
+            let n = cross(sub(c[1], c[0]), sub(c[2], c[0]));
+            let area = length(n);
+            let size = length(sub(c[1], c[0])) + length(sub(c[2], c[1])) + length(sub(c[0], c[2]));
+            (area > 0.0).then(|| (c, scale(n, 1.0 / area), size))
+        };
+        let (s, s_normal, s_size) = frame(template)?;
+        let (c, normal, size) = frame(positions)?;
+        let offset = sub(template[u], s[0]);
+        let height = dot(offset, s_normal);
+        let (e1, e2) = (sub(s[1], s[0]), sub(s[2], s[0]));
+        let in_plane = sub(offset, scale(s_normal, height));
+        let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+        let (r1, r2) = (dot(in_plane, e1), dot(in_plane, e2));
+        let det = g11 * g22 - g12 * g12;
+        if det <= 0.0 {
+            return None;
+        }
+        let (b1, b2) = ((r1 * g22 - r2 * g12) / det, (r2 * g11 - r1 * g12) / det);
+        let at = add(add(c[0], add(scale(sub(c[1], c[0]), b1), scale(sub(c[2], c[0]), b2))), scale(normal, height * size / s_size));
+        // Where the template has `u` far from the triangle (beyond a triangle's width of it,
+        // or a target further than MAX_DEPTH edges), the triangle says nothing of `u`: held
+        // as the first attempt holds it.
+        let placed = sub(at, positions[u]);
+        if length(placed) > MAX_DEPTH * guard.edge_length[u] {
+            return hold(u, t, None, push);
+        }
+        let share = if tri.iter().any(|&v| free[v as usize]) { 0.5 } else { 1.0 };
+        Some(scale(placed, share))
     }
 
     /// The push of vertex `u` out of the static piece `piece`, when it is on the other side
@@ -241,7 +312,7 @@ mod tests {
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
-    use crate::transfer::tests::{lip_closing, lips};
+    use crate::transfer::tests::{lip_closing, lips, skin_over_teeth};
     use crate::transfer::{DeformationTransfer, TransferParams};
 
     /// `neutral + delta` as positions.
@@ -270,7 +341,8 @@ mod tests {
         let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
         let free = vec![true; positions.len()];
         let held = |amount: f32| {
-            let template = posed(&dt.source_neutral, lip_closing(&source, 0.1, amount));
+            let moved = vec![true; dt.triangles.len()];
+            let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, amount), &moved);
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &ATTEMPTS[0], &template)
         };
         let bump = |v: usize| {
@@ -299,9 +371,9 @@ mod tests {
         let (_, dt, guard, positions, pairs) = closed_target_lips(0.024);
         let free = vec![true; positions.len()];
         // The template's shape leaves its lips apart: nothing is filtered.
-        let template = dt.source_neutral.clone();
+        let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));
@@ -321,5 +393,83 @@ mod tests {
             let away = if v % 22 < 11 { positions[v][2] - strip[&v][2] } else { strip[&v][2] - positions[v][2] };
             assert!(away > 0.0, "vertex {v} is held towards the other lip");
         }
+    }
+
+    #[test]
+    fn the_follow_attempt_holds_lip_vertices_where_the_templates_own_shape_has_them() {
+        // The template presses its lips 0.02 through each other in the middle (0.06 each
+        // across its 0.1 gap); the target's, closed by 0.045 each across 0.04, go 0.05
+        // through. The first attempt leaves the middle alone (the template crosses there);
+        // the follow attempt holds it where the template has it against the other lip's
+        // triangle, half way (both lips move): still through, but less deep.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
+        let free = vec![true; positions.len()];
+        let moved = vec![true; dt.triangles.len()];
+        let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.06), &moved);
+        let held = |attempt: &Attempt| dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], attempt, &template);
+        let (first, follow) = (held(&ATTEMPTS[0]), held(&ATTEMPTS[5]));
+        assert!(ATTEMPTS[5].follow);
+        // The vertex facing `v` on the other layer (folded_strip: 22 profile points a
+        // cross-section, the upper layer's in reverse), and `v`'s signed gap to it at `z`.
+        let facing = |v: usize| v / 22 * 22 + 21 - v % 22;
+        let gap = |v: usize, z: f64| if v % 22 < 11 { positions[facing(v)][2] - z } else { z - positions[facing(v)][2] };
+        let middle: Vec<usize> = follow.keys().copied().filter(|&v| gap(v, positions[v][2]) < -0.049).collect();
+        assert!(!middle.is_empty(), "{follow:?}");
+        for v in middle {
+            assert!(!first.contains_key(&v), "vertex {v} is held by the first attempt");
+            let (now, then) = (gap(v, positions[v][2]), gap(v, follow[&v][2]));
+            assert!(now < then && then < -0.02 && then > -0.045, "vertex {v}: gap {now} held at {then}");
+        }
+    }
+
+    #[test]
+    fn the_rest_attempt_sends_skin_through_a_piece_the_template_adds_nothing_to_back_to_rest() {
+        // The skin plane rests inside the teeth (it cuts their walls). A rise of `height` in
+        // the middle, 0.1 around (no closer to the walls than an edge, so the curve along them
+        // stays as at rest), of 0.06: it stays inside the template's teeth (top at 0.2) and
+        // pokes through the target's (0.02). Only the middle vertex moves more than half an
+        // edge (0.07): its neighbours go back to rest in every attempt.
+        let (source, tris) = skin_over_teeth(0.2);
+        let (target, _) = skin_over_teeth(0.02);
+        let n = source.len();
+        let rise = |height: f32| -> Vec<[f32; 3]> {
+            let bump = |p: &[f32; 3]| (1.0 - ((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).max(0.0).powi(2);
+            (0..n).map(|v| if v < 15 * 15 { [0.0, 0.0, height * bump(&source[v])] } else { [0.0; 3] }).collect()
+        };
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let positions = posed(&dt.target_neutral, rise(0.06));
+        let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
+        let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
+            crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
+        };
+        let rest = sweep(&dt.target_neutral);
+        let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
+        assert!(!pairs.is_empty());
+        let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
+        let mut static_piece = vec![false; 2];
+        static_piece[teeth as usize] = true;
+        let moved = vec![true; tris.len()];
+        let held = |height: f32, attempt: &Attempt| {
+            let contacts = dt.template_contacts(&guard, &rise(height), &moved);
+            let targets = dt.offending_vertices(&guard, &positions, &pairs, &free, &static_piece, attempt, &contacts);
+            (contacts.adds_none(skin, teeth), targets)
+        };
+        let at_rest = |targets: &super::super::Targets| {
+            targets.iter().all(|(&u, t)| (0..3).all(|a| (t[a] - dt.target_neutral[u][a]).abs() < 1e-9))
+        };
+        // The template's rise adds no curve against its teeth: the first attempt pushes the
+        // middle to the target's teeth top (a margin inside, the side it rests on); the rest
+        // attempt sends it back to rest, where it crosses the teeth exactly as in the neutral.
+        let (adds_none, first) = held(0.06, &ATTEMPTS[0]);
+        let (_, back) = held(0.06, &ATTEMPTS[4]);
+        assert!(adds_none && ATTEMPTS[4].rest);
+        assert!(first.len() == back.len() && !at_rest(&first), "{first:?}");
+        assert!(!back.is_empty() && at_rest(&back), "{back:?}");
+        // A template rising 0.3, through its own teeth's top, adds curve against them: the rest
+        // attempt holds as the first one does.
+        let (adds_none, through) = held(0.3, &ATTEMPTS[0]);
+        assert!(!adds_none);
+        assert_eq!(held(0.3, &ATTEMPTS[4]).1, through);
     }
 }

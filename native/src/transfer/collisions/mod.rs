@@ -571,7 +571,16 @@ impl DeformationTransfer {
                 None => true,
             };
             let mut new_pairs: Vec<(u32, u32)> = match &template {
-                Some(contacts) => candidates.iter().copied().filter(|&(a, b)| !contacts.near(guard, a, b)).collect(),
+                // The rest attempt also acts near the template's contacts against a piece it
+                // adds no curve to: there its contacts only slide along what its neutral has.
+                Some(contacts) => candidates
+                    .iter()
+                    .copied()
+                    .filter(|&(a, b)| {
+                        let (p, q) = (piece_of(a), piece_of(b));
+                        attempt.follow || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
+                    })
+                    .collect(),
                 None => candidates.clone(),
             };
             if !new_pairs.iter().any(in_excess) {
@@ -604,15 +613,14 @@ impl DeformationTransfer {
             }
             // The template's contacts are known once a round gets here (judged above).
             let Some(contacts) = template else { break };
-            let template_positions = &contacts.positions;
             held = true;
-            let mut found = self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt, template_positions);
+            let mut found = self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt, contacts);
             if found.is_empty() {
                 // The pairs away from the template's contacts hold no vertex (the template's
                 // shape crosses where they are, or they sit on rest pairs): act on all pairs of
                 // the part in excess (OldMan's jawForward, skin sliding deeper into the upper
                 // teeth than the template's does).
-                found = self.offending_vertices(guard, &positions, &acted_on(&candidates), free, static_piece, attempt, template_positions);
+                found = self.offending_vertices(guard, &positions, &acted_on(&candidates), free, static_piece, attempt, contacts);
             }
             if found.is_empty() {
                 break;
@@ -765,16 +773,20 @@ pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
     pub(super) strip: bool,
+    pub(super) rest: bool,
+    pub(super) follow: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 4] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true },
+const ATTEMPTS: [Attempt; 6] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
