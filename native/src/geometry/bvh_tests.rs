@@ -197,3 +197,24 @@ fn axis_parallel_ray_and_segment_end() {
     assert!(!bvh.any_hit(&[-1.0, 0.0, 0.0], &[-1.0, 0.0, 0.0], 5.0), "the wall is behind the ray");
     assert!(!TriangleBvh::build(&points, &[]).any_hit(&[-1.0, 0.0, 0.0], &[1.0, 0.0, 0.0], 2.0));
 }
+
+/// A leaf of over 64 triangles (all at one spot: no split separates their centroids), whose
+/// pairs [`TriangleBvh::overlapping_pairs`] tests in chunks of 64, gives every pair once.
+#[test]
+fn overlapping_pairs_cover_a_leaf_of_many_triangles() {
+    let points: Vec<[f64; 3]> = (0..300).map(|i| [(i % 3) as f64, ((i % 3) / 2) as f64, 0.0]).collect();
+    let triangles: Vec<[u32; 3]> = (0..100).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let bvh = TriangleBvh::build(&points, &triangles);
+    for every_third in [false, true] {
+        let marked: Vec<bool> = (0..triangles.len()).map(|t| !every_third || t % 3 == 0).collect();
+        let mut found: Vec<(u32, u32)> = bvh
+            .overlapping_pairs(&marked, Vec::new, |f: &mut Vec<(u32, u32)>, a, b| f.push((a.min(b), a.max(b))))
+            .into_iter()
+            .flatten()
+            .collect();
+        found.sort_unstable();
+        let expect: Vec<(u32, u32)> =
+            (0..100u32).flat_map(|a| (a + 1..100).map(move |b| (a, b))).filter(|&(a, b)| marked[a as usize] || marked[b as usize]).collect();
+        assert_eq!(found, expect, "every third marked: {every_third}");
+    }
+}
