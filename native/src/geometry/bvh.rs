@@ -148,11 +148,17 @@ impl TriangleBvh {
     /// `build`): boxes recomputed bottom-up, the tree kept. Far cheaper than a build; the
     /// boxes only loosen as the pose departs from the one built on, the answers stay exact.
     pub fn refitted(&self, points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
+        self.at_corners(|t| triangles[t as usize].map(|v| points[v as usize]))
+    }
+
+    /// [`Self::refitted`] with the new corners of each triangle given directly (`corners(t)`,
+    /// t an index into the list given to `build`): the same tree, its boxes recomputed.
+    pub fn at_corners(&self, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> Self {
         let (boxes, prepared): (Vec<Aabb>, Vec<PreparedTriangle>) = self
             .original
             .iter()
             .map(|&t| {
-                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+                let [a, b, c] = corners(t);
                 (Aabb::of_points(&[a, b, c]), PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) })
             })
             .unzip();
@@ -344,6 +350,37 @@ impl TriangleBvh {
                 }
             }
         }
+    }
+
+    /// [`Self::for_each_overlap`] until `visit` returns `true`: then no further triangle is
+    /// visited and the answer is `true` (a search for one triangle, or for a list that one
+    /// kind of triangle completes, need not descend the rest of the tree).
+    pub fn overlap_until(&self, query: &Aabb, mut visit: impl FnMut(u32) -> bool) -> bool {
+        if self.triangles.is_empty() || !self.nodes[0].bounds.overlaps(query) {
+            return false;
+        }
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (b, &t) in self.boxes[range.clone()].iter().zip(&self.original[range]) {
+                    if b.overlaps(query) && visit(t) {
+                        return true;
+                    }
+                }
+                continue;
+            }
+            for child in [node.first, node.first + 1] {
+                if self.nodes[child as usize].bounds.overlaps(query) {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
+        }
+        false
     }
 
     /// Every unordered pair of distinct triangles whose boxes overlap and of which at least

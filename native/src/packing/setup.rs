@@ -177,7 +177,7 @@ fn poseability(
         missing(&known.occlusion_tested, &candidates).iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
     }
     let regions = moving_regions(rig, &wanted);
-    let rest_hierarchy = RestHierarchy::new(rig);
+    let rest_hierarchy = RestHierarchy::new(rig, &regions);
     report.seconds_regions = started.elapsed().as_secs_f64();
     progress.checkpoint(0.05)?;
     let position: HashMap<(usize, usize), usize> = candidates.iter().enumerate().map(|(i, &p)| (p, i)).collect();
