@@ -39,23 +39,61 @@ pub struct MovingRegion {
     pub hi: Vec3,
 }
 
+/// Per vertex, the triangles it is a corner of: `list[start[v]..start[v + 1]]`.
+struct Incidence {
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Incidence {
+    fn new(n_vertices: usize, triangles: &[[u32; 3]]) -> Self {
+        let mut start = vec![0u32; n_vertices + 1];
+        triangles.iter().flatten().for_each(|&v| start[v as usize + 1] += 1);
+        for v in 0..n_vertices {
+            start[v + 1] += start[v];
+        }
+        let mut next = start.clone();
+        let mut list = vec![0u32; 3 * triangles.len()];
+        for (t, corners) in triangles.iter().enumerate() {
+            for &v in corners {
+                list[next[v as usize] as usize] = t as u32;
+                next[v as usize] += 1;
+            }
+        }
+        Self { start, list }
+    }
+
+    fn of(&self, v: usize) -> &[u32] {
+        &self.list[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
 impl MovingRegion {
-    pub fn new(rig: &RigView, k: usize) -> Self {
+    /// The triangles are those around the moving vertices (`incidence`), in ascending order:
+    /// one pass over the moving vertices instead of one over every triangle per shape.
+    fn new(rig: &RigView, k: usize, incidence: &Incidence) -> Self {
         let delta = rig.delta(k);
-        let floor = MOVING_FRACTION * rig.max_displacement(k);
+        let norms: Vec<f64> = delta.iter().map(norm).collect();
+        let floor = MOVING_FRACTION * norms.iter().copied().fold(0.0, f64::max);
         let mut vertices = vec![0u64; rig.n_vertices().div_ceil(64)];
-        for (v, d) in delta.iter().enumerate() {
-            if norm(d) > floor {
+        let mut mask = vec![0u64; rig.triangles.len().div_ceil(64)];
+        for (v, &n) in norms.iter().enumerate() {
+            if n > floor {
                 vertices[v / 64] |= 1 << (v % 64);
+                incidence.of(v).iter().for_each(|&t| mask[t as usize / 64] |= 1 << (t % 64));
             }
         }
         let moves = |v: u32| vertices[v as usize / 64] >> (v % 64) & 1 == 1;
-        let triangles: Vec<u32> =
-            (0..rig.triangles.len() as u32).filter(|&t| rig.triangles[t as usize].iter().any(|&v| moves(v))).collect();
-        let mut mask = vec![0u64; rig.triangles.len().div_ceil(64)];
+        let mut triangles = Vec::new();
+        for (w, &word) in mask.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                triangles.push(64 * w as u32 + bits.trailing_zeros());
+                bits &= bits - 1;
+            }
+        }
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for &t in &triangles {
-            mask[t as usize / 64] |= 1 << (t % 64);
             for &v in &rig.triangles[t as usize] {
                 let rest = rig.neutral[v as usize];
                 let step = if moves(v) { delta[v as usize] } else { [0.0; 3] };
@@ -93,11 +131,12 @@ impl MovingRegion {
 
 /// The moving region of every shape marked in `wanted` (others get an empty one).
 pub fn moving_regions(rig: &RigView, wanted: &[bool]) -> Vec<MovingRegion> {
+    let incidence = Incidence::new(rig.n_vertices(), rig.triangles);
     (0..rig.n_shapes())
         .into_par_iter()
         .map(|k| {
             if wanted[k] {
-                MovingRegion::new(rig, k)
+                MovingRegion::new(rig, k, &incidence)
             } else {
                 MovingRegion {
                     vertices: Vec::new(),
@@ -153,18 +192,30 @@ pub struct RestHierarchy<'a> {
     alone: Vec<OnceLock<PosedTriangles>>,
 }
 
+/// The hierarchy over the mesh at rest that [`RestHierarchy::get`] builds.
+pub fn rest_bvh(rig: &RigView) -> TriangleBvh {
+    let points: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
+    TriangleBvh::build(&points, rig.triangles)
+}
+
 impl<'a> RestHierarchy<'a> {
     /// `regions`: the moving region of every shape the tests will pose.
     pub fn new(rig: &'a RigView<'a>, regions: &'a [MovingRegion]) -> Self {
-        let alone = (0..regions.len()).map(|_| OnceLock::new()).collect();
-        Self { rig, regions, bvh: OnceLock::new(), rest: OnceLock::new(), alone }
+        Self::with(rig, regions, None)
+    }
+
+    /// [`Self::new`] with the hierarchy given when it is already built ([`rest_bvh`]): the
+    /// packing builds it on one core while the other finds the regions.
+    pub fn with(rig: &'a RigView<'a>, regions: &'a [MovingRegion], built: Option<TriangleBvh>) -> Self {
+        let (alone, bvh) = ((0..regions.len()).map(|_| OnceLock::new()).collect(), OnceLock::new());
+        if let Some(built) = built {
+            let _ = bvh.set(built);
+        }
+        Self { rig, regions, bvh, rest: OnceLock::new(), alone }
     }
 
     pub fn get(&self) -> &TriangleBvh {
-        self.bvh.get_or_init(|| {
-            let points: Vec<Vec3> = self.rig.neutral.iter().map(|p| p.map(f64::from)).collect();
-            TriangleBvh::build(&points, self.rig.triangles)
-        })
+        self.bvh.get_or_init(|| rest_bvh(self.rig))
     }
 
     /// Every triangle at rest, in mesh coordinates; position `t` is triangle `t`.
