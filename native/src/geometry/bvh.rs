@@ -176,7 +176,8 @@ impl TriangleBvh {
     /// in the hierarchy's order, and their corners.
     pub fn subset(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> (Self, Vec<u32>, Vec<[[f64; 3]; 3]>) {
         let mask: Vec<bool> = (0..self.original.len() as u32).map(keep).collect();
-        let mut cut = self.restricted(&mask);
+        // The cut's own boxes and corners are replaced here: only its tree and list are taken.
+        let mut cut = self.restricted_as(&mask, false);
         let list = std::mem::take(&mut cut.original);
         let kept_corners: Vec<[[f64; 3]; 3]> = list.iter().map(|&t| corners(t)).collect();
         cut.triangles = kept_corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
@@ -194,18 +195,30 @@ impl TriangleBvh {
     /// Triangle indices keep referring to the list given to `build` (pass that list to
     /// [`Self::refitted`]).
     pub fn restricted(&self, keep: &[bool]) -> Self {
-        let root = Node { bounds: Aabb::EMPTY, first: 0, count: 0 };
-        let mut out = Self { nodes: vec![root], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
+        self.restricted_as(keep, true)
+    }
+
+    /// [`Self::restricted`]; without `geometry` the cut holds only its nodes (bounds left
+    /// empty) and the kept triangles' indices, for a caller that supplies new corners. Every
+    /// list is allocated once at its final size (growing them copied more than the cut).
+    fn restricted_as(&self, keep: &[bool], geometry: bool) -> Self {
+        let kept = self.original.iter().filter(|&&t| keep[t as usize]).count();
+        let mut nodes = Vec::with_capacity((2 * kept).max(1));
+        nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
+        let listed = |n: usize| if geometry { n } else { 0 };
+        let mut out =
+            Self { nodes, triangles: Vec::with_capacity(listed(kept)), boxes: Vec::with_capacity(listed(kept)), original: Vec::with_capacity(kept) };
         let holding = self.nodes_holding(keep);
         if holding[0] {
-            self.restrict_into(0, 0, keep, &holding, &mut out);
+            self.restrict_into(0, 0, keep, &holding, &mut out, geometry);
         }
         out
     }
 
     /// Writes the restriction of node `index` (`holding[index]`, [`Self::nodes_holding`]) into
-    /// `out.nodes[slot]`, its subtree after it (children side by side, after their parent).
-    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], holding: &[bool], out: &mut Self) {
+    /// `out.nodes[slot]`, its subtree after it (children side by side, after their parent);
+    /// with `geometry`, the kept triangles' corners and boxes and the nodes' bounds too.
+    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], holding: &[bool], out: &mut Self, geometry: bool) {
         while self.nodes[index].count == 0 {
             let left = self.nodes[index].first as usize;
             match (holding[left], holding[left + 1]) {
@@ -217,21 +230,23 @@ impl TriangleBvh {
         let Node { first, count, .. } = self.nodes[index];
         let mut bounds = Aabb::EMPTY;
         if count > 0 {
-            let start = out.triangles.len();
+            let start = out.original.len();
             for i in first as usize..(first + count) as usize {
                 if keep[self.original[i] as usize] {
-                    out.triangles.push(self.triangles[i]);
-                    out.boxes.push(self.boxes[i]);
                     out.original.push(self.original[i]);
-                    bounds.grow(&self.boxes[i]);
+                    if geometry {
+                        out.triangles.push(self.triangles[i]);
+                        out.boxes.push(self.boxes[i]);
+                        bounds.grow(&self.boxes[i]);
+                    }
                 }
             }
-            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.triangles.len() - start) as u32 };
+            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.original.len() - start) as u32 };
         } else {
             let children = out.nodes.len();
             out.nodes.extend([Node { bounds: Aabb::EMPTY, first: 0, count: 0 }; 2]);
             for side in 0..2 {
-                self.restrict_into(first as usize + side, children + side, keep, holding, out);
+                self.restrict_into(first as usize + side, children + side, keep, holding, out, geometry);
                 bounds.grow(&out.nodes[children + side].bounds);
             }
             out.nodes[slot] = Node { bounds, first: children as u32, count: 0 };
