@@ -1,14 +1,17 @@
 //! Times `pack_expressions` outside Blender, on the arrays `scripts/bench_pack.py --
 //! --save-arrays DIR` writes:
 //!
-//!     cargo run --release --example time_pack -- DIR/<rig> [RUNS]
+//!     cargo run --release --example time_pack -- DIR/<rig> [RUNS] [--same-as FILE]
 //!
 //! Prints the best of RUNS (default 3) runs' native seconds with the collision and occlusion
 //! conflicts on and off, the poseability tests' parts, and what they found (the conflict
 //! edges and their values, the symmetric pairs, antagonists and expressions, J and the fewest
 //! count), so that two builds run one after the other can be compared for both speed and
-//! sameness. A profiler can watch it alone.
+//! sameness. With `--same-as FILE` (the output of another build, saved) it also says whether
+//! everything after the timing line is the same as there, and fails when it is not. A
+//! profiler can watch it alone.
 
+use std::fmt::Write;
 use std::time::Instant;
 
 use shapesmith_native::packing::{pack_expressions, Packing, PackingParams};
@@ -30,8 +33,14 @@ fn best_of(rig: &RigView, params: &PackingParams, runs: usize) -> (f64, Packing)
 }
 
 fn main() {
-    let dir = std::env::args().nth(1).expect("usage: time_pack DIR [RUNS]");
-    let runs: usize = std::env::args().nth(2).map_or(3, |r| r.parse().expect("RUNS is a count"));
+    let usage = "usage: time_pack DIR [RUNS] [--same-as FILE]";
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (same_as, args) = match args.iter().position(|a| a == "--same-as") {
+        Some(i) => (Some(args.get(i + 1).expect(usage).clone()), [&args[..i], &args[i + 2..]].concat()),
+        None => (None, args),
+    };
+    let dir = args.first().expect(usage);
+    let runs: usize = args.get(1).map_or(3, |r| r.parse().expect("RUNS is a count"));
     let neutral = points(&format!("{dir}/neutral.f32"));
     let deltas = points(&format!("{dir}/deltas.f32"));
     let triangles = read(&format!("{dir}/triangles.u32"));
@@ -54,16 +63,31 @@ fn main() {
         p.occlusion_directions_tested,
     );
     let fewest = |p: &Packing| p.fewest.as_ref().map_or(0, |f| f.count);
-    println!("J {} fewest {} (off: J {} fewest {})", packing.expressions.len(), fewest(&packing), without.expressions.len(), fewest(&without));
-    println!("pairs {:?}", packing.pairs);
-    println!("antagonists {:?}", packing.antagonists);
+    let mut found = String::new();
+    let f = &mut found;
+    writeln!(f, "J {} fewest {} (off: J {} fewest {})", packing.expressions.len(), fewest(&packing), without.expressions.len(), fewest(&without)).unwrap();
+    writeln!(f, "pairs {:?}", packing.pairs).unwrap();
+    writeln!(f, "antagonists {:?}", packing.antagonists).unwrap();
     for (j, e) in packing.expressions.iter().enumerate() {
-        println!("expression {} {:?} importance {:.12} optimal {}", j + 1, e.shapes, e.importance, e.optimal);
+        writeln!(f, "expression {} {:?} importance {:.12} optimal {}", j + 1, e.shapes, e.importance, e.optimal).unwrap();
     }
     for c in &p.collisions {
-        println!("collision {} {} added {:.9} between {:.9}", c.first, c.second, c.added, c.between_pieces);
+        writeln!(f, "collision {} {} added {:.9} between {:.9}", c.first, c.second, c.added, c.between_pieces).unwrap();
     }
     for o in &p.occlusions {
-        println!("occlusion {} by {} kept {:.9}", o.hidden, o.by, o.kept);
+        writeln!(f, "occlusion {} by {} kept {:.9}", o.hidden, o.by, o.kept).unwrap();
+    }
+    print!("{found}");
+    if let Some(file) = same_as {
+        let saved = std::fs::read_to_string(&file).expect("the saved output");
+        // The saved output's first line is its timing.
+        let saved = saved.split_once('\n').map_or("", |(_, rest)| rest);
+        match saved.lines().zip(found.lines()).position(|(a, b)| a != b) {
+            None if saved.lines().count() == found.lines().count() => println!("same as {file}"),
+            at => {
+                println!("DIFFERENT from {file} (line {})", at.map_or(saved.lines().count().min(found.lines().count()), |i| i + 2));
+                std::process::exit(1);
+            }
+        }
     }
 }

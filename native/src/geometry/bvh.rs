@@ -150,11 +150,17 @@ impl TriangleBvh {
     /// `build`): boxes recomputed bottom-up, the tree kept. Far cheaper than a build; the
     /// boxes only loosen as the pose departs from the one built on, the answers stay exact.
     pub fn refitted(&self, points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
+        self.at_corners(|t| triangles[t as usize].map(|v| points[v as usize]))
+    }
+
+    /// [`Self::refitted`] with the new corners of each triangle given directly (`corners(t)`,
+    /// t an index into the list given to `build`): the same tree, its boxes recomputed.
+    pub fn at_corners(&self, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> Self {
         let (boxes, prepared): (Vec<Aabb>, Vec<PreparedTriangle>) = self
             .original
             .iter()
             .map(|&t| {
-                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+                let [a, b, c] = corners(t);
                 (Aabb::of_points(&[a, b, c]), PreparedTriangle { a, ab: sub(&b, &a), ac: sub(&c, &a) })
             })
             .unzip();
@@ -172,7 +178,8 @@ impl TriangleBvh {
     /// in the hierarchy's order, and their corners.
     pub fn subset(&self, keep: impl Fn(u32) -> bool, corners: impl Fn(u32) -> [[f64; 3]; 3]) -> (Self, Vec<u32>, Vec<[[f64; 3]; 3]>) {
         let mask: Vec<bool> = (0..self.original.len() as u32).map(keep).collect();
-        let mut cut = self.restricted(&mask);
+        // The cut's own boxes and corners are replaced here: only its tree and list are taken.
+        let mut cut = self.restricted_as(&mask, false);
         let list = std::mem::take(&mut cut.original);
         let kept_corners: Vec<[[f64; 3]; 3]> = list.iter().map(|&t| corners(t)).collect();
         cut.triangles = kept_corners.iter().map(|[a, b, c]| PreparedTriangle { a: *a, ab: sub(b, a), ac: sub(c, a) }).collect();
@@ -190,18 +197,30 @@ impl TriangleBvh {
     /// Triangle indices keep referring to the list given to `build` (pass that list to
     /// [`Self::refitted`]).
     pub fn restricted(&self, keep: &[bool]) -> Self {
-        let root = Node { bounds: Aabb::EMPTY, first: 0, count: 0 };
-        let mut out = Self { nodes: vec![root], triangles: Vec::new(), boxes: Vec::new(), original: Vec::new() };
+        self.restricted_as(keep, true)
+    }
+
+    /// [`Self::restricted`]; without `geometry` the cut holds only its nodes (bounds left
+    /// empty) and the kept triangles' indices, for a caller that supplies new corners. Every
+    /// list is allocated once at its final size (growing them copied more than the cut).
+    fn restricted_as(&self, keep: &[bool], geometry: bool) -> Self {
+        let kept = self.original.iter().filter(|&&t| keep[t as usize]).count();
+        let mut nodes = Vec::with_capacity((2 * kept).max(1));
+        nodes.push(Node { bounds: Aabb::EMPTY, first: 0, count: 0 });
+        let listed = |n: usize| if geometry { n } else { 0 };
+        let mut out =
+            Self { nodes, triangles: Vec::with_capacity(listed(kept)), boxes: Vec::with_capacity(listed(kept)), original: Vec::with_capacity(kept) };
         let holding = self.nodes_holding(keep);
         if holding[0] {
-            self.restrict_into(0, 0, keep, &holding, &mut out);
+            self.restrict_into(0, 0, keep, &holding, &mut out, geometry);
         }
         out
     }
 
     /// Writes the restriction of node `index` (`holding[index]`, [`Self::nodes_holding`]) into
-    /// `out.nodes[slot]`, its subtree after it (children side by side, after their parent).
-    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], holding: &[bool], out: &mut Self) {
+    /// `out.nodes[slot]`, its subtree after it (children side by side, after their parent);
+    /// with `geometry`, the kept triangles' corners and boxes and the nodes' bounds too.
+    fn restrict_into(&self, mut index: usize, slot: usize, keep: &[bool], holding: &[bool], out: &mut Self, geometry: bool) {
         while self.nodes[index].count == 0 {
             let left = self.nodes[index].first as usize;
             match (holding[left], holding[left + 1]) {
@@ -213,21 +232,23 @@ impl TriangleBvh {
         let Node { first, count, .. } = self.nodes[index];
         let mut bounds = Aabb::EMPTY;
         if count > 0 {
-            let start = out.triangles.len();
+            let start = out.original.len();
             for i in first as usize..(first + count) as usize {
                 if keep[self.original[i] as usize] {
-                    out.triangles.push(self.triangles[i]);
-                    out.boxes.push(self.boxes[i]);
                     out.original.push(self.original[i]);
-                    bounds.grow(&self.boxes[i]);
+                    if geometry {
+                        out.triangles.push(self.triangles[i]);
+                        out.boxes.push(self.boxes[i]);
+                        bounds.grow(&self.boxes[i]);
+                    }
                 }
             }
-            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.triangles.len() - start) as u32 };
+            out.nodes[slot] = Node { bounds, first: start as u32, count: (out.original.len() - start) as u32 };
         } else {
             let children = out.nodes.len();
             out.nodes.extend([Node { bounds: Aabb::EMPTY, first: 0, count: 0 }; 2]);
             for side in 0..2 {
-                self.restrict_into(first as usize + side, children + side, keep, holding, out);
+                self.restrict_into(first as usize + side, children + side, keep, holding, out, geometry);
                 bounds.grow(&out.nodes[children + side].bounds);
             }
             out.nodes[slot] = Node { bounds, first: children as u32, count: 0 };
@@ -346,6 +367,37 @@ impl TriangleBvh {
                 }
             }
         }
+    }
+
+    /// [`Self::for_each_overlap`] until `visit` returns `true`: then no further triangle is
+    /// visited and the answer is `true` (a search for one triangle, or for a list that one
+    /// kind of triangle completes, need not descend the rest of the tree).
+    pub fn overlap_until(&self, query: &Aabb, mut visit: impl FnMut(u32) -> bool) -> bool {
+        if self.triangles.is_empty() || !self.nodes[0].bounds.overlaps(query) {
+            return false;
+        }
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (b, &t) in self.boxes[range.clone()].iter().zip(&self.original[range]) {
+                    if b.overlaps(query) && visit(t) {
+                        return true;
+                    }
+                }
+                continue;
+            }
+            for child in [node.first, node.first + 1] {
+                if self.nodes[child as usize].bounds.overlaps(query) {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
+        }
+        false
     }
 
     /// Every unordered pair of distinct triangles whose boxes overlap and of which at least

@@ -83,20 +83,20 @@ impl Pieces {
 /// One shape's moved triangles posed by it alone (in any mix, a triangle that only A moves
 /// sits where A alone puts it), all of them and those outside the largest piece, each with
 /// its box over the rest pose and the posed one (`swept`, `small_swept`, in the order of
-/// `posed` and `small`). Both hierarchies are cut from the whole mesh's.
-struct Moved {
-    posed: PosedTriangles,
+/// `posed` and `small`). Both hierarchies are cut from the whole mesh's; `posed` is the one
+/// [`RestHierarchy::alone`] keeps for both tests.
+struct Moved<'a> {
+    posed: &'a PosedTriangles,
     swept: Vec<Aabb>,
     small: PosedTriangles,
     small_swept: Vec<Aabb>,
 }
 
-impl Moved {
-    /// `whole` is the mesh at rest (position t is triangle t): each corner is posed once, and
-    /// the swept boxes and the small pieces' part take the posed corners from `posed`.
-    fn new(rig: &RigView, regions: &[MovingRegion], pieces: &Pieces, whole: &PosedTriangles, k: usize) -> Self {
-        let pose = Pose::of(rig, regions, &[k]);
-        let posed = whole.subset(|t| regions[k].contains(t), |t| rig.triangles[t as usize].map(|v| pose.at(v)));
+impl<'a> Moved<'a> {
+    /// Each corner is posed once ([`RestHierarchy::alone`]), and the swept boxes and the small
+    /// pieces' part take the posed corners from there.
+    fn new(shared: &'a RestHierarchy, pieces: &Pieces, k: usize) -> Self {
+        let (whole, posed) = (shared.rest(), shared.alone(k));
         let small = posed.part(|t| pieces.small(t));
         let swept = |set: &PosedTriangles| -> Vec<Aabb> {
             let with_rest = |t: u32, c: &[Vec3; 3]| {
@@ -112,7 +112,7 @@ impl Moved {
     /// piece: all, or only those outside the largest piece.
     fn partners(&self, from_small: bool) -> &PosedTriangles {
         if from_small {
-            &self.posed
+            self.posed
         } else {
             &self.small
         }
@@ -129,10 +129,10 @@ struct Scene<'a> {
     rig: &'a RigView<'a>,
     regions: &'a [MovingRegion],
     /// Every triangle at rest; position `j` is triangle `j`.
-    rest: PosedTriangles,
+    rest: &'a PosedTriangles,
     /// The triangles outside the largest piece, at rest.
     rest_small: PosedTriangles,
-    moved: Vec<Option<Moved>>,
+    moved: Vec<Option<Moved<'a>>>,
     pieces: Pieces,
 }
 
@@ -149,7 +149,7 @@ impl Scene<'_> {
     /// in another piece.
     fn rest_partners(&self, from_small: bool) -> &PosedTriangles {
         if from_small {
-            &self.rest
+            self.rest
         } else {
             &self.rest_small
         }
@@ -379,13 +379,12 @@ pub fn find_collisions(
     }
     let triangles = rig.triangles;
     let pieces = Pieces::new(rig);
-    let points: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
-    let rest = PosedTriangles::whole(rest_hierarchy, &points, triangles);
+    let rest = rest_hierarchy.rest();
     let rest_small = rest.part(|t| pieces.small(t));
     let mut involved = vec![false; rig.n_shapes()];
     tested.iter().for_each(|&(a, b)| (involved[a], involved[b]) = (true, true));
     let moved: Vec<Option<Moved>> =
-        (0..rig.n_shapes()).into_par_iter().map(|k| involved[k].then(|| Moved::new(rig, regions, &pieces, &rest, k))).collect();
+        (0..rig.n_shapes()).into_par_iter().map(|k| involved[k].then(|| Moved::new(rest_hierarchy, &pieces, k))).collect();
     let union: Vec<bool> = (0..triangles.len() as u32).map(|t| regions.iter().any(|r| !r.triangles.is_empty() && r.contains(t))).collect();
     let scene = Scene { rig, regions, rest, rest_small, moved, pieces };
     let at_rest = scene.at_rest_between(&union);

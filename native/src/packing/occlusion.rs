@@ -93,9 +93,11 @@ struct Scene<'a> {
     epsilon: f64,
     /// Per shape, the front-view box of its moved triangles at rest and in its pose.
     reach: Vec<Box2>,
-    /// Per shape, its moved triangles in its pose, in view coordinates, cut on first use
-    /// ([`Scene::posed`]): many shapes are only ever a partner whose reach no vertex enters.
+    /// Per shape, its moved triangles in its pose, in view coordinates, taken from
+    /// [`RestHierarchy::alone`] on first use ([`Scene::posed`]): many shapes are only ever a
+    /// partner whose reach no vertex enters.
     posed: Vec<OnceLock<PosedTriangles>>,
+    shared: &'a RestHierarchy<'a>,
 }
 
 /// A front-view box (x, y); empty when `lo > hi`.
@@ -139,49 +141,54 @@ impl Box2 {
 struct Alone {
     /// Per active vertex, where it is in pose h, in view coordinates.
     points: Vec<Vec3>,
-    /// Per active vertex, the triangles that hide it in pose h.
+    /// Per active vertex, the triangles that hide it in pose h; the search stops at the first
+    /// one that no partner of h moves (the vertex then stays hidden with every partner, and
+    /// [`Scene::seen_with`] asks of the list only whether all its triangles are moved by the
+    /// partner, and whether it is empty).
     hiders: Vec<Vec<u32>>,
 }
 
 impl Scene<'_> {
     fn posed(&self, k: usize) -> &PosedTriangles {
-        self.posed[k].get_or_init(|| {
-            let pose = Pose::of(self.rig, self.regions, &[k]);
-            self.rest.subset(|t| self.regions[k].contains(t), |t| self.rig.triangles[t as usize].map(|v| self.view(&pose, v)))
-        })
+        self.posed[k].get_or_init(|| self.shared.alone(k).mapped(|p| self.frame.map(p)))
     }
 
     fn view(&self, pose: &Pose, v: u32) -> Vec3 {
         self.frame.map(pose.at(v))
     }
 
-    /// Adds to `found` the static triangles (at rest; those `skip` names are not) that hide
-    /// the view point `q` of vertex `v`.
-    fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
+    /// Passes to `found` the static triangles (at rest; those `skip` names are not) that hide
+    /// the view point `q` of vertex `v`, until `found` returns `true` (then `true`).
+    fn static_hiders(&self, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, mut found: impl FnMut(u32) -> bool) -> bool {
         let triangles = self.rig.triangles;
         let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
-        self.rest.for_each_overlap(&ray, |t| {
-            if !skip(t) && !triangles[t as usize].contains(&v) && hides(&self.rest.corners[t as usize], q, self.epsilon) {
-                found.push(t);
-            }
-        });
+        self.rest.overlap_until(&ray, |t| {
+            !skip(t) && !triangles[t as usize].contains(&v) && hides(&self.rest.corners[t as usize], q, self.epsilon) && found(t)
+        })
     }
 
-    /// Adds to `found` the triangles of `set` (but those `skip` names) that hide `q`.
-    fn posed_hiders(&self, set: &PosedTriangles, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, found: &mut Vec<u32>) {
+    /// Passes to `found` the triangles of `set` (but those `skip` names) that hide `q`, until
+    /// `found` returns `true` (then `true`).
+    fn posed_hiders(&self, set: &PosedTriangles, v: u32, q: Vec3, skip: impl Fn(u32) -> bool, mut found: impl FnMut(u32) -> bool) -> bool {
         let ray = Aabb::of_points(&[q, [q[0], q[1], f64::INFINITY]]);
-        set.for_each_overlap(&ray, |j| {
+        set.overlap_until(&ray, |j| {
             let t = set.triangles[j as usize];
-            if !skip(t) && !self.rig.triangles[t as usize].contains(&v) && hides(&set.corners[j as usize], q, self.epsilon) {
-                found.push(t);
-            }
-        });
+            !skip(t) && !self.rig.triangles[t as usize].contains(&v) && hides(&set.corners[j as usize], q, self.epsilon) && found(t)
+        })
     }
 
-    /// Pose h alone.
-    fn alone(&self, h: usize, active: &[u32]) -> Alone {
+    /// Whether a triangle of `set` (but those `skip` names) hides `q`.
+    fn posed_hidden(&self, set: &PosedTriangles, v: u32, q: Vec3, skip: impl Fn(u32) -> bool) -> bool {
+        self.posed_hiders(set, v, q, skip, |_| true)
+    }
+
+    /// Pose h alone, for the `partners` it is tested with.
+    fn alone(&self, h: usize, active: &[u32], partners: &[usize]) -> Alone {
         let posed = self.posed(h);
         let (rig, region) = (self.rig, &self.regions[h]);
+        let mut moved_by_partner = vec![0u64; rig.triangles.len().div_ceil(64)];
+        partners.iter().for_each(|&k| self.regions[k].add_to(&mut moved_by_partner));
+        let stays = |t: u32| moved_by_partner[t as usize / 64] >> (t % 64) & 1 == 0;
         let pose = Pose::of(rig, self.regions, &[h]);
         let points: Vec<Vec3> = active.iter().map(|&v| self.view(&pose, v)).collect();
         let hiders = active
@@ -189,8 +196,13 @@ impl Scene<'_> {
             .zip(&points)
             .map(|(&v, &q)| {
                 let mut found = Vec::new();
-                self.static_hiders(v, q, |t| region.contains(t), &mut found);
-                self.posed_hiders(posed, v, q, |_| false, &mut found);
+                let mut take = |t: u32| {
+                    found.push(t);
+                    stays(t)
+                };
+                if !self.static_hiders(v, q, |t| region.contains(t), &mut take) {
+                    self.posed_hiders(posed, v, q, |_| false, &mut take);
+                }
                 found
             })
             .collect();
@@ -232,30 +244,33 @@ impl Scene<'_> {
         if near.is_empty() {
             return count;
         }
-        // The triangles both move, posed by both: cut when a vertex no other triangle hides
-        // first needs them.
-        let shared = std::cell::OnceCell::new();
+        // Only whether a vertex is hidden matters here: each search stops at its first hider.
+        // The triangles both move, posed by both, are cut when a vertex no other triangle
+        // hides first needs them.
+        let (shared_list, shared) = (shared, std::cell::OnceCell::new());
         for i in near {
-            let (v, mut found) = (active[i], Vec::new());
-            let q = if rb.moves(v) {
+            let v = active[i];
+            let (q, hidden) = if rb.moves(v) {
                 let q = self.view(&pose, v);
-                self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), &mut found);
-                self.posed_hiders(self.posed(h), v, q, |t| rb.contains(t), &mut found);
-                q
+                let hidden = self.static_hiders(v, q, |t| rh.contains(t) || rb.contains(t), |_| true)
+                    || self.posed_hidden(self.posed(h), v, q, |t| rb.contains(t));
+                (q, hidden)
             } else if alone.hiders[i].iter().any(|&t| !rb.contains(t)) {
                 continue;
             } else {
-                alone.points[i]
+                (alone.points[i], false)
             };
-            if found.is_empty() {
-                self.posed_hiders(self.posed(by), v, q, |t| rh.contains(t), &mut found);
-            }
-            if found.is_empty() {
-                let shared = shared
-                    .get_or_init(|| self.posed(h).subset(|t| rb.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v))));
-                self.posed_hiders(shared, v, q, |_| false, &mut found);
-            }
-            if found.is_empty() {
+            let hidden = hidden
+                || self.posed_hidden(self.posed(by), v, q, |t| rh.contains(t))
+                || (!shared_list.is_empty() && {
+                    // Cut from the smaller of the two shapes' sets (the same triangles).
+                    let shared = shared.get_or_init(|| {
+                        let (from, other) = if rh.triangles.len() <= rb.triangles.len() { (h, rb) } else { (by, rh) };
+                        self.posed(from).subset(|t| other.contains(t), |t| rig.triangles[t as usize].map(|v| self.view(&pose, v)))
+                    });
+                    self.posed_hidden(shared, v, q, |_| false)
+                });
+            if !hidden {
                 count += 1;
                 if enough(count) {
                     return count;
@@ -325,6 +340,7 @@ pub fn find_occlusions(
         epsilon: DEPTH_EPSILON * diagonal,
         reach,
         posed,
+        shared: rest_hierarchy,
     };
     let mut hidden_shapes: Vec<usize> = tested.iter().map(|&(h, _)| h).collect();
     hidden_shapes.sort_unstable();
@@ -333,7 +349,7 @@ pub fn find_occlusions(
         .par_iter()
         .map(|&h| {
             let partners: Vec<usize> = tested.iter().filter(|p| p.0 == h).map(|p| p.1).collect();
-            let alone = scene.alone(h, &active[h]);
+            let alone = scene.alone(h, &active[h], &partners);
             let seen_alone = alone.hiders.iter().filter(|h| h.is_empty()).count();
             if seen_alone == 0 {
                 return Vec::new();

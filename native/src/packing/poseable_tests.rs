@@ -289,7 +289,7 @@ fn pruned_tests_equal_testing_every_pair_and_packings_stay_optimal() {
         let (_, active) = setup::binary_blendshapes(&rig, params.mu);
         let all: Vec<(usize, usize)> = (0..k_count).flat_map(|i| (i + 1..k_count).map(move |j| (i, j))).collect();
         let regions = moving_regions(&rig, &vec![true; k_count]);
-        let (found, n_tested) = find_collisions(&rig, &RestHierarchy::new(&rig), &regions, &all, params.collision_tolerance, INTERACTION_MARGIN);
+        let (found, n_tested) = find_collisions(&rig, &RestHierarchy::new(&rig, &regions), &regions, &all, params.collision_tolerance, INTERACTION_MARGIN);
         let diagonal = rig.bbox_diagonal();
         let expected: Vec<(usize, usize)> =
             all.iter().copied().filter(|&(a, b)| added_curve(&rig, a, b)[1] > params.collision_tolerance * diagonal).collect();
@@ -299,7 +299,7 @@ fn pruned_tests_equal_testing_every_pair_and_packings_stay_optimal() {
             assert!((c.added * diagonal - added).abs() < 1e-9 && (c.between_pieces * diagonal - between).abs() < 1e-9);
         }
         let (hidden, n_directions) =
-            find_occlusions(&rig, &RestHierarchy::new(&rig), &regions, &active, &all, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction).unwrap();
+            find_occlusions(&rig, &RestHierarchy::new(&rig, &regions), &regions, &active, &all, params.occlusion_keep, INTERACTION_MARGIN, params.camera_direction).unwrap();
         let mut hidden_pairs: Vec<(usize, usize)> = hidden.iter().map(|o| (o.hidden.min(o.by), o.hidden.max(o.by))).collect();
         hidden_pairs.sort_unstable();
         hidden_pairs.dedup();

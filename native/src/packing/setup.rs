@@ -8,7 +8,7 @@ use std::time::Instant;
 use super::collisions::find_collisions;
 use super::conflicts::{overlapping, validate_shape_pairs, ConflictGraph, ShapeRelations};
 use super::occlusion::find_occlusions;
-use super::regions::{moving_regions, RestHierarchy};
+use super::regions::{moving_regions, rest_bvh, RestHierarchy};
 use super::importance::{cosine_matrix, displacement_strength, triangle_distortion, triangle_scores, IMPORTANCE_FLOOR};
 use super::collisions::Collision;
 use super::occlusion::Occlusion;
@@ -176,8 +176,9 @@ fn poseability(
         // might be tested.
         missing(&known.occlusion_tested, &candidates).iter().for_each(|&(i, j)| (wanted[i], wanted[j]) = (true, true));
     }
-    let regions = moving_regions(rig, &wanted);
-    let rest_hierarchy = RestHierarchy::new(rig);
+    // Both tests need the hierarchy as soon as a pair is tested: built beside the regions.
+    let (regions, built) = rayon::join(|| moving_regions(rig, &wanted), || wanted.contains(&true).then(|| rest_bvh(rig)));
+    let rest_hierarchy = RestHierarchy::with(rig, &regions, built);
     report.seconds_regions = started.elapsed().as_secs_f64();
     progress.checkpoint(0.05)?;
     let position: HashMap<(usize, usize), usize> = candidates.iter().enumerate().map(|(i, &p)| (p, i)).collect();
