@@ -112,12 +112,11 @@
 //!   Without edges OldMan is much worse; 1, 3 and 10 differ by a shape either way, so the
 //!   weight stays (not re-measured with this pass).
 //! - **Not met**: the bundled heads (and their face regions) have no shape worse than the
-//!   template after the pass, but the dense heads still have 3 (19k: mouthClose, mouthPucker,
-//!   mouthShrugLower) and 4 (25k: also jawOpen): skin sliding along the lower teeth it rests in
-//!   where no corner changes side (mouthPucker, mouthShrugLower), lips the template presses
-//!   through each other (mouthClose: the holds that clear the skin off the teeth push the lips
-//!   into each other, and every round on the lips adds curve), jawOpen on the 25k head (lip
-//!   through lip); measurements in `collisions/mod.rs`. The sweep of every result that the
+//!   template after the pass, but the dense heads still have 1 (19k: mouthClose) and 2 (25k:
+//!   mouthClose, jawOpen): lips the template presses through each other (mouthClose: the
+//!   holds that clear the skin off the teeth and eyeballs push the lips into each other, and
+//!   every round on the lips adds curve), jawOpen on the 25k head (lip through lip);
+//!   measurements in `collisions/mod.rs`. The sweep of every result that the
 //!   criterion needs costs about as much as the report's (see docs/transfer.md). Decisions can
 //!   flip under another frame's rounding (the wrap invariance test runs without the pass).
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per

@@ -76,7 +76,11 @@ impl DeformationTransfer {
                         // Where the template's shape adds no curve against the piece, the
                         // criterion allows none: a triangle at rest crosses a static piece
                         // exactly as in the neutral, whatever side its corners rest on.
-                        Some(piece) if moved_by > 0.0 && embedded.contains(&(side, piece)) => {
+                        Some(piece)
+                            if attempt.embedded
+                                && moved_by > 0.0
+                                && (embedded.contains(&(side, piece)) || self.push_off_piece(guard, positions, u, piece, margin).is_none()) =>
+                        {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
                         Some(piece) if attempt.rest && moved_by > 0.0 && template.adds_none(self.piece[u], piece) => {
@@ -488,7 +492,8 @@ mod tests {
         // half an edge, less than one) takes the triangles straddling the wall x = 0.3 across
         // the wall's diagonal: new pairs whose corners all stay on the side of the teeth they
         // rest on, so the follow attempt holds none of them. The embedded attempt puts the
-        // corners of a triangle that crosses the teeth at rest back at rest.
+        // corners of a triangle that crosses the teeth at rest back at rest, and every corner
+        // that kept its side.
         let (source, tris) = skin_over_teeth(0.2);
         let (target, _) = skin_over_teeth(0.02);
         let n = source.len();
@@ -523,5 +528,19 @@ mod tests {
             assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
         }
         assert!(resting.iter().any(|u| !follow.contains_key(u)), "{follow:?}");
+        // Every other skin corner of a new pair on the side of the teeth (inside the box's
+        // walls or outside) it rests on goes back to rest too: the teeth's edge went through
+        // its triangle, not the corner through the teeth.
+        let inside = |p: &Vec3| (0.3..=0.7).contains(&p[0]) && (0.3..=0.7).contains(&p[1]);
+        let kept_side: Vec<usize> = pairs
+            .iter()
+            .flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize))
+            .filter(|&u| inside(&dt.target_neutral[u]) == inside(&positions[u]) && !resting.contains(&u))
+            .collect();
+        assert!(!kept_side.is_empty());
+        for &u in &kept_side {
+            let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
+            assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
+        }
     }
 }

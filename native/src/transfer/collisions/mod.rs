@@ -64,12 +64,13 @@
 //! piece the template's shape adds no curve to (rest), then following the template's own
 //! contacts (follow: holds near them too, a lip vertex placed where the template's shape has it
 //! relative to the same triangle), then, last, the follow attempt with the skin that rests
-//! across a static piece kept where it rests (embedded: a corner of a new pair's triangle that
-//! crosses the same piece at the target's rest goes back to rest, whichever side it is on;
-//! skin resting in the teeth adds curve by sliding along them with every corner on its rest
-//! side, which no side test sees). The attempt with least excess is kept, and the next is
-//! tried only while the shape is still worse; the embedded attempt, which holds skin that the
-//! template moves, is kept only when it clears the shape. No single setting clears every shape
+//! across a static piece kept where it rests (embedded: a corner of a new pair against a static
+//! piece goes back to rest when its triangle crosses the same piece at the target's rest,
+//! whichever side the corner is on, or when the corner is on its rest side of the piece; skin
+//! resting in the teeth adds curve by sliding along them with every corner on its rest side,
+//! a tooth's edge through its triangles, which no side test sees). The attempt with least
+//! excess is kept, and the next is tried only while the shape is still worse; the embedded
+//! attempt, which holds skin that the template moves, is kept only when it clears the shape. No single setting clears every shape
 //! (Deviations). Every attempt starts from the plain solve, so its sweep and the template
 //! shape's contacts are found once per shape (`PlainRound`); the later attempts run two side
 //! by side (the few shapes needing them are a dozen rounds each, the last to finish otherwise)
@@ -93,14 +94,14 @@
 //!   has changed side (19k mouthShrugLower: 21 pairs, 26 corners within half an edge sent to
 //!   rest, 34 on their rest side, 3 pushed), so the holds find 2-16 vertices and the curve
 //!   barely moves (2.23 -> 1.86 cm against the template's 0.10). The embedded attempt (module
-//!   docs' "Attempts"): **0 / 0 / 0 / 3 / 4, +4.2%** (19k and 25k mouthLeft/Right cleared).
-//!   Kept whenever it lowers the excess instead of only when it clears: also 19k / 25k
-//!   mouthShrugLower 1.75 -> 1.10 / 1.82 -> 1.01 cm, but warp +5.2% (its mouthShrugLower moves
-//!   off the truth), dropped. Pass seconds on the 25k head (`time_transfer`, alternately, a
-//!   loaded machine): 4.09 / 4.02 before, 5.00 / 4.50 after (the last attempts of the shapes
-//!   still worse). Left: mouthPucker and mouthShrugLower against the lower teeth (pairs left
-//!   whose skin triangle did not cross the teeth at rest and whose corners kept their side: a
-//!   tooth's edge through the triangle), mouthClose (19k: the plain solve adds 15.2 cm inside,
+//!   docs' "Attempts") with only the corners of triangles crossing the piece at rest: 0 / 0 /
+//!   0 / 3 / 4, +4.2% (19k and 25k mouthLeft/Right cleared); kept whenever it lowers the
+//!   excess instead of only when it clears: also 19k / 25k mouthShrugLower 1.75 -> 1.10 /
+//!   1.82 -> 1.01 cm, but warp +5.2% (its mouthShrugLower moves off the truth), dropped. The
+//!   pairs left were skin triangles not crossing the teeth at rest, every corner on its rest
+//!   side (a tooth's edge through the triangle): with those corners back at rest too, **0 / 0
+//!   / 0 / 1 / 2, +4.2%** (mouthPucker, mouthShrugLower cleared on both). Left: mouthClose
+//!   (19k: the plain solve adds 15.2 cm inside,
 //!   under the template's 15.8, and 3.9 cm between where the template removes 9.1; the holds
 //!   that clear between push the lips into each other, +1.12 cm inside, and each later round
 //!   on the lips adds more, 16.9 -> 20.1 -> 33.7 -> 55.3 cm), and the 25k head's jawOpen
