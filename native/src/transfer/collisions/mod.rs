@@ -100,7 +100,14 @@
 //!   1.82 -> 1.01 cm, but warp +5.2% (its mouthShrugLower moves off the truth), dropped. The
 //!   pairs left were skin triangles not crossing the teeth at rest, every corner on its rest
 //!   side (a tooth's edge through the triangle): with those corners back at rest too, **0 / 0
-//!   / 0 / 1 / 2, +4.2%** (mouthPucker, mouthShrugLower cleared on both). Left: mouthClose
+//!   / 0 / 1 / 2, +4.2%** (mouthPucker, mouthShrugLower cleared on both). Its cost is shape:
+//!   vertices moved by over 10% of the shape's largest delta away from the virtual-edge
+//!   solve, before / after (19k; 25k): mouthLeft 81 / 490 (55 / 884, largest move 3.0 / 9.1
+//!   mm of 10.6), mouthPucker 54 / 271 (55 / 377), mouthShrugLower 65 / 110 (71 / 115): the
+//!   inner lip skin stays where it rests on the teeth while the template moves it up to a
+//!   centimetre (the local re-solve spreads it over 3 edges). Pass seconds on the 25k head
+//!   (`time_transfer`, before and after alternately, loaded machine): 3.97 / 3.77 / 3.43
+//!   against 4.19 / 3.81 / 4.30 (local re-solves 172 -> 188). Left: mouthClose
 //!   (19k: the plain solve adds 15.2 cm inside,
 //!   under the template's 15.8, and 3.9 cm between where the template removes 9.1; the holds
 //!   that clear between push the lips into each other, +1.12 cm inside, and each later round
