@@ -105,9 +105,11 @@
 //!   solve, before / after (19k; 25k): mouthLeft 81 / 490 (55 / 884, largest move 3.0 / 9.1
 //!   mm of 10.6), mouthPucker 54 / 271 (55 / 377), mouthShrugLower 65 / 110 (71 / 115): the
 //!   inner lip skin stays where it rests on the teeth while the template moves it up to a
-//!   centimetre (the local re-solve spreads it over 3 edges). Pass seconds on the 25k head
-//!   (`time_transfer`, before and after alternately, loaded machine): 3.97 / 3.77 / 3.43
-//!   against 4.19 / 3.81 / 4.30 (local re-solves 172 -> 188). Left: mouthClose
+//!   centimetre (the local re-solve spreads it over 3 edges). Only corners within 2 edge
+//!   lengths of rest: 19k 3, 25k 3 (mouthLeft/Right back, 19k mouthPucker 241 vertices moved
+//!   instead of 271), dropped. Pass seconds on the 25k head (`time_transfer`, before and after
+//!   alternately): 1.58 / 1.55 / 1.48 against 1.81 / 1.92 / 1.86, +22% best of 3 (local
+//!   re-solves 172 -> 188: the last attempt of the shapes still worse). Left: mouthClose
 //!   (19k: the plain solve adds 15.2 cm inside,
 //!   under the template's 15.8, and 3.9 cm between where the template removes 9.1; the holds
 //!   that clear between push the lips into each other, +1.12 cm inside, and each later round
