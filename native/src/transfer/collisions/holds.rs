@@ -2,7 +2,7 @@
 //! vertices, and where to" (`collisions/mod.rs`). A vertex the template's own shape takes
 //! across the same obstacle is not held (`template_crosses`).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 
 use super::contacts::TemplateContacts;
 use super::{Attempt, CollisionGuard, Neutral, Targets};
@@ -49,6 +49,12 @@ impl DeformationTransfer {
                 }
             }
         };
+        // With `attempt.embedded`, the (triangle, piece) pairs crossing at the target's rest.
+        let embedded: HashSet<(u32, u32)> = if attempt.embedded {
+            guard.rest_pairs.iter().flat_map(|&(a, b)| [(a, self.triangle_piece(b)), (b, self.triangle_piece(a))]).collect()
+        } else {
+            HashSet::new()
+        };
         let obstacle_piece = |u: usize, t: u32| {
             let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
@@ -70,6 +76,13 @@ impl DeformationTransfer {
                         // Where the template's shape adds no curve against the piece, the
                         // criterion allows none: a triangle at rest crosses a static piece
                         // exactly as in the neutral, whatever side its corners rest on.
+                        Some(piece)
+                            if attempt.embedded
+                                && moved_by > 0.0
+                                && (embedded.contains(&(side, piece)) || self.push_off_piece(guard, positions, u, piece, margin).is_none()) =>
+                        {
+                            Some(sub(self.target_neutral[u], positions[u]))
+                        }
                         Some(piece) if attempt.rest && moved_by > 0.0 && template.adds_none(self.piece[u], piece) => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
@@ -373,7 +386,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));
@@ -471,5 +484,63 @@ mod tests {
         let (adds_none, through) = held(0.3, &ATTEMPTS[0]);
         assert!(!adds_none);
         assert_eq!(held(0.3, &ATTEMPTS[4]).1, through);
+    }
+
+    #[test]
+    fn the_embedded_attempt_puts_skin_resting_across_a_static_piece_back_at_rest() {
+        // The skin plane cuts the teeth's walls at rest. Sliding it 0.06 along y (more than
+        // half an edge, less than one) takes the triangles straddling the wall x = 0.3 across
+        // the wall's diagonal: new pairs whose corners all stay on the side of the teeth they
+        // rest on, so the follow attempt holds none of them. The embedded attempt puts the
+        // corners of a triangle that crosses the teeth at rest back at rest, and every corner
+        // that kept its side.
+        let (source, tris) = skin_over_teeth(0.2);
+        let (target, _) = skin_over_teeth(0.02);
+        let n = source.len();
+        let slide: Vec<[f32; 3]> = (0..n).map(|v| if v < 15 * 15 { [0.0, 0.06, 0.0] } else { [0.0; 3] }).collect();
+        let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        let positions = posed(&dt.target_neutral, slide.clone());
+        let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
+        let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
+            crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
+        };
+        let rest = sweep(&dt.target_neutral);
+        let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
+        let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
+        let mut static_piece = vec![false; 2];
+        static_piece[teeth as usize] = true;
+        let moved = vec![true; tris.len()];
+        let contacts = dt.template_contacts(&guard, &slide, &moved);
+        let held = |attempt: &Attempt| dt.offending_vertices(&guard, &positions, &pairs, &free, &static_piece, attempt, &contacts);
+        let (follow, embedded) = (held(&ATTEMPTS[5]), held(&ATTEMPTS[6]));
+        assert!(ATTEMPTS[6].embedded && !ATTEMPTS[5].embedded);
+        // The skin corners of the new pairs whose skin triangle crosses the teeth at rest
+        // (skin triangles come first, so they are a pair's first).
+        let resting: Vec<usize> = pairs
+            .iter()
+            .filter(|&&(a, _)| rest.iter().any(|&(r, _)| r == a))
+            .flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize))
+            .collect();
+        assert!(!resting.is_empty(), "{pairs:?}");
+        for &u in &resting {
+            let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
+            assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
+        }
+        assert!(resting.iter().any(|u| !follow.contains_key(u)), "{follow:?}");
+        // Every other skin corner of a new pair on the side of the teeth (inside the box's
+        // walls or outside) it rests on goes back to rest too: the teeth's edge went through
+        // its triangle, not the corner through the teeth.
+        let inside = |p: &Vec3| (0.3..=0.7).contains(&p[0]) && (0.3..=0.7).contains(&p[1]);
+        let kept_side: Vec<usize> = pairs
+            .iter()
+            .flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize))
+            .filter(|&u| inside(&dt.target_neutral[u]) == inside(&positions[u]) && !resting.contains(&u))
+            .collect();
+        assert!(!kept_side.is_empty());
+        for &u in &kept_side {
+            let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
+            assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
+        }
     }
 }
