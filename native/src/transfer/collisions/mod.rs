@@ -115,59 +115,8 @@
 //!   that clear between push the lips into each other, +1.12 cm inside, and each later round
 //!   on the lips adds more, 16.9 -> 20.1 -> 33.7 -> 55.3 cm), and the 25k head's jawOpen
 //!   (+7.67 cm inside).
-//! - An earlier round (worse after the pass on Boy / OldMan / YoungWoman / 19k / 25k, warp):
-//!   from 2 / 4 / 3 / 8 / 10, +4.4%. Not holding a vertex the template's own shape takes across the
-//!   same obstacle: 3 / 4 / 2, +2.1% (it clears YoungWoman's mouthRight but brings back Boy's
-//!   mouthSmileLeft, +0.31 cm inside); acting only on pairs of pieces whose curve grew, alone:
-//!   2 / 4 / 3, +4.6%; the filter with the fallback to
-//!   all pairs of the part in excess (dropped before at +5.6%): 3 / 2 / 2, +5.7% (OldMan's
-//!   jawForward and mouthClose cleared); acting only on pairs of pieces whose curve grew on top:
-//!   3 / 2 / 2 / 7 / 8, +4.6% (the 19k head clears jawOpen, the 25k head
-//!   mouthSmileLeft/Right); a fourth attempt holding the whole lip contact strip:
-//!   **2 / 2 / 2 / 7 / 8, +4.5%** (kept: it clears Boy's mouthSmileLeft and brings OldMan's
-//!   mouthSmileLeft to +0.08 cm). The strip held in every attempt instead: 2 / 3 / 4, +1.3%
-//!   (OldMan's jawForward back, YoungWoman's mouthSmileRight +0.79 cm); as the first attempt:
-//!   2 / 2 / 2 / 7 / 8, +3.0%, but the two-layer lips test's lips then stop a margin apart
-//!   (closest gap 0.027 of the 0.04, the test asks under half). Tried and dropped on top of
-//!   the filters: the fallback also without the
-//!   template filter 3 / 2 / 2, +5.7%; the filter only projecting into the obstacle triangle
-//!   (not its whole plane) 2 / 3 / 2, +6.6%; a fourth attempt without the filter (last, or
-//!   second) 3 / 2 / 2, +6.1% / +4.9% (Boy's mouthSmileLeft stays at +0.30 cm: its rounds
-//!   oscillate, 3.4-4.5 cm inside against the template's 3.1); holding at the template's own
-//!   signed distance to the obstacle (scaled by the edge-length ratio) instead of the margin,
-//!   clamped to 1-3 margins 7 / 4 / 2, +4.0%, to 0.3-1 margin 4 / 4 / 6, +1.6%; not pushing
-//!   skin that rests inside a static piece further in 3 / 2 / 2, +4.2% (less excess, no shape
-//!   cleared, and it relies on the piece's winding). Left: Boy's and YoungWoman's
-//!   mouthDimpleLeft/Right against the upper teeth (+0.14 / +0.42 cm: the template removes
-//!   curve between pieces, the target's skin resting in the teeth slides 0.2 cm deeper and
-//!   every hold there adds more), OldMan's mouthRollLower (+1.57 cm inside: no vertex the
-//!   template's shape leaves on its side) and mouthSmileLeft (+0.08 cm between); on the dense heads mouthLeft/Right, mouthPucker,
-//!   mouthShrugLower, mouthDimple and mouthClose against the teeth, and the 25k head's jawOpen.
-//! - Before the previous round: 5 / 5 / 5, warp ground truth (`scripts/bench_personalise.py`'s
-//!   warp, mean active error) +4.2% over virtual edges alone. Acting on the pairs near
-//!   template contacts when they are all the part in excess has: 3 / 5 / 4 (Boy's
-//!   mouthShrugLower, 1.8 cm, had no pair left after the template filter). The attempts: 2 /
-//!   4 / 3, warp +4.4%; the 19k head 9 -> 8, the 25k head 10 -> 10 (docs/transfer.md). What
-//!   is left: mouthDimple skin against the teeth (0.14-0.42 cm), OldMan's jawForward (+2.1
-//!   cm between pieces) and lip through lip (OldMan's mouthClose +1.65 cm, mouthRollLower
-//!   +1.57 cm), where every round's pushes add curve elsewhere along the lips; on the dense
-//!   heads also mouthLeft/Right, mouthPucker, mouthShrugLower against the teeth.
-//! - Cleared more shapes but cost the warp (dropped for the +5% limit): falling back to all
-//!   pairs of the part in excess when the filtered ones hold no vertex (clears OldMan's
-//!   jawForward and mouthRollLower down to +0.24 cm; warp +5.6% with the attempts); an
-//!   attempt sending every corner against a static piece back to rest however far it moved,
-//!   and one with that and ten times the stiffness (with the fallback: 0 / 2 / 0, 19k 2, 25k
-//!   4, but warp +29.7%: on the warped head it puts moving skin back at rest; at most one edge
-//!   length away +8.5%, two +17.7%).
-//! - Tried and dropped (each against 5 / 5 / 5 unless said): holding a skin vertex that rests
-//!   inside a static piece (teeth) at its rest depth below the surface (the side read through
-//!   the piece's signed volume), one-sided (no deeper) 7 / 10 / 5, two-sided 7 / 12 / 9: it
-//!   moves many vertices the side test leaves alone and the local re-solve pushes their
-//!   neighbours through. Counting a rest pair as grown at any growth instead of 5%: 6 / 5 on
-//!   Boy / OldMan. Lip-through-lip corners pulled back towards rest (to 90% or 70% of their
-//!   motion) instead of pushed across the other lip's plane: no shape cleared. 8 rounds
-//!   instead of 4: no shape cleared. One setting for all shapes instead of attempts
-//!   (stiffness x10 or x0.2, margin x2): each clears some shapes and brings back others.
+//! - Earlier rounds (from 5 / 5 / 5 down to 2 / 2 / 2, what was tried and dropped, with
+//!   the numbers): docs/transfer.md, "Earlier rounds of the collision pass".
 
 mod contacts;
 mod holds;
