@@ -342,31 +342,10 @@ impl TriangleBvh {
     /// Calls `visit(t)` for every triangle `t` (an index into the list given to `build`)
     /// whose bounding box overlaps `query`.
     pub fn for_each_overlap(&self, query: &Aabb, mut visit: impl FnMut(u32)) {
-        if self.triangles.is_empty() || !self.nodes[0].bounds.overlaps(query) {
-            return;
-        }
-        // Nodes on the stack overlap the query.
-        let mut stack = [0u32; STACK];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if node.count > 0 {
-                let range = node.first as usize..(node.first + node.count) as usize;
-                for (b, &t) in self.boxes[range.clone()].iter().zip(&self.original[range]) {
-                    if b.overlaps(query) {
-                        visit(t);
-                    }
-                }
-                continue;
-            }
-            for child in [node.first, node.first + 1] {
-                if self.nodes[child as usize].bounds.overlaps(query) {
-                    stack[top] = child;
-                    top += 1;
-                }
-            }
-        }
+        self.overlap_until(query, |t| {
+            visit(t);
+            false
+        });
     }
 
     /// [`Self::for_each_overlap`] until `visit` returns `true`: then no further triangle is
@@ -376,6 +355,7 @@ impl TriangleBvh {
         if self.triangles.is_empty() || !self.nodes[0].bounds.overlaps(query) {
             return false;
         }
+        // Nodes on the stack overlap the query.
         let mut stack = [0u32; STACK];
         let mut top = 1;
         while top > 0 {

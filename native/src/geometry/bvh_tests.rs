@@ -146,6 +146,17 @@ fn subset_answers_like_a_tree_built_on_the_kept_triangles() {
     }
 }
 
+/// [`TriangleBvh::overlapping_pairs`]' pairs, each as (smaller, larger), sorted.
+fn sorted_pairs(bvh: &TriangleBvh, marked: &[bool]) -> Vec<(u32, u32)> {
+    let mut found: Vec<(u32, u32)> = bvh
+        .overlapping_pairs(marked, Vec::new, |f: &mut Vec<(u32, u32)>, a, b| f.push((a.min(b), a.max(b))))
+        .into_iter()
+        .flatten()
+        .collect();
+    found.sort_unstable();
+    found
+}
+
 /// The pair descent reports every pair of overlapping boxes with a marked triangle exactly
 /// once, on a built tree and on a restricted one (whose leaf order differs), for marks from
 /// none to all: the small subtrees it tests pair by pair included.
@@ -167,12 +178,7 @@ fn overlapping_pairs_match_brute_force_once_each() {
     for share in [0.0, 0.05, 0.5, 1.0] {
         let marked: Vec<bool> = (0..triangles.len()).map(|_| rng.random::<f64>() < share).collect();
         for (tree, keep) in [(&bvh, vec![true; triangles.len()]), (&restricted, kept.clone())] {
-            let mut found: Vec<(u32, u32)> = tree
-                .overlapping_pairs(&marked, Vec::new, |f: &mut Vec<(u32, u32)>, a, b| f.push((a.min(b), a.max(b))))
-                .into_iter()
-                .flatten()
-                .collect();
-            found.sort_unstable();
+            let found = sorted_pairs(tree, &marked);
             let mut expect = Vec::new();
             for a in 0..triangles.len() {
                 for b in a + 1..triangles.len() {
@@ -207,12 +213,7 @@ fn overlapping_pairs_cover_a_leaf_of_many_triangles() {
     let bvh = TriangleBvh::build(&points, &triangles);
     for every_third in [false, true] {
         let marked: Vec<bool> = (0..triangles.len()).map(|t| !every_third || t % 3 == 0).collect();
-        let mut found: Vec<(u32, u32)> = bvh
-            .overlapping_pairs(&marked, Vec::new, |f: &mut Vec<(u32, u32)>, a, b| f.push((a.min(b), a.max(b))))
-            .into_iter()
-            .flatten()
-            .collect();
-        found.sort_unstable();
+        let found = sorted_pairs(&bvh, &marked);
         let expect: Vec<(u32, u32)> =
             (0..100u32).flat_map(|a| (a + 1..100).map(move |b| (a, b))).filter(|&(a, b)| marked[a as usize] || marked[b as usize]).collect();
         assert_eq!(found, expect, "every third marked: {every_third}");
