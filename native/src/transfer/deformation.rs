@@ -42,6 +42,12 @@ pub struct DeformationTransfer {
     pub(super) piece: Vec<u32>,
     /// Per piece: target RMS radius / source RMS radius.
     piece_scale: Vec<f64>,
+    /// What carries a length measured on the template to the target's units, so that the
+    /// criterion compares the template shape's curve with the target's in one unit
+    /// ([`AddedCurve::scaled`]): the whole target's RMS radius over the template's when the two
+    /// are over [`OTHER_UNITS`] times apart (a character in centimetres under a template in
+    /// metres: about 100, a wrapped template always), else 1.
+    pub(super) template_to_target: f64,
     source_diagonal: f64,
     static_fraction: f64,
     /// The collision pass's view of the target neutral; `None` when the pass is off.
@@ -117,6 +123,8 @@ impl DeformationTransfer {
 
         let (piece, n_pieces) = connected_components(n, triangles);
         let piece_scale = piece_scales(&source, &target, &piece, n_pieces);
+        let size_ratio = piece_scales(&source, &target, &vec![0; n], 1)[0];
+        let template_to_target = if size_ratio.ln().abs() > OTHER_UNITS.ln() { size_ratio } else { 1.0 };
 
         // The virtual-edge search and the collision pass's view of the neutrals (hierarchies,
         // rest sweeps) need nothing of each other: side by side, the sequential parts of each
@@ -165,6 +173,7 @@ impl DeformationTransfer {
             target_centre,
             piece,
             piece_scale,
+            template_to_target,
             static_fraction: params.static_fraction,
             collisions,
             setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds - collision_setup_seconds,
@@ -384,6 +393,7 @@ impl DeformationTransfer {
             return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
         };
         let plain = out.clone();
+        let template_added = template_added.map(|a| a.scaled(self.template_to_target));
         let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, template_added };
         let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
@@ -551,6 +561,16 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
         })
         .collect()
 }
+
+/// Two neutrals whose sizes are more than this factor apart are taken to be in other units
+/// (centimetres, millimetres, inches against metres; a wrapped template in its character's),
+/// and the template's intersection curve is read at the target's size. Heads of one unit
+/// differ by about 10% (the bundled identities: 0.92 to 1.02 in RMS radius, the warp ground
+/// truth 1.08) and compare raw lengths, as issue 9's criterion states: read at the RMS size
+/// ratio there instead, the bundled targets stayed at 0 shapes worse, but the pass's
+/// decisions on the warp ground truth moved its error from +4.2% to +7.9% (+5.6% with the
+/// bounding-box ratio, 1.01), past the issue's 5%.
+pub const OTHER_UNITS: f64 = 1.5;
 
 /// The largest collision margin accepted, in local edge lengths: beyond it the kept distance
 /// would exceed the lips' own thickness on most heads.

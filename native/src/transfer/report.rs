@@ -218,7 +218,8 @@ pub fn transfer_shapes(
                         _ => result,
                     });
                     let plain = plain.as_ref().map(|d| measure(&d[rows]));
-                    let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral);
+                    // The template shape's curve at the target's size (its units and proportions).
+                    let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral).scaled(dt.template_to_target);
                     let excess = |p: &Penetration| AddedCurve::from_penetrations(p, &neutral).excess_parts(&template_added);
                     let row = ShapePenetration {
                         name: names[k].clone(),
@@ -299,6 +300,13 @@ mod tests {
         [c * p[0] - s * p[1] + 0.3, s * p[0] + c * p[1] - 0.2, p[2] + 0.1]
     }
 
+    /// The root mean square distance of the points from their centroid.
+    fn rms_radius(points: &[[f32; 3]]) -> f64 {
+        let n = points.len() as f64;
+        let c = [0, 1, 2].map(|a| points.iter().map(|p| f64::from(p[a])).sum::<f64>() / n);
+        (points.iter().map(|p| (0..3).map(|a| (f64::from(p[a]) - c[a]).powi(2)).sum::<f64>()).sum::<f64>() / n).sqrt()
+    }
+
     /// Runs `transfer_shapes` with and without the collision pass and checks every number the
     /// report gives against an exhaustive sweep of the shape as written; returns the shapes
     /// the pass changed.
@@ -336,8 +344,10 @@ mod tests {
             let template_shape = measure_penetration(&posed(source, &deltas[rows.clone()]), tris);
             assert_eq!(template.shapes[k], template_shape);
             assert_eq!((row.template_length, row.template_pairs), (template_shape.length, template_shape.pairs));
-            // The criterion, per part, against the template's shape.
-            let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral);
+            // The criterion, per part, against the template's shape in the target's units.
+            let ratio = rms_radius(target) / rms_radius(source);
+            let units = if ratio.ln().abs() > crate::transfer::deformation::OTHER_UNITS.ln() { ratio } else { 1.0 };
+            let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral).scaled(units);
             assert_eq!(row.excess, AddedCurve::from_penetrations(&result, &neutral).excess_parts(&template_added));
             assert_eq!(row.before_collisions_excess, Some(AddedCurve::from_penetrations(&plain_solve, &neutral).excess_parts(&template_added)));
             assert!(row.plain_excess.is_some_and(|e| e.inside >= 0.0 && e.between >= 0.0));
@@ -362,5 +372,34 @@ mod tests {
         let target: Vec<[f32; 3]> = lips(0.04).0.iter().map(moved).collect();
         let springs = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), edge_weight: 1.0, ..Default::default() };
         assert_eq!(check_report(&source, &target, &tris, &closing, springs), 1, "the pass should re-solve the lips");
+    }
+
+    #[test]
+    fn the_criterion_reads_the_templates_curve_at_the_targets_size_and_units() {
+        // The template's own shape presses the lips through each other (the artist's
+        // contact). Onto the template itself in centimetres (x100, moved and turned) the
+        // transfer is the template's shape at that size: it adds exactly the template's curve,
+        // x100, so it meets the criterion and the pass leaves it alone. Compared with the
+        // template's curve in metres, it would add 100 times too much, and the pass would pull
+        // the lips apart.
+        let (source, tris) = lips(0.1);
+        let pressing = lip_closing(&source, 0.1, 0.12);
+        let template = measure_rig_penetration(&source, &pressing, &tris).unwrap();
+        assert!(template.shapes[0].length > template.neutral.length + 0.05, "the template's shape should cross: {template:?}");
+        let names = vec!["press".to_owned()];
+        let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
+        for scale in [1.0f32, 100.0] {
+            let target: Vec<[f32; 3]> = source.iter().map(|p| moved(&p.map(|x| scale * x))).collect();
+            let (out, report) = transfer_shapes(&source, &pressing, &target, &tris, &names, None, Some(&template), &params, &NoProgress).unwrap();
+            let row = &report.penetration[0];
+            assert!(row.collisions.is_some_and(|c| !c.applied), "scale {scale}: {:?}", row.collisions);
+            assert!(row.excess.inside + row.excess.between <= 1e-4 * f64::from(scale), "scale {scale}: {:?}", row.excess);
+            let curve = (row.length - report.neutral_penetration.expect("measured").length) / f64::from(scale);
+            let template_curve = template.shapes[0].length - template.neutral.length;
+            assert!((curve - template_curve).abs() <= 1e-3 * template_curve, "scale {scale}: {curve} against {template_curve}");
+            let expected: Vec<[f32; 3]> = source.iter().zip(&pressing).map(|(p, d)| moved(&[0, 1, 2].map(|a| scale * (p[a] + d[a])))).collect();
+            let largest = out.iter().zip(&target).zip(&expected).map(|((d, t), e)| (0..3).map(|a| (t[a] + d[a] - e[a]).abs()).fold(0.0f32, f32::max)).fold(0.0, f32::max);
+            assert!(largest <= 1e-4 * scale, "scale {scale}: the shape moved off the template's by {largest}");
+        }
     }
 }

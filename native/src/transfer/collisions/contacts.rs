@@ -48,6 +48,12 @@ impl AddedCurve {
         parts.inside + parts.between
     }
 
+    /// The same curve at `factor` times the size (lengths scale linearly): a template
+    /// shape's curve at the target's size and units, before it is compared with the target's.
+    pub fn scaled(&self, factor: f64) -> Self {
+        AddedCurve { inside: factor * self.inside, between: factor * self.between }
+    }
+
     /// [`Self::excess`] part by part (each zero or more): what the report gives per shape, so
     /// the add-on reads the criterion instead of computing it again.
     pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
@@ -79,9 +85,11 @@ impl DeformationTransfer {
         // Template and target share the topology, hence the pieces.
         let piece_of = |t: u32| self.triangle_piece(t);
         let rest = AddedCurve::of(guard.template_rest_pairs.iter().copied(), piece_of, AddedCurve::default());
-        let noise = 0.5 * super::JUDGE_TOLERANCE * guard.diagonal;
+        // The template's lengths, at the target's size where they are compared with its.
+        let noise = 0.5 * super::JUDGE_TOLERANCE * guard.diagonal / self.template_to_target;
         let adding = pieces_grown(all.iter().copied(), guard.template_rest_pairs.iter().copied(), piece_of, noise);
-        TemplateContacts { partners, added: AddedCurve::of(all.into_iter(), piece_of, rest), positions: points, adding }
+        let added = AddedCurve::of(all.into_iter(), piece_of, rest).scaled(self.template_to_target);
+        TemplateContacts { partners, added, positions: points, adding }
     }
 }
 
