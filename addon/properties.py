@@ -347,7 +347,12 @@ class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
     collisions: bpy.props.BoolProperty(name="Collision Pass")
     collision_margin: bpy.props.FloatProperty(name="Collision Margin")
     worse_before_collisions: bpy.props.IntProperty(
-        name="Worse Before the Collision Pass", description="Shapes adding more intersection than on the template before the pass"
+        name="Worse Before the Collision Pass",
+        description="Shapes adding more intersection than on the template before the pass (-1: not measured, as for keys "
+        "carried onto a character of other topology, where the pass ran on the wrapped template)",
+    )
+    carried: bpy.props.BoolProperty(
+        name="Carried", description="The keys were carried onto this mesh from a wrapped template (Wrap), not transferred onto it"
     )
     collision_resolved: bpy.props.IntProperty(name="Shapes Re-solved by the Collision Pass")
     template_neutral_length: bpy.props.FloatProperty(name="Template Neutral Curve Length", subtype="DISTANCE")

@@ -232,8 +232,41 @@ def test_buttons_align_wrap_and_transfer_onto_the_character_with_undo(sample, sh
     assert bpy.ops.shapesmith.transfer_onto_character() == {"FINISHED"}
     bpy.ops.ed.undo_push(message="after transfer")
     assert len(bpy.data.objects["Character_YoungWoman"].data.shape_keys.key_blocks) == 53
+    # The Transfer panel lists, for the character, the shapes judged on its own mesh.
+    result = bpy.data.objects["Character_YoungWoman"].shapesmith.transfer
+    assert result.done and result.carried and result.source == "Template" and len(result.shapes) == 52
+    assert result.worse_before_collisions == -1
     bpy.ops.ed.undo()
     assert bpy.data.objects["Character_YoungWoman"].data.shape_keys is None
+
+
+def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_intersection(sample, shapesmith):
+    """The template wrapped onto a copy of itself in centimetres, turned and moved: the keys
+    carried onto the copy are the template's own, moved, so each adds to the copy's neutral
+    exactly the template shape's intersection curve, x100. The criterion, judged on the
+    character's own mesh in its own units, lists none of them (read in metres, the
+    template's allowance would be 100 times too small and the collision pass on the wrapped
+    template would pull the lips the artist pressed together apart)."""
+    transfer = module(shapesmith, "blender.transfer")
+    template = bpy.data.objects["Template"]
+    motion = MOTIONS["cm_y_up"]
+    obj = decimated_copy(template, "Character_Self", ratio=1.0)
+    assert len(obj.data.vertices) == len(template.data.vertices)
+    obj.data.vertices.foreach_set("co", apply(motion, positions(template)).astype(np.float32).ravel())
+    obj.data.update()
+    import makehuman  # scripts/ is on the path (conftest)
+
+    vertices = makehuman.pair_vertices(positions(template), skin_vertices(template))
+    entries = [[int(v), int(v)] for v in vertices]
+    names, _, result = wrap_and_carry(shapesmith, obj, entries)
+    report = result.report
+    assert report["template_to_target"] == pytest.approx(100.0, rel=1e-4)
+    diagonal = report["diagonal"]
+    expected = motion[0] * key_deltas(template, names) @ rotation(motion[1]).T
+    error = np.linalg.norm(key_deltas(obj, names) - expected, axis=2).max()
+    assert error < 2e-3 * diagonal, error / diagonal
+    assert transfer.worse_than_template(report) == [], [(r["name"], r["excess"]) for r in report["penetration"] if sum(r["excess"].values()) > 1e-3 * diagonal]
+    assert not any((row["collisions"] or {}).get("applied") for row in report["penetration"])
 
 
 def test_batch_wraps_the_sample_character_and_reports(sample_path, tmp_path):
@@ -244,8 +277,14 @@ def test_batch_wraps_the_sample_character_and_reports(sample_path, tmp_path):
     report = json.loads(out.read_text())
     assert len(report["shapes"]) == 52 and report["fit"]["alignment"] == "pairs"
     assert report["fit"]["mean_distance"] < 2e-3
-    assert {"io", "align", "wrap", "transfer", "carry"} <= set(report["seconds"])
+    assert {"io", "align", "wrap", "transfer", "carry", "penetration"} <= set(report["seconds"])
     assert (tmp_path / "o.blend").exists()
+    # The keys judged on the character's own mesh: one row per shape, the criterion's shapes listed.
+    rows = report["penetration"]["shapes"]
+    assert [row["name"] for row in rows] == report["shapes"]
+    diagonal_margin = [row["name"] for row in rows if row["excess"]["inside"] + row["excess"]["between"] > 0]
+    assert set(report["worse_than_template"]) <= set(diagonal_margin)
+    assert "adding more intersection on the character than on the template" in proc.stdout
 
 
 @pytest.mark.parametrize(

@@ -574,7 +574,7 @@ def run_wrap(args):
     open_blend(args.input)
     wrap = import_module(shapesmith.__name__ + ".blender.wrap")
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
-    native = import_module(shapesmith.__name__ + ".native")
+    transfer = import_module(shapesmith.__name__ + ".blender.transfer")
     template, character = find_object(args.template), find_object(args.character)
     for obj in (template, character):
         if obj.type != "MESH":
@@ -589,7 +589,7 @@ def run_wrap(args):
     wrapped = wrap.wrap_object(template, character, template_points, character_points)
     wrapped.seconds["io"] += opened - started
     wrapped_object = wrap.show_wrapped(wrapped)
-    written, skipped, warnings, penetration = [], [], [], None
+    written, skipped, warnings, penetration, worse = [], [], [], None, None
     seconds = dict(wrapped.seconds)
     try:
         if not args.no_transfer:
@@ -604,11 +604,9 @@ def run_wrap(args):
             writing = time.perf_counter()
             written, skipped, warnings = shape_keys.write_transferred_keys(result, args.overwrite, args.copy_drivers)
             seconds["io"] += time.perf_counter() - writing
-            measuring = time.perf_counter()
-            penetration = native.module().measure_penetration(
-                result.target_neutral, result.deltas, wrap.read_surface(character, "character")[1]
-            )
-            seconds["penetration"] = time.perf_counter() - measuring
+            penetration = {"neutral": result.report["neutral_penetration"], "shapes": result.report["penetration"]}
+            worse = transfer.worse_than_template(result.report)
+            transfer.store_transfer(result, written, skipped)
             warnings = result.warnings + warnings
     finally:
         if not (args.keep_wrapped or args.no_transfer):
@@ -619,6 +617,7 @@ def run_wrap(args):
         print(line)
     if not args.no_transfer:
         print(f"{len(written)} shape keys written onto '{character.name}'" + (f", {len(skipped)} kept" if skipped else ""))
+        print(f"adding more intersection on the character than on the template: {len(worse)}" + (f" ({', '.join(worse)})" if worse else ""))
     saving = time.perf_counter()
     if args.output:
         save_copy(args.output)
@@ -634,6 +633,7 @@ def run_wrap(args):
             "shapes": written,
             "skipped": skipped,
             "penetration": penetration,
+            "worse_than_template": worse,
             "warnings": warnings + wrapped.report["warnings"],
             "seconds": seconds,
         },

@@ -273,7 +273,8 @@ def store_transfer(transfer, written, skipped):
     result.collision_margin = collisions["margin"] if collisions else 0.0
     rows = report["penetration"]
     traced = collision_traced(report)
-    result.worse_before_collisions = len(worse_than_template(report, key="before_collisions_length")) if traced else 0
+    result.worse_before_collisions = len(worse_than_template(report, key="before_collisions_length")) if traced else -1
+    result.carried = "carry" in report
     result.collision_resolved = sum(1 for row in rows if (row.get("collisions") or {}).get("applied", False))
     worse = set(worse_than_template(report))
     result.shapes.clear()

@@ -258,6 +258,43 @@ def store_wrap(wrapped, stage):
     result.seconds = sum(wrapped.seconds.values())
 
 
+def character_rows(report, character_penetration):
+    """The transfer report's per-shape penetration rows, for the keys carried onto the
+    character: its own curve lengths, the template's beside them, and issue 9's criterion
+    (`excess`: per part, the curve a shape adds to the character's neutral beyond what the
+    template's shape adds to the template's, read in the character's units with the factor the
+    native transfer used, `template_to_target`; a part the template's shape removes allows
+    none), as the native report gives it for a same-topology target. What the collision pass
+    did on the wrapped template stays with each row."""
+    scale = report["template_to_target"]
+    template_rest = report["template_neutral_penetration"]
+    rest = character_penetration["neutral"]
+
+    def parts(lengths, neutral):
+        inside = (lengths["length"] - lengths["between_pieces"]) - (neutral["length"] - neutral["between_pieces"])
+        return inside, lengths["between_pieces"] - neutral["between_pieces"]
+
+    rows = []
+    for wrapped_row, measured in zip(report["penetration"], character_penetration["shapes"]):
+        template = {"length": wrapped_row["template_length"], "between_pieces": wrapped_row["template_between_pieces"]}
+        added, allowed = parts(measured, rest), parts(template, template_rest)
+        inside, between = (max(0.0, a - scale * max(0.0, t)) for a, t in zip(added, allowed))
+        rows.append(
+            {
+                "name": wrapped_row["name"],
+                "length": measured["length"],
+                "pairs": measured["pairs"],
+                "between_pieces": measured["between_pieces"],
+                "template_length": wrapped_row["template_length"],
+                "template_pairs": wrapped_row["template_pairs"],
+                "template_between_pieces": wrapped_row["template_between_pieces"],
+                "collisions": wrapped_row.get("collisions"),
+                "excess": {"inside": inside, "between": between},
+            }
+        )
+    return rows
+
+
 def carry_onto_character(template, character, wrapped_object, *, transfer_options=None, seconds=None, progress=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
     the transfer's virtual edges and options), then carries them onto the character's own
@@ -276,13 +313,21 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
         character_triangles,
         progress=progress,
     )
+    carried = time.perf_counter()
     report = dict(onto_wrapped.report)
     report["carry"] = carry_report
     report["diagonal"] = float(np.linalg.norm(character_neutral.max(0) - character_neutral.min(0)))
+    # The keys as the rigger gets them: judged on the character's own mesh, not on the
+    # wrapped template the transfer (and its collision pass) worked on.
+    report["wrapped_penetration"] = report["penetration"]
+    character_penetration = native.module().measure_penetration(character_neutral, deltas, character_triangles)
+    report["penetration"] = character_rows(report, character_penetration)
+    report["neutral_penetration"] = character_penetration["neutral"]
     stage_seconds = dict(seconds or {})
     stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
-    stage_seconds["carry"] = time.perf_counter() - transferred
+    stage_seconds["carry"] = carried - transferred
+    stage_seconds["penetration"] = time.perf_counter() - carried
     report["stage_seconds"] = stage_seconds
     groups = carried_vertex_groups(template, onto_wrapped.names, (wrapped_neutral, wrapped_triangles), character_neutral)
     return Transfer(

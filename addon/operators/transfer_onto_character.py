@@ -5,6 +5,7 @@ solved in full before anything is written."""
 import bpy
 
 from ..blender.shape_keys import write_transferred_keys
+from ..blender.transfer import store_transfer, worse_than_template
 from ..blender.wrap import carry_onto_character
 from .base import expected_errors, poll_mesh, progress_cursor
 
@@ -56,14 +57,18 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         character.shapesmith_wrap.written = len(written)
+        # The per-shape penetration on the character, listed by the Transfer panel with it active.
+        store_transfer(result, written, skipped)
         for warning in result.warnings + warnings:
             self.report({"WARNING"}, warning)
         seconds = result.report["stage_seconds"]
+        worse = worse_than_template(result.report)
         self.report(
             {"INFO"},
             f"{len(written)} shape keys written onto '{character.name}'"
             + (f", {len(skipped)} existing kept" if skipped else "")
-            + f" (transfer {seconds['transfer']:.2f} s, carry {seconds['carry']:.2f} s)",
+            + f" (transfer {seconds['transfer']:.2f} s, carry {seconds['carry']:.2f} s); "
+            + f"{len(worse)} add more intersection than on the template (Transfer panel lists them)",
         )
         return {"FINISHED"}
 

@@ -57,10 +57,15 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         if result.skipped:
             col.label(text=f"Kept: {result.skipped}")
         col.label(text=f"Virtual edges: {result.virtual_edges}")
+        if result.carried:
+            col.label(text="Carried from the wrapped template (Wrap); judged on this mesh")
         if result.collisions:
+            before = (
+                f", {result.worse_before_collisions} worse than the template before it" if result.worse_before_collisions >= 0 else ""
+            )
+            where = " on the wrapped template" if result.carried else ""
             col.label(
-                text=f"Collision pass (margin {result.collision_margin:.2f}): {result.collision_resolved} shapes re-solved, "
-                f"{result.worse_before_collisions} worse than the template before it"
+                text=f"Collision pass (margin {result.collision_margin:.2f}): {result.collision_resolved} shapes re-solved{where}{before}"
             )
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")

@@ -62,6 +62,13 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
             box.label(text=f"Largest pair residual: {100 * settings.max_pair_residual:.3f}%")
             if settings.written:
                 box.label(text=f"Shape keys written: {settings.written}", icon="CHECKMARK")
+                result = obj.shapesmith.transfer
+                if result.done and result.carried:
+                    worse = sum(1 for shape in result.shapes if shape.worse)
+                    box.label(
+                        text=f"Adding more intersection than on the template: {worse} (the Transfer panel above lists them)",
+                        icon="ERROR" if worse else "CHECKMARK",
+                    )
 
 
 register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_UL_point_pairs, SHAPESMITH_PT_wrap))

@@ -103,6 +103,10 @@ pub struct TransferReport {
     /// The template neutral's, when measured: each shape is judged by what it adds to its
     /// neutral (the MakeHuman heads' eyes, teeth and lashes already cross the skin at rest).
     pub template_neutral_penetration: Option<Penetration>,
+    /// The factor the criterion reads the template's curve lengths with, in the target's units
+    /// (1 unless the two neutrals' sizes are over [`super::deformation::OTHER_UNITS`] apart): a
+    /// mesh the keys are carried onto in the target's units is judged with it too.
+    pub template_to_target: f64,
     pub seconds: StageSeconds,
     /// J x K weights the personalisation used (refined, or as given); empty without examples.
     pub weights: Vec<Vec<f64>>,
@@ -257,6 +261,7 @@ pub fn transfer_shapes(
         penetration,
         neutral_penetration,
         template_neutral_penetration,
+        template_to_target: dt.template_to_target,
         seconds,
         weights,
         example_noise,
