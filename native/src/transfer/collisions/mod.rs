@@ -132,7 +132,7 @@ pub use contacts::AddedCurve;
 use contacts::{piece_key, pieces_grown, TemplateContacts};
 
 use super::deformation::DeformationTransfer;
-use super::gradients::{add, length, sub, Vec3};
+use super::gradients::{add, cross, dot, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::{RefitLinks, TriangleBvh};
@@ -454,6 +454,8 @@ impl DeformationTransfer {
         let mut template_added = shape.template_added;
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
+        // Where the virtual-edge springs are released: around the pairs the springs folded.
+        let mut release = vec![false; out.len()];
         let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         // The vertices whose written position the last re-solve changed.
         let mut changed_vertices: Vec<usize> = Vec::new();
@@ -603,20 +605,43 @@ impl DeformationTransfer {
             // The template's contacts are known once a round gets here (judged above).
             let Some(contacts) = template else { break };
             held = true;
-            let mut found = self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt, contacts);
-            if found.is_empty() {
+            // Pairs with a triangle the springs folded over (module docs' "Folds"): their
+            // springs are released around them instead of their corners held.
+            let folds = shared.folds.get_or_init(|| self.spring_folds(shared, shape, &plain, &contacts.positions));
+            let folded = |t: u32| folds[t as usize];
+            let (fold_pairs, new_pairs): (Vec<(u32, u32)>, Vec<(u32, u32)>) =
+                new_pairs.into_iter().partition(|&(a, b)| folded(a) || folded(b));
+            let fold_seeds: Vec<(usize, f64)> = fold_pairs
+                .iter()
+                .flat_map(|&(a, b)| self.triangles[a as usize].into_iter().chain(self.triangles[b as usize]))
+                .map(|v| (v as usize, 0.0))
+                .filter(|&(v, _)| free[v])
+                .collect();
+            let released_before = release.iter().filter(|&&r| r).count();
+            self.grow_region(guard, &fold_seeds, free, &mut release);
+            let unfolding = release.iter().filter(|&&r| r).count() != released_before;
+            // A round that releases springs where it did not yet holds nothing: a hold next to
+            // a fold pushes its vertices across folded triangles' planes, into the other lip.
+            let mut found = if unfolding {
+                Targets::new()
+            } else {
+                self.offending_vertices(guard, &positions, &new_pairs, free, static_piece, attempt, contacts)
+            };
+            if found.is_empty() && fold_pairs.is_empty() {
                 // The pairs away from the template's contacts hold no vertex (the template's
                 // shape crosses where they are, or they sit on rest pairs): act on all pairs of
                 // the part in excess (OldMan's jawForward, skin sliding deeper into the upper
                 // teeth than the template's does).
-                found = self.offending_vertices(guard, &positions, &acted_on(&candidates), free, static_piece, attempt, contacts);
+                let pairs: Vec<(u32, u32)> = acted_on(&candidates).into_iter().filter(|&(a, b)| !folded(a) && !folded(b)).collect();
+                found = self.offending_vertices(guard, &positions, &pairs, free, static_piece, attempt, contacts);
             }
-            if found.is_empty() {
+            if found.is_empty() && fold_seeds.is_empty() {
                 break;
             }
-            let mut seeds = Vec::with_capacity(found.len());
-            // Whether every target is one the last re-solve already had, to the bit.
-            let mut same_targets = outcome.solves > 0;
+            let mut seeds = fold_seeds;
+            // Whether every target is one the last re-solve already had, to the bit (and no
+            // spring newly released).
+            let mut same_targets = outcome.solves > 0 && !unfolding;
             for (u, target) in found {
                 let reach = length(sub(target, add(self.target_neutral[u], out[u])));
                 seeds.push((u, reach));
@@ -637,7 +662,13 @@ impl DeformationTransfer {
                 .iter()
                 .map(|(&u, &target)| (u, attempt.stiffness * guard.params.stiffness * self.matrix.diagonal(u), sub(target, self.target_neutral[u])))
                 .collect();
-            *out = self.matrix.solve_local(&members, &constraints, shape.rhs, out)?;
+            let released: Vec<(usize, usize, f64, Vec3)> = match shared.springs.get() {
+                Some(springs) if release.iter().any(|&r| r) => {
+                    springs.iter().copied().filter(|&(i, j, _, _)| release[i] || release[j]).collect()
+                }
+                _ => Vec::new(),
+            };
+            *out = self.matrix.solve_local(&members, &constraints, &released, shape.rhs, out)?;
             let region_deltas: Vec<Vec3> = members.iter().map(|&v| out[v]).collect();
             let mut now_changed = Vec::new();
             for ((&v, d), p) in members.iter().zip(&region_deltas).zip(guard.written_at(self, &members, &region_deltas)) {
@@ -669,6 +700,31 @@ impl DeformationTransfer {
             *out = if kept.is_empty() { plain } else { kept };
         }
         Ok((outcome, excess))
+    }
+
+    /// Per triangle, whether the virtual-edge springs folded it over in the plain solve
+    /// (`plain`, deltas): turned over against the target's neutral while the template's shape
+    /// (`template`, positions) keeps it upright, with a corner a spring pulls at. The shape's
+    /// springs are kept in `shared` for the re-solves that release them.
+    fn spring_folds(&self, shared: &PlainRound, shape: &ShapeSystem<'_>, plain: &[Vec3], template: &[Vec3]) -> Vec<bool> {
+        let mut spring_end = vec![false; plain.len()];
+        for &(i, j, _, _) in shared.springs.get_or_init(|| self.springs(shape.delta)) {
+            spring_end[i] = true;
+            spring_end[j] = true;
+        }
+        let positions: Vec<Vec3> = self.target_neutral.iter().zip(plain).map(|(p, d)| add(*p, *d)).collect();
+        let normal = |t: &[u32; 3], p: &[Vec3]| {
+            let c = t.map(|v| p[v as usize]);
+            cross(sub(c[1], c[0]), sub(c[2], c[0]))
+        };
+        self.triangles
+            .iter()
+            .map(|t| {
+                t.iter().any(|&v| spring_end[v as usize])
+                    && dot(normal(t, &positions), normal(t, &self.target_neutral)) < 0.0
+                    && dot(normal(t, template), normal(t, &self.source_neutral)) >= 0.0
+            })
+            .collect()
     }
 
     /// Adds to `region` the free vertices within reach of the seeds `(u, reach)` along the
@@ -742,6 +798,10 @@ struct PlainRound {
     /// The plain solve's penetration, from those pairs.
     penetration: OnceLock<Penetration>,
     template: OnceLock<TemplateContacts>,
+    /// The shape's virtual-edge springs ([`DeformationTransfer::springs`]) and the triangles
+    /// they folded ([`DeformationTransfer::spring_folds`]), found once per shape.
+    springs: OnceLock<Vec<(usize, usize, f64, Vec3)>>,
+    folds: OnceLock<Vec<bool>>,
 }
 
 impl PlainRound {
@@ -760,7 +820,7 @@ impl PlainRound {
             |t| dt.triangle_piece(t),
             AddedCurve::default(),
         );
-        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new() }
+        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
     }
 }
 
