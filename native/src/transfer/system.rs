@@ -286,4 +286,44 @@ mod tests {
         }
         assert!((0..3).all(|c| again[20][c] > local[20][c]));
     }
+
+    #[test]
+    fn releasing_springs_in_a_local_solve_is_solving_without_them() {
+        // Springs 20-40 (both ends in the region), 27-3 (one end in it, one outside) and 9-12
+        // (neither: kept). Released, the region's solve is the one of the matrix assembled
+        // without the first two and their right-hand sides, the rest held at `current`.
+        let (pts, tris) = grid(7, 6);
+        let ops: Vec<HatGradients> = tris.iter().map(|t| HatGradients::new(t.map(|v| pts[v as usize])).unwrap()).collect();
+        let n = pts.len();
+        let springs = [(20u32, 40u32), (27, 3), (9, 12)];
+        let w = 2.5;
+        let with = NormalMatrix::assemble(n, &tris, &ops, &springs, w).unwrap();
+        let without = NormalMatrix::assemble(n, &tris, &ops, &springs[2..], w).unwrap();
+        let base: Vec<Vec3> = (0..n).map(|v| [(v as f64 * 0.3).sin(), 0.2, (v as f64) * 0.01]).collect();
+        let pulls = [[0.3, -0.1, 0.2], [-0.2, 0.4, 0.1], [0.05, 0.0, -0.3]];
+        let mut rhs = base.clone();
+        let mut kept_rhs = base;
+        for (k, &(i, j)) in springs.iter().enumerate() {
+            let (i, j) = (i as usize, j as usize);
+            rhs[i] = add(rhs[i], pulls[k]);
+            rhs[j] = sub(rhs[j], pulls[k]);
+            if k == 2 {
+                kept_rhs[i] = add(kept_rhs[i], pulls[k]);
+                kept_rhs[j] = sub(kept_rhs[j], pulls[k]);
+            }
+        }
+        let current: Vec<Vec3> = (0..n).map(|v| [0.01 * v as f64, -0.02, (v as f64 * 0.7).cos()]).collect();
+        let region: Vec<usize> = vec![19, 20, 21, 26, 27, 28, 33, 34, 40, 41];
+        let constraints = [(26usize, 3.0 * with.diagonal(26), [0.2, 0.1, -0.1])];
+        let released: Vec<(usize, usize, f64, Vec3)> =
+            springs[..2].iter().zip(pulls).map(|(&(i, j), t)| (i as usize, j as usize, w, t)).collect();
+        let got = with.solve_local(&region, &constraints, &released, &rhs, &current).unwrap();
+        let expected = without.solve_local(&region, &constraints, &[], &kept_rhs, &current).unwrap();
+        for v in 0..n {
+            assert!((0..3).all(|c| (got[v][c] - expected[v][c]).abs() < 1e-9), "vertex {v}: {:?} vs {:?}", got[v], expected[v]);
+        }
+        // Not released, the springs pull the region elsewhere.
+        let pulled = with.solve_local(&region, &constraints, &[], &rhs, &current).unwrap();
+        assert!(region.iter().any(|&v| (0..3).any(|c| (pulled[v][c] - expected[v][c]).abs() > 1e-3)));
+    }
 }

@@ -326,6 +326,7 @@ mod tests {
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
     use crate::transfer::tests::{lip_closing, lips, skin_over_teeth};
+    use crate::transfer::virtual_edges::VirtualEdgeParams;
     use crate::transfer::{DeformationTransfer, TransferParams};
 
     /// `neutral + delta` as positions.
@@ -345,6 +346,39 @@ mod tests {
         let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
         assert!(!pairs.is_empty());
         (source, dt, guard, positions, pairs)
+    }
+
+    #[test]
+    fn a_fold_is_the_springs_only_where_a_spring_pulls_and_the_template_stays_upright() {
+        // The two-layer lips with virtual edges between the layers. A plain solve that turns
+        // over a triangle with a spring at a corner is a spring fold (its springs are released,
+        // its corners not held); not when the template's shape turns it over too, nor a
+        // triangle no spring pulls at.
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let params = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), edge_weight: 1.0, ..Default::default() };
+        let dt = DeformationTransfer::new(&source, &target, &tris, &params).unwrap();
+        let springs = dt.springs(&vec![[0.0; 3]; source.len()]);
+        assert!(!springs.is_empty());
+        let pulled = |v: u32| springs.iter().any(|&(i, j, _, _)| i == v as usize || j == v as usize);
+        let with = tris.iter().position(|t| t.iter().any(|&v| pulled(v))).unwrap();
+        let without = tris.iter().position(|t| t.iter().all(|&v| !pulled(v))).expect("a triangle no spring pulls at");
+        // Each turned over by taking its first corner across the opposite edge.
+        let turn = |points: &[Vec3], t: usize, out: &mut Vec<Vec3>| {
+            let [a, b, c] = tris[t].map(|v| v as usize);
+            out[a] = add(out[a], [0, 1, 2].map(|k| points[b][k] + points[c][k] - 2.0 * points[a][k]));
+        };
+        let mut plain = vec![[0.0; 3]; source.len()];
+        turn(&dt.target_neutral, with, &mut plain);
+        turn(&dt.target_neutral, without, &mut plain);
+        let upright = dt.source_neutral.clone();
+        let folds = dt.spring_folds(&springs, &plain, &upright);
+        assert!(folds[with] && !folds[without]);
+        let mut turned = upright.clone();
+        turn(&dt.source_neutral, with, &mut turned);
+        assert!(!dt.spring_folds(&springs, &plain, &turned)[with]);
+        // Nothing turned over, nothing folded.
+        assert!(!dt.spring_folds(&springs, &vec![[0.0; 3]; source.len()], &upright).iter().any(|&f| f));
     }
 
     #[test]

@@ -607,7 +607,10 @@ impl DeformationTransfer {
             held = true;
             // Pairs with a triangle the springs folded over (module docs' "Folds"): their
             // springs are released around them instead of their corners held.
-            let folds = shared.folds.get_or_init(|| self.spring_folds(shared, shape, &plain, &contacts.positions));
+            let folds = shared.folds.get_or_init(|| {
+                let springs = shared.springs.get_or_init(|| self.springs(shape.delta));
+                self.spring_folds(springs, &plain, &contacts.positions)
+            });
             let folded = |t: u32| folds[t as usize];
             let (fold_pairs, new_pairs): (Vec<(u32, u32)>, Vec<(u32, u32)>) =
                 new_pairs.into_iter().partition(|&(a, b)| folded(a) || folded(b));
@@ -702,13 +705,12 @@ impl DeformationTransfer {
         Ok((outcome, excess))
     }
 
-    /// Per triangle, whether the virtual-edge springs folded it over in the plain solve
-    /// (`plain`, deltas): turned over against the target's neutral while the template's shape
-    /// (`template`, positions) keeps it upright, with a corner a spring pulls at. The shape's
-    /// springs are kept in `shared` for the re-solves that release them.
-    fn spring_folds(&self, shared: &PlainRound, shape: &ShapeSystem<'_>, plain: &[Vec3], template: &[Vec3]) -> Vec<bool> {
+    /// Per triangle, whether the virtual-edge springs `springs` folded it over in the plain
+    /// solve (`plain`, deltas): turned over against the target's neutral while the template's
+    /// shape (`template`, positions) keeps it upright, with a corner a spring pulls at.
+    pub(super) fn spring_folds(&self, springs: &[(usize, usize, f64, Vec3)], plain: &[Vec3], template: &[Vec3]) -> Vec<bool> {
         let mut spring_end = vec![false; plain.len()];
-        for &(i, j, _, _) in shared.springs.get_or_init(|| self.springs(shape.delta)) {
+        for &(i, j, _, _) in springs {
             spring_end[i] = true;
             spring_end[j] = true;
         }
