@@ -172,9 +172,10 @@ impl SymmetricMatrix {
     ) -> ShapesmithResult<Cholesky> {
         let mut submatrix = self.restricted(position, kept.len(), kept.iter().copied());
         for &(r, c, value) in off_diagonal {
-            let (lo, hi) = { let (a, b) = (position[r] as usize, position[c] as usize); (a.min(b), a.max(b)) };
-            let column = submatrix.col_ptr[lo]..submatrix.col_ptr[lo + 1];
-            let Some(k) = column.clone().find(|&k| submatrix.row_idx[k] == hi) else {
+            // The lower triangle's entry: in the column of the smaller of the two.
+            let (a, b) = (position[r] as usize, position[c] as usize);
+            let (lo, hi) = (a.min(b), a.max(b));
+            let Some(k) = (submatrix.col_ptr[lo]..submatrix.col_ptr[lo + 1]).find(|&k| submatrix.row_idx[k] == hi) else {
                 return Err(ShapesmithError::Solver(format!("no stored entry ({r}, {c}) to change")));
             };
             submatrix.values[k] += value;

@@ -623,8 +623,7 @@ impl DeformationTransfer {
                 self.spring_folds(springs, &plain, &contacts.positions)
             });
             let folded = |t: u32| folds[t as usize];
-            let (fold_pairs, new_pairs): (Vec<(u32, u32)>, Vec<(u32, u32)>) =
-                new_pairs.into_iter().partition(|&(a, b)| folded(a) || folded(b));
+            let (fold_pairs, new_pairs): (Vec<_>, Vec<_>) = new_pairs.into_iter().partition(|&(a, b)| folded(a) || folded(b));
             let fold_seeds: Vec<(usize, f64)> = fold_pairs
                 .iter()
                 .flat_map(|&(a, b)| self.triangles[a as usize].into_iter().chain(self.triangles[b as usize]))
