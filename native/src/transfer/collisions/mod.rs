@@ -125,8 +125,9 @@
 //!   19k mouthClose 1318 / 41 (30.9 / 10.3 of 30.9), 25k jawOpen 0 / 127 (- / 12.8 of 40.6),
 //!   mouthClose 0 / 156 (- / 10.8 of 30.2): the lips around a fold follow the gradients
 //!   without the springs. Pass seconds on the 25k head (`time_transfer`, before and after
-//!   alternately, load 5-6 from other work): 4.76 / 3.28 / 4.11 against 1.72 / 1.99 / 2.54,
-//!   best of 3 -48%; local re-solves 188 -> 135; bits edabb6258832579c -> d66bb356a4a6bde1.
+//!   alternately, load 4-6 from other work, two runs of 3): 4.76 / 3.28 / 4.11 and 2.91 / 2.66
+//!   / 2.88 against 1.72 / 1.99 / 2.54 and 1.58 / 1.62 / 0.98, best -48% and -63%; local
+//!   re-solves 188 -> 135; bits edabb6258832579c -> d66bb356a4a6bde1.
 //! - Earlier rounds (from 5 / 5 / 5 down to 0 / 0 / 0 / 1 / 2, what was tried and dropped, with
 //!   the numbers): docs/transfer.md, "Earlier rounds of the collision pass".
 
