@@ -155,7 +155,31 @@ impl SymmetricMatrix {
     /// elimination order (`rank[order[s]] == s`). Same submatrix, same order restricted, so
     /// the same factor to the bit.
     pub fn factor_subset_plus_diagonal(&self, kept: &[usize], position: &[u32], rank: &[usize], extra: &[(usize, f64)]) -> ShapesmithResult<Cholesky> {
-        let submatrix = self.restricted(position, kept.len(), kept.iter().copied());
+        self.factor_subset_plus(kept, position, rank, extra, &[])
+    }
+
+    /// [`Self::factor_subset_plus_diagonal`] with `off_diagonal` `(r, c, value)` (by
+    /// original unknown, both kept, `r != c`) also added to the stored entry `A_rc` (and
+    /// `A_cr`): the springs the collision pass releases. An entry that is not stored is an
+    /// error.
+    pub fn factor_subset_plus(
+        &self,
+        kept: &[usize],
+        position: &[u32],
+        rank: &[usize],
+        extra: &[(usize, f64)],
+        off_diagonal: &[(usize, usize, f64)],
+    ) -> ShapesmithResult<Cholesky> {
+        let mut submatrix = self.restricted(position, kept.len(), kept.iter().copied());
+        for &(r, c, value) in off_diagonal {
+            // The lower triangle's entry: in the column of the smaller of the two.
+            let (a, b) = (position[r] as usize, position[c] as usize);
+            let (lo, hi) = (a.min(b), a.max(b));
+            let Some(k) = (submatrix.col_ptr[lo]..submatrix.col_ptr[lo + 1]).find(|&k| submatrix.row_idx[k] == hi) else {
+                return Err(ShapesmithError::Solver(format!("no stored entry ({r}, {c}) to change")));
+            };
+            submatrix.values[k] += value;
+        }
         // The whole order restricted to the kept unknowns: them, sorted by rank.
         let mut forward: Vec<usize> = (0..kept.len()).collect();
         forward.sort_unstable_by_key(|&p| rank[kept[p]]);

@@ -336,6 +336,16 @@ impl DeformationTransfer {
             .collect()
     }
 
+    /// The virtual-edge springs of the source shape `delta` as the shape's system has them:
+    /// `(i, j, w_ve, w_ve (f_k - f_0))` ([`Self::edge_change`]).
+    pub(super) fn springs(&self, delta: &[[f32; 3]]) -> Vec<(usize, usize, f64, Vec3)> {
+        self.virtual_edges
+            .iter()
+            .zip(self.edge_changes(delta))
+            .map(|(&(i, j), change)| (i as usize, j as usize, self.edge_weight, scale(change, self.edge_weight)))
+            .collect()
+    }
+
     /// [`Self::solve_shape`], followed by the collision pass when `collisions` is given and the
     /// pass is configured (with the curve the template's shape adds to its neutral, when
     /// known), with the deltas before the pass and what it did.

@@ -1,8 +1,11 @@
 //! Which vertices went through another surface, and where each is held: the module docs' "Which
 //! vertices, and where to" (`collisions/mod.rs`). A vertex the template's own shape takes
-//! across the same obstacle is not held (`template_crosses`).
+//! across the same obstacle is not held (`template_crosses`). Also the local re-solve's region
+//! (`grow_region`) and the triangles the virtual-edge springs folded (`spring_folds`, the
+//! module docs' "Folds").
 
-use std::collections::{BTreeMap, HashSet};
+use std::cmp;
+use std::collections::{BTreeMap, BinaryHeap, HashSet};
 
 use super::contacts::TemplateContacts;
 use super::{Attempt, CollisionGuard, Neutral, Targets};
@@ -122,6 +125,72 @@ impl DeformationTransfer {
             }
         }
         pushes.into_iter().map(|(u, push)| (u, add(positions[u], push))).collect()
+    }
+
+    /// Per triangle, whether the virtual-edge springs `springs` folded it over in the plain
+    /// solve (`plain`, deltas): turned over against the target's neutral while the template's
+    /// shape (`template`, positions) keeps it upright, with a corner a spring pulls at.
+    pub(super) fn spring_folds(&self, springs: &[(usize, usize, f64, Vec3)], plain: &[Vec3], template: &[Vec3]) -> Vec<bool> {
+        let mut spring_end = vec![false; plain.len()];
+        for &(i, j, _, _) in springs {
+            spring_end[i] = true;
+            spring_end[j] = true;
+        }
+        let positions: Vec<Vec3> = self.target_neutral.iter().zip(plain).map(|(p, d)| add(*p, *d)).collect();
+        let normal = |t: &[u32; 3], p: &[Vec3]| {
+            let c = t.map(|v| p[v as usize]);
+            cross(sub(c[1], c[0]), sub(c[2], c[0]))
+        };
+        self.triangles
+            .iter()
+            .map(|t| {
+                t.iter().any(|&v| spring_end[v as usize])
+                    && dot(normal(t, &positions), normal(t, &self.target_neutral)) < 0.0
+                    && dot(normal(t, template), normal(t, &self.source_neutral)) >= 0.0
+            })
+            .collect()
+    }
+
+    /// Adds to `region` the free vertices within reach of the seeds `(u, reach)` along the
+    /// target neutral's edges: `REGION_RINGS` of `u`'s edge lengths, or `REGION_SPREAD` times
+    /// the distance `u` is pushed, whichever is more. Outside the region the shape stays as
+    /// solved; inside, the energy spreads the push smoothly instead of folding the vertices
+    /// next to a held one.
+    pub(super) fn grow_region(&self, guard: &CollisionGuard, seeds: &[(usize, f64)], free: &[bool], region: &mut [bool]) {
+        #[derive(PartialEq)]
+        struct Budget(f64, usize);
+        impl Eq for Budget {}
+        impl PartialOrd for Budget {
+            fn partial_cmp(&self, other: &Self) -> Option<cmp::Ordering> {
+                Some(self.cmp(other))
+            }
+        }
+        impl Ord for Budget {
+            fn cmp(&self, other: &Self) -> cmp::Ordering {
+                self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+            }
+        }
+        // Per vertex, the most budget it was reached with (none yet: below any budget).
+        let mut best = vec![f64::NEG_INFINITY; region.len()];
+        let mut heap = BinaryHeap::new();
+        for &(u, reach) in seeds {
+            let budget = (REGION_RINGS * guard.edge_length[u]).max(REGION_SPREAD * reach);
+            heap.push(Budget(budget, u));
+        }
+        while let Some(Budget(budget, v)) = heap.pop() {
+            if best[v] >= budget {
+                continue;
+            }
+            best[v] = budget;
+            region[v] = true;
+            for &w in guard.adjacency.neighbours(v) {
+                let w = w as usize;
+                let left = budget - length(sub(self.target_neutral[w], self.target_neutral[v]));
+                if free[w] && left >= 0.0 && best[w] < left {
+                    heap.push(Budget(left, w));
+                }
+            }
+        }
     }
 
     /// The push of vertex `u` against triangle `t` of a surface that moves too: across its
@@ -296,6 +365,11 @@ impl DeformationTransfer {
     }
 }
 
+/// How far the local re-solve reaches from a held vertex, in its edge lengths at least, and
+/// in multiples of the distance it is pushed.
+const REGION_RINGS: f64 = 3.0;
+const REGION_SPREAD: f64 = 3.0;
+
 /// A corner of a pair against a static piece that moves at most this many of its edge lengths
 /// is held at rest instead of pushed to the surface plus the margin: the MakeHuman lids and
 /// lips already cross their eyeballs and teeth at rest, and a sub-millimetre drift there
@@ -326,6 +400,7 @@ mod tests {
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
     use crate::transfer::tests::{lip_closing, lips, skin_over_teeth};
+    use crate::transfer::virtual_edges::VirtualEdgeParams;
     use crate::transfer::{DeformationTransfer, TransferParams};
 
     /// `neutral + delta` as positions.
@@ -345,6 +420,39 @@ mod tests {
         let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
         assert!(!pairs.is_empty());
         (source, dt, guard, positions, pairs)
+    }
+
+    #[test]
+    fn a_fold_is_the_springs_only_where_a_spring_pulls_and_the_template_stays_upright() {
+        // The two-layer lips with virtual edges between the layers. A plain solve that turns
+        // over a triangle with a spring at a corner is a spring fold (its springs are released,
+        // its corners not held); not when the template's shape turns it over too, nor a
+        // triangle no spring pulls at.
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let params = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), edge_weight: 1.0, ..Default::default() };
+        let dt = DeformationTransfer::new(&source, &target, &tris, &params).unwrap();
+        let springs = dt.springs(&vec![[0.0; 3]; source.len()]);
+        assert!(!springs.is_empty());
+        let pulled = |v: u32| springs.iter().any(|&(i, j, _, _)| i == v as usize || j == v as usize);
+        let with = tris.iter().position(|t| t.iter().any(|&v| pulled(v))).unwrap();
+        let without = tris.iter().position(|t| t.iter().all(|&v| !pulled(v))).expect("a triangle no spring pulls at");
+        // Each turned over by taking its first corner across the opposite edge.
+        let turn = |points: &[Vec3], t: usize, out: &mut Vec<Vec3>| {
+            let [a, b, c] = tris[t].map(|v| v as usize);
+            out[a] = add(out[a], [0, 1, 2].map(|k| points[b][k] + points[c][k] - 2.0 * points[a][k]));
+        };
+        let mut plain = vec![[0.0; 3]; source.len()];
+        turn(&dt.target_neutral, with, &mut plain);
+        turn(&dt.target_neutral, without, &mut plain);
+        let upright = dt.source_neutral.clone();
+        let folds = dt.spring_folds(&springs, &plain, &upright);
+        assert!(folds[with] && !folds[without]);
+        let mut turned = upright.clone();
+        turn(&dt.source_neutral, with, &mut turned);
+        assert!(!dt.spring_folds(&springs, &plain, &turned)[with]);
+        // Nothing turned over, nothing folded.
+        assert!(!dt.spring_folds(&springs, &vec![[0.0; 3]; source.len()], &upright).iter().any(|&f| f));
     }
 
     #[test]
