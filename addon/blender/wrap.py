@@ -349,7 +349,10 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     # The keys as the rigger gets them: judged on the character's own mesh, not on the
     # wrapped template the transfer (and its collision pass) worked on.
     report["wrapped_penetration"] = report["penetration"]
-    character_penetration = native.module().measure_penetration(character_neutral, deltas, character_triangles)
+    # The carry's collision pass measured the keys it kept (the same numbers, to the bit).
+    character_penetration = carry_report.pop("penetration", None)
+    if character_penetration is None:
+        character_penetration = native.module().measure_penetration(character_neutral, deltas, character_triangles)
     report["penetration"] = character_rows(report, character_penetration)
     report["neutral_penetration"] = character_penetration["neutral"]
     stage_seconds = dict(seconds or {})

@@ -30,7 +30,8 @@ use crate::geometry::topology::connected_components;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
-use super::collisions::{AddedCurve, CarryCollision, Guard};
+use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard};
+use crate::geometry::penetration::Penetration;
 use super::pieces::ANY_PART;
 
 /// Knobs of [`carry_shapes`].
@@ -84,6 +85,8 @@ pub struct CarryResult {
     pub max_binding_distance: f64,
     /// Per shape, what the collision pass did (empty when it was off).
     pub collisions: Vec<CarryCollision>,
+    /// The carried keys' penetration on the character (with the collision pass only).
+    pub penetration: Option<CarryPenetration>,
 }
 
 /// Each point's closest point on a surface (rayon across points).
@@ -222,7 +225,7 @@ pub fn carry_shapes(
 
     let solving = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let shapes: Vec<(Vec<[f32; 3]>, Option<CarryCollision>)> = (0..n_shapes)
+    let shapes: Vec<(Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>)> = (0..n_shapes)
         .into_par_iter()
         .map(|k| {
             let deltas = &template_deltas[k * nt..(k + 1) * nt];
@@ -242,8 +245,8 @@ pub fn carry_shapes(
             )?;
             let result = match (&guard, template_added) {
                 (Some(guard), Some(added)) => {
-                    let (deltas, outcome) = guard.resolve(&solved, &rhs, &static_vertex, &added[k], &laplacian)?;
-                    (deltas, Some(outcome))
+                    let (deltas, outcome, penetration) = guard.resolve(&solved, &rhs, &static_vertex, &added[k], &laplacian)?;
+                    (deltas, Some((outcome, penetration)))
                 }
                 _ => (solved.iter().map(|d| d.map(|x| x as f32)).collect(), None),
             };
@@ -252,13 +255,18 @@ pub fn carry_shapes(
             Ok(result)
         })
         .collect::<ShapesmithResult<_>>()?;
-    let collisions = shapes.iter().filter_map(|(_, outcome)| *outcome).collect();
+    let collisions = shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.0)).collect();
+    let penetration = guard.as_ref().map(|guard| CarryPenetration {
+        neutral: guard.rest(),
+        shapes: shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.1)).collect(),
+    });
     Ok(CarryResult {
         deltas: shapes.into_iter().flat_map(|(deltas, _)| deltas).collect(),
         setup_seconds,
         solve_seconds: solving.elapsed().as_secs_f64(),
         max_binding_distance,
         collisions,
+        penetration,
     })
 }
 

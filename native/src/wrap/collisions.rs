@@ -41,7 +41,7 @@ use std::collections::BTreeMap;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, cross, dot, length, scale, sub, Vec3};
-use crate::geometry::penetration::{crossings, shape_penetration, Penetration};
+use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
 use crate::geometry::topology::Adjacency;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
 
@@ -88,11 +88,29 @@ pub struct CarryCollision {
     pub held_vertices: usize,
 }
 
+/// The character's penetration (SPEC section 3's metric) at rest and in each kept shape, as
+/// `measure_penetration` gives it: the pass sweeps every shape anyway, so the add-on need not.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CarryPenetration {
+    pub neutral: Penetration,
+    pub shapes: Vec<Penetration>,
+}
+
 /// Re-solved rounds per shape at most.
 const ROUNDS: usize = 4;
 
 /// The re-solve's region: free vertices within this many screening lengths of a held vertex.
 const REACH: f64 = 1.5;
+
+/// A shape's positions, crossing pairs (those with a moved triangle), moved triangles and
+/// added curve.
+struct Swept {
+    posed: Vec<Vec3>,
+    pairs: Vec<(u32, u32, f64)>,
+    moved: Vec<bool>,
+    penetration: Penetration,
+    added: AddedCurve,
+}
 
 /// The character at rest, measured once for every shape.
 pub(super) struct Guard<'a> {
@@ -166,14 +184,43 @@ impl<'a> Guard<'a> {
         }
     }
 
-    /// The positions written for `deltas` (f32 sums, as the keys are measured) and the
-    /// crossing pairs of the moved triangles, with the rest's unmoved pairs.
-    fn sweep(&self, deltas: &[[f32; 3]]) -> (Vec<Vec3>, Vec<(u32, u32, f64)>, AddedCurve) {
-        let posed: Vec<Vec3> = self.character.iter().zip(deltas).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
+    /// The character's own penetration at rest.
+    pub(super) fn rest(&self) -> Penetration {
+        self.rest
+    }
+
+    /// The positions written for `deltas` (f32 sums, as the keys are measured), the crossing
+    /// pairs of the moved triangles and the curve added to the rest.
+    fn sweep(&self, deltas: &[[f32; 3]]) -> Swept {
+        let posed = self.posed(deltas);
         let moved: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| deltas[v as usize] != [0.0; 3])).collect();
-        let swept = crossings(&posed, self.triangles, &self.bvh.refitted(&posed, self.triangles), Some(&moved));
-        let added = AddedCurve::from_penetrations(&shape_penetration(&swept, &self.rest_pairs, &moved, &self.triangle_piece), &self.rest);
-        (posed, swept, added)
+        let pairs = crossings(&posed, self.triangles, &self.bvh.refitted(&posed, self.triangles), Some(&moved));
+        self.swept(posed, pairs, moved)
+    }
+
+    /// [`Self::sweep`] of a round that changed `plain`'s deltas in `region` only: the triangles
+    /// with a corner there are swept again (one hierarchy query each), `plain`'s other pairs
+    /// kept; the same pairs and lengths as a full sweep (`crossings_of`).
+    fn resweep(&self, plain: &Swept, deltas: &[[f32; 3]], region: &[bool]) -> Swept {
+        let posed = self.posed(deltas);
+        let listed: Vec<u32> = (0..self.triangles.len() as u32).filter(|&t| self.triangles[t as usize].iter().any(|&v| region[v as usize])).collect();
+        let mut moved = plain.moved.clone();
+        listed.iter().for_each(|&t| moved[t as usize] = true);
+        let is_listed = |t: u32| self.triangles[t as usize].iter().any(|&v| region[v as usize]);
+        let mut pairs: Vec<(u32, u32, f64)> = plain.pairs.iter().copied().filter(|&(a, b, _)| !is_listed(a) && !is_listed(b)).collect();
+        pairs.extend(crossings_of(&posed, self.triangles, &self.bvh.refitted(&posed, self.triangles), &listed));
+        pairs.sort_by_key(|&(a, b, _)| (a, b));
+        self.swept(posed, pairs, moved)
+    }
+
+    fn posed(&self, deltas: &[[f32; 3]]) -> Vec<Vec3> {
+        self.character.iter().zip(deltas).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect()
+    }
+
+    fn swept(&self, posed: Vec<Vec3>, pairs: Vec<(u32, u32, f64)>, moved: Vec<bool>) -> Swept {
+        let penetration = shape_penetration(&pairs, &self.rest_pairs, &moved, &self.triangle_piece);
+        let added = AddedCurve::from_penetrations(&penetration, &self.rest);
+        Swept { posed, pairs, moved, penetration, added }
     }
 
     /// The carried shape `solved` (f64, static vertices zero) held off the surfaces it goes
@@ -186,36 +233,40 @@ impl<'a> Guard<'a> {
         static_vertex: &[bool],
         template: &AddedCurve,
         matrix: &SymmetricMatrix,
-    ) -> ShapesmithResult<(Vec<[f32; 3]>, CarryCollision)> {
+    ) -> ShapesmithResult<(Vec<[f32; 3]>, CarryCollision, Penetration)> {
         let plain: Vec<[f32; 3]> = solved.iter().map(|d| d.map(|x| x as f32)).collect();
-        let (mut posed, mut swept, added) = self.sweep(&plain);
-        let plain_excess = added.excess_parts(template);
+        let plain_sweep = self.sweep(&plain);
+        let plain_excess = plain_sweep.added.excess_parts(template);
         let mut outcome = CarryCollision { plain_excess: plain_excess.total(), excess: plain_excess.total(), ..Default::default() };
         if plain_excess.total() <= self.tolerance {
-            return Ok((plain, outcome));
+            return Ok((plain, outcome, plain_sweep.penetration));
         }
         let mut best = plain.clone();
+        let mut best_penetration = plain_sweep.penetration;
         let mut parts = plain_excess;
         let mut targets: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut current = plain;
+        let mut current_sweep = None;
         for _ in 0..ROUNDS {
-            if !self.hold(&posed, &swept, &current, static_vertex, parts, &mut targets) {
+            let sweep = current_sweep.as_ref().unwrap_or(&plain_sweep);
+            if !self.hold(&sweep.posed, &sweep.pairs, &current, static_vertex, parts, &mut targets) {
                 break;
             }
-            let round = self.local_solve(solved, rhs, static_vertex, &targets, matrix)?;
+            let (round, region) = self.local_solve(solved, rhs, static_vertex, &targets, matrix)?;
             outcome.solves += 1;
-            let (round_posed, round_swept, round_added) = self.sweep(&round);
-            let round_parts = round_added.excess_parts(template);
+            let round_sweep = self.resweep(&plain_sweep, &round, &region);
+            let round_parts = round_sweep.added.excess_parts(template);
             if round_parts.total() < outcome.excess {
                 outcome = CarryCollision { excess: round_parts.total(), applied: true, held_vertices: targets.len(), ..outcome };
                 best = round.clone();
+                best_penetration = round_sweep.penetration;
             }
             if round_parts.total() <= self.tolerance {
                 break;
             }
-            (posed, swept, parts, current) = (round_posed, round_swept, round_parts, round);
+            (parts, current, current_sweep) = (round_parts, round, Some(round_sweep));
         }
-        Ok((best, outcome))
+        Ok((best, outcome, best_penetration))
     }
 
     /// Adds (or moves further) the targets of the free corners of the new crossing pairs of
@@ -299,8 +350,8 @@ impl<'a> Guard<'a> {
         (h * s < m).then(|| scale(n, s * m - h))
     }
 
-    /// The shape re-solved on the free vertices around the held ones, `targets` soft, the
-    /// rest of it as `solved`.
+    /// The shape re-solved on the free vertices around the held ones (the region, returned),
+    /// `targets` soft, the rest of it as `solved`.
     fn local_solve(
         &self,
         solved: &[Vec3],
@@ -308,7 +359,7 @@ impl<'a> Guard<'a> {
         static_vertex: &[bool],
         targets: &BTreeMap<usize, Vec3>,
         matrix: &SymmetricMatrix,
-    ) -> ShapesmithResult<Vec<[f32; 3]>> {
+    ) -> ShapesmithResult<(Vec<[f32; 3]>, Vec<bool>)> {
         let n = self.points.len();
         // Free vertices within reach of a held vertex (rest distances), by a flood over edges.
         let mut in_region = vec![false; n];
@@ -350,7 +401,7 @@ impl<'a> Guard<'a> {
         for (p, &v) in kept.iter().enumerate() {
             deltas[v] = local[p].map(|x| x as f32);
         }
-        Ok(deltas)
+        Ok((deltas, in_region))
     }
 }
 
@@ -442,6 +493,9 @@ mod tests {
         assert!(outcome.applied && outcome.plain_excess > 0.5, "{outcome:?}");
         let after = measure_penetration(&posed(&character, &held.deltas), &triangles);
         assert_eq!(after.pairs, 0, "{after:?}, {outcome:?}");
+        // The pass's own numbers are the full sweep's.
+        let penetration = held.penetration.as_ref().unwrap();
+        assert_eq!((penetration.shapes[0], penetration.neutral), (after, measure_penetration(&character, &triangles)));
         // The lips still close: the gap at the centre (x = 2.5, y = 1), 1.0 at rest, is
         // within a few margins (0.25 x the 0.25 edge, each side).
         let centre = |z: f32| character.iter().position(|p| (p[0] - 2.5).abs() < 1e-4 && (p[1] - 1.0).abs() < 1e-4 && p[2] == z).unwrap();
