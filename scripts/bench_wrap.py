@@ -158,6 +158,9 @@ def run_size(shapesmith, label, vertices, truth):
     )
     row["worse"] = {name: worse_than_template(rows, diagonal) for name, rows in (("carry", result.report["penetration"]), ("plain carry", plain_rows))}
     row["carry_seconds"] = {"carry": seconds["carry"], "plain carry": plain_seconds}
+    # What the carry's collision pass did to each shape it acted on.
+    names = [r["name"] for r in result.report["penetration"]]
+    row["carry_collisions"] = {n: c for n, c in zip(names, result.report["carry"].get("collisions", [])) if c["plain_excess"] > 0}
     wrap.remove_object(wrapped_object)
     return row
 
