@@ -35,6 +35,33 @@
 //! times its push) are unknowns; the rest of the shape stays as the plain carry solved it
 //! (Dirichlet), so a round factorises a small principal submatrix plus the diagonal
 //! (`SymmetricMatrix::factor_subset_plus_diagonal`) instead of the character's matrix.
+//! Targets and the region accumulate over the rounds (each round re-solves from the plain
+//! carry); a round's re-sweep tests again only the triangles with a corner in its region
+//! (`crossings_of`; the same pairs and lengths as a full sweep), and the kept round's
+//! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
+//!
+//! # Deviations (measured with `scripts/bench_wrap.py` and the sample's Character_YoungWoman;
+//! "worse": excess over 1e-3 of the character's diagonal, the add-on's `character_rows`)
+//!
+//! - **The carry has its own pass; the wrapped template's is not enough.** Shapes worse than
+//!   the template, plain carry -> with this pass: Character_YoungWoman 20 -> 2 (jawLeft +7.5
+//!   -> +0.11 cm, mouthLeft +1.45 -> +0.43 cm left; the barycentric copy of the same wrapped
+//!   keys 24, nearest-vertex 27); bench_wrap's 10k character 22 -> 12 (excess summed 0.67 ->
+//!   0.15 of the diagonal), 25k 19 -> 12 (0.72 -> 0.23). Error against the same-topology
+//!   transfer unchanged (1.30e-3 / 1.32e-3), roughness 4.30e-4 -> 4.39e-4 / 2.48e-4 ->
+//!   2.53e-4 (+2%). Carry seconds in the same run (2 cores, noisy): 10k 0.13 -> 0.34, 25k
+//!   0.39 -> 1.42, of which the sweep of every shape was paid before by the add-on's
+//!   `measure_penetration` (0.20 / 0.49 s, now 0.002): the chain on the 25k character 2.4 s.
+//! - **Left worse:** the rolled lips (mouthRollLower / Upper: the lip turns over, so the side
+//!   of the other triangle's plane it had at rest says nothing; the rounds find holds but none
+//!   lowers the excess, and the plain carry is kept), mouthPucker on the 25k, the squints
+//!   (cheekSquint, eyeSquint: lids and cheek folds, 0.2-0.5 cm), and partial clears of
+//!   jawLeft, mouthFrown, mouthDimple, mouthLowerDown (the kept round lowers them by half or
+//!   more).
+//! - **Tried and dropped:** stopping the rounds when one does not lower the excess of the
+//!   one before (the hopeless rolled lips take four rounds otherwise): 10k 14 and 25k 13
+//!   shapes worse instead of 12 / 12 (a round that is worse can be followed by one that
+//!   clears), 25k carry 1.27 s against 1.42 s.
 
 use std::collections::BTreeMap;
 
@@ -497,11 +524,12 @@ mod tests {
         let penetration = held.penetration.as_ref().unwrap();
         assert_eq!((penetration.shapes[0], penetration.neutral), (after, measure_penetration(&character, &triangles)));
         // The lips still close: the gap at the centre (x = 2.5, y = 1), 1.0 at rest, is
-        // within a few margins (0.25 x the 0.25 edge, each side).
+        // within a few margins (0.25 x the 0.25 edge, each side). Measured: the plain carry
+        // crosses along 3.0 (64 pairs), the pass clears it in 4 re-solves, gap 0.085.
         let centre = |z: f32| character.iter().position(|p| (p[0] - 2.5).abs() < 1e-4 && (p[1] - 1.0).abs() < 1e-4 && p[2] == z).unwrap();
         let (upper, lower) = (centre(0.5), centre(-0.5));
         let gap = (character[upper][2] + held.deltas[upper][2]) - (character[lower][2] + held.deltas[lower][2]);
-        assert!(gap > 0.0 && gap < 0.35, "gap {gap}");
+        assert!(gap > 0.0 && gap < 0.2, "gap {gap}");
     }
 
     #[test]
