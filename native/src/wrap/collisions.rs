@@ -349,8 +349,8 @@ impl<'a> Guard<'a> {
     }
 
     /// The push taking vertex `u` (now at `x`) to its rest side of static piece `piece`, at
-    /// its closest point there plus the margin; `None` when it is on that side beyond the
-    /// margin.
+    /// its closest point there plus the margin (back to rest when it moved at most twice the
+    /// margin); `None` when it is on that side beyond the margin.
     fn off_static_piece(&self, x: Vec3, u: usize, piece: u32) -> Option<Vec3> {
         let on_piece = |t: u32| self.triangle_piece[t as usize] == piece;
         let side = |p: Vec3| -> Option<(f64, Vec3, Vec3)> {
@@ -362,7 +362,14 @@ impl<'a> Guard<'a> {
         let (height, n, point) = side(x)?;
         let s = rest_height.signum();
         let m = self.margin[u];
-        (height * s < m).then(|| sub(add(point, scale(n, s * m)), x))
+        if height * s >= m {
+            return None;
+        }
+        // Skin resting on the piece (a lid on its eyeball, a lip on the teeth) that moved at
+        // most half an edge (twice the margin) goes back to where it rests, which crosses the
+        // piece as the neutral does, rather than out to the margin.
+        let rest = self.points[u];
+        Some(if length(sub(x, rest)) <= 2.0 * m { sub(rest, x) } else { sub(add(point, scale(n, s * m)), x) })
     }
 
     /// `(s m_u - h) n`: the push taking vertex `u` to its rest side of triangle `other`'s plane
