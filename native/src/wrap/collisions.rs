@@ -123,7 +123,12 @@ pub struct CarryPenetration {
     pub shapes: Vec<Penetration>,
 }
 
-/// Re-solved rounds per shape at most.
+/// The attempts, each from the plain carry, while the shape is still worse: skin that moved
+/// little sent back to rest against a static piece, then held at the margin like the rest
+/// (each clears shapes the other does not: Deviations).
+const ATTEMPTS: [bool; 2] = [true, false];
+
+/// Re-solved rounds per attempt at most.
 const ROUNDS: usize = 4;
 
 /// The re-solve's region: free vertices within this many screening lengths of a held vertex.
@@ -270,28 +275,33 @@ impl<'a> Guard<'a> {
         }
         let mut best = plain.clone();
         let mut best_penetration = plain_sweep.penetration;
-        let mut parts = plain_excess;
-        let mut targets: BTreeMap<usize, Vec3> = BTreeMap::new();
-        let mut current = plain;
-        let mut current_sweep = None;
-        for _ in 0..ROUNDS {
-            let sweep = current_sweep.as_ref().unwrap_or(&plain_sweep);
-            if !self.hold(&sweep.posed, &sweep.pairs, &current, static_vertex, parts, &mut targets) {
+        for back_to_rest in ATTEMPTS {
+            if outcome.excess <= self.tolerance {
                 break;
             }
-            let (round, region) = self.local_solve(solved, rhs, static_vertex, &targets, matrix)?;
-            outcome.solves += 1;
-            let round_sweep = self.resweep(&plain_sweep, &round, &region);
-            let round_parts = round_sweep.added.excess_parts(template);
-            if round_parts.total() < outcome.excess {
-                outcome = CarryCollision { excess: round_parts.total(), applied: true, held_vertices: targets.len(), ..outcome };
-                best = round.clone();
-                best_penetration = round_sweep.penetration;
+            let mut parts = plain_excess;
+            let mut targets: BTreeMap<usize, Vec3> = BTreeMap::new();
+            let mut current = plain.clone();
+            let mut current_sweep = None;
+            for _ in 0..ROUNDS {
+                let sweep = current_sweep.as_ref().unwrap_or(&plain_sweep);
+                if !self.hold(&sweep.posed, &sweep.pairs, &current, static_vertex, parts, back_to_rest, &mut targets) {
+                    break;
+                }
+                let (round, region) = self.local_solve(solved, rhs, static_vertex, &targets, matrix)?;
+                outcome.solves += 1;
+                let round_sweep = self.resweep(&plain_sweep, &round, &region);
+                let round_parts = round_sweep.added.excess_parts(template);
+                if round_parts.total() < outcome.excess {
+                    outcome = CarryCollision { excess: round_parts.total(), applied: true, held_vertices: targets.len(), ..outcome };
+                    best = round.clone();
+                    best_penetration = round_sweep.penetration;
+                }
+                if round_parts.total() <= self.tolerance {
+                    break;
+                }
+                (parts, current, current_sweep) = (round_parts, round, Some(round_sweep));
             }
-            if round_parts.total() <= self.tolerance {
-                break;
-            }
-            (parts, current, current_sweep) = (round_parts, round, Some(round_sweep));
         }
         Ok((best, outcome, best_penetration))
     }
@@ -305,6 +315,7 @@ impl<'a> Guard<'a> {
         deltas: &[[f32; 3]],
         static_vertex: &[bool],
         parts: AddedCurve,
+        back_to_rest: bool,
         targets: &mut BTreeMap<usize, Vec3>,
     ) -> bool {
         let mut piece_moves = vec![false; self.n_pieces];
@@ -327,7 +338,7 @@ impl<'a> Guard<'a> {
                     }
                     let other_piece = self.triangle_piece[other as usize];
                     let push = if !inside && !piece_moves[other_piece as usize] {
-                        self.off_static_piece(posed[u], u, other_piece)
+                        self.off_static_piece(posed[u], u, other_piece, back_to_rest)
                     } else {
                         let other_moves = self.triangles[other as usize].iter().any(|&w| deltas[w as usize] != [0.0; 3]);
                         self.off_plane(posed, u, other as usize).map(|p| if other_moves { scale(p, 0.5) } else { p })
@@ -351,7 +362,7 @@ impl<'a> Guard<'a> {
     /// The push taking vertex `u` (now at `x`) to its rest side of static piece `piece`, at
     /// its closest point there plus the margin (back to rest when it moved at most twice the
     /// margin); `None` when it is on that side beyond the margin.
-    fn off_static_piece(&self, x: Vec3, u: usize, piece: u32) -> Option<Vec3> {
+    fn off_static_piece(&self, x: Vec3, u: usize, piece: u32, back_to_rest: bool) -> Option<Vec3> {
         let on_piece = |t: u32| self.triangle_piece[t as usize] == piece;
         let side = |p: Vec3| -> Option<(f64, Vec3, Vec3)> {
             let hit = self.bvh.closest_point_where(&p, f64::INFINITY, on_piece)?;
@@ -369,7 +380,7 @@ impl<'a> Guard<'a> {
         // most half an edge (twice the margin) goes back to where it rests, which crosses the
         // piece as the neutral does, rather than out to the margin.
         let rest = self.points[u];
-        Some(if length(sub(x, rest)) <= 2.0 * m { sub(rest, x) } else { sub(add(point, scale(n, s * m)), x) })
+        Some(if back_to_rest && length(sub(x, rest)) <= 2.0 * m { sub(rest, x) } else { sub(add(point, scale(n, s * m)), x) })
     }
 
     /// `(s m_u - h) n`: the push taking vertex `u` to its rest side of triangle `other`'s plane
