@@ -225,7 +225,7 @@ pub fn carry_shapes(
 
     let solving = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let shapes: Vec<(Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>)> = (0..n_shapes)
+    let shapes: Vec<CarriedShape> = (0..n_shapes)
         .into_par_iter()
         .map(|k| {
             let deltas = &template_deltas[k * nt..(k + 1) * nt];
@@ -269,6 +269,10 @@ pub fn carry_shapes(
         penetration,
     })
 }
+
+/// A carried shape's deltas, and with the collision pass what it did and the kept result's
+/// penetration.
+type CarriedShape = (Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>);
 
 /// One template shape on the wrapped template.
 struct Shape<'a> {

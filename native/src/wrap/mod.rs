@@ -79,7 +79,7 @@
 //!   which carries the wrapped template's collision-free keys as they are): the character's
 //!   lips are closer and coarser than the wrapped template's, so its motion copied faithfully
 //!   still crosses them. Character_YoungWoman: 20 of 52 carried shapes worse than the template
-//!   without it, 2 with it; bench_wrap's 10k / 25k characters 22 / 19 -> 12 / 12, the error
+//!   without it, 1 with it; bench_wrap's 10k / 25k characters 22 / 19 -> 11 / 10, the error
 //!   against the same-topology transfer unchanged (numbers in `collisions`).
 
 mod align;
