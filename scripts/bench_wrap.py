@@ -14,7 +14,10 @@ wrapped template's keys measured in the same run, and the fit's floor (the same-
 keys copied from where the fit put each template vertex, as if the transfer onto the wrapped
 template were exact: the error the fit's slide along the surface alone causes); and the
 keys' roughness (mean norm of the uniform Laplacian of the deltas on moving vertices, /
-diagonal).
+diagonal); and the shapes of the carried keys that add more intersection curve to the
+character's neutral than the template's shape adds to the template's (issue 9's criterion,
+excess over 1e-3 of the diagonal), with the carry's collision pass (the chain's default) and
+without it (the plain carry of the same wrapped keys, timed in the same run).
 """
 
 import argparse
@@ -117,8 +120,18 @@ def run_size(shapesmith, label, vertices, truth):
     reference = np.stack([makehuman.character_frame(r, SCALE) for r in reference])
     wrapped_positions = positions(wrapped_object)
     wrapped_deltas = transfer.transfer_object(template, wrapped_object).deltas.astype(np.float64)
+    plain_started = time.perf_counter()
+    plain, _ = nat.carry_shapes(
+        np.ascontiguousarray(wrapped_positions, dtype=np.float32),
+        mesh_arrays.read_triangles(wrapped_object),
+        np.ascontiguousarray(wrapped_deltas, dtype=np.float32),
+        np.ascontiguousarray(points, dtype=np.float32),
+        mesh_arrays.read_triangles(character),
+    )
+    plain_seconds = time.perf_counter() - plain_started
     copies = {
         "carry": result.deltas.astype(np.float64),
+        "plain carry": plain.astype(np.float64),
         "nearest vertex": nearest_vertex_copy(wrapped_positions, wrapped_deltas, points),
         "barycentric": barycentric_copy(nat, points, wrapped_positions, mesh_arrays.read_triangles(wrapped_object), wrapped_deltas),
     }
@@ -138,8 +151,25 @@ def run_size(shapesmith, label, vertices, truth):
         "roughness": {name: roughness(d, edges, reference, diagonal) for name, d in copies.items()},
     }
     row["roughness"]["same-topology (sampled)"] = roughness(reference, edges, reference, diagonal)
+    plain_report = {k: v for k, v in result.report.items() if k != "carry"}
+    plain_report["penetration"] = result.report["wrapped_penetration"]
+    plain_rows = wrap.character_rows(
+        plain_report, nat.measure_penetration(np.ascontiguousarray(points, dtype=np.float32), plain, mesh_arrays.read_triangles(character))
+    )
+    row["worse"] = {name: worse_than_template(rows, diagonal) for name, rows in (("carry", result.report["penetration"]), ("plain carry", plain_rows))}
+    row["carry_seconds"] = {"carry": seconds["carry"], "plain carry": plain_seconds}
+    # What the carry's collision pass did to each shape it acted on.
+    names = [r["name"] for r in result.report["penetration"]]
+    row["carry_collisions"] = {n: c for n, c in zip(names, result.report["carry"].get("collisions", [])) if c["plain_excess"] > 0}
     wrap.remove_object(wrapped_object)
     return row
+
+
+def worse_than_template(rows, diagonal):
+    """The shapes whose excess over the template (both parts, issue 9's criterion) is over
+    1e-3 of the diagonal, name -> excess / diagonal."""
+    excess = {row["name"]: (row["excess"]["inside"] + row["excess"]["between"]) / diagonal for row in rows}
+    return {name: e for name, e in excess.items() if e > 1e-3}
 
 
 def main():
@@ -170,6 +200,11 @@ def main():
         print("    error vs same-topology transfer: " + ", ".join(f"{k} {v:.2e}" for k, v in row["error"].items()))
         print(f"    the fit's floor (same-topology keys copied from the wrapped template, no transfer): {row['fit_floor']:.2e}")
         print("    roughness (Laplacian of deltas): " + ", ".join(f"{k} {v:.2e}" for k, v in row["roughness"].items()))
+        for name, worse in row["worse"].items():
+            print(
+                f"    {name}: {len(worse)} shapes worse than the template, excess {sum(worse.values()):.4f} of the diagonal, "
+                f"{row['carry_seconds'][name]:.3f} s: " + ", ".join(f"{k} {v:.4f}" for k, v in sorted(worse.items()))
+            )
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
         json.dump(result, f, indent=2)

@@ -8,7 +8,7 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::to_f64;
-use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, CarryParams, FitParams, PointPairs, WrapParams};
+use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, FitParams, PointPairs, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, *, align_only=False, stiffness=None,
@@ -71,12 +71,19 @@ fn wrap_template<'py>(
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
-///              progress=None)
+///              template_added=None, collision_margin=0.25, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
+///
+/// `template_added` (float64 (K, 2): per shape, the intersection curve the template's own
+/// shape adds to the template's neutral inside one piece and between pieces, in the
+/// character's units) turns on the collision pass: a carried shape adding more to the
+/// character's neutral is held off the surfaces it goes through (`collision_margin` x the
+/// local edge length) and re-solved; the report's `collisions` has one row per shape.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, progress=None))]
+                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None, collision_margin=0.25,
+                    progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -87,16 +94,28 @@ fn carry_shapes<'py>(
     static_fraction: f64,
     anchor_length: f64,
     max_angle: f64,
+    template_added: Option<PyReadonlyArray2<'py, f64>>,
+    collision_margin: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let template_added: Option<Vec<AddedCurve>> = match &template_added {
+        None => None,
+        Some(array) => {
+            let view = array.as_array();
+            if view.ncols() != 2 {
+                return Err(py_err(py)(crate::invalid!("template_added must have 2 columns (inside, between), got {}", view.ncols())));
+            }
+            Some(view.rows().into_iter().map(|row| AddedCurve { inside: row[0], between: row[1] }).collect())
+        }
+    };
     let wrapped = arrays::points(&wrapped_neutral, "wrapped_neutral").map_err(py_err(py))?;
     let (deltas, k) = arrays::deltas(&template_deltas, wrapped.len()).map_err(py_err(py))?;
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
-    let params = CarryParams { static_fraction, anchor_length, max_angle_degrees: max_angle };
+    let params = CarryParams { static_fraction, anchor_length, max_angle_degrees: max_angle, collision_margin, ..CarryParams::default() };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
-        run_carry(wrapped, &template_tris, deltas, character, &character_tris, &params, progress)
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_added.as_deref(), &params, progress)
     })?;
     let nc = character.len();
     let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();

@@ -30,6 +30,8 @@ use crate::geometry::topology::connected_components;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
+use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard};
+use crate::geometry::penetration::Penetration;
 use super::pieces::ANY_PART;
 
 /// Knobs of [`carry_shapes`].
@@ -45,11 +47,26 @@ pub struct CarryParams {
     /// A binding (a character vertex or triangle to a template triangle) must have normals
     /// within this angle, so that an upper lip never binds to the lower lip it touches.
     pub max_angle_degrees: f64,
+    /// The collision pass's margin `m_u` (when the template's added curve is given to
+    /// [`carry_shapes`]), in mean lengths of the character's edges at `u`, as the transfer's.
+    pub collision_margin: f64,
+    /// `w_u / A_uu`, the weight of a held vertex's target against its row of the system.
+    pub collision_stiffness: f64,
+    /// A shape is worse than the template when its excess is over this fraction of the
+    /// character's bbox diagonal (issue 9's criterion as the add-on reads it).
+    pub collision_tolerance: f64,
 }
 
 impl Default for CarryParams {
     fn default() -> Self {
-        Self { static_fraction: 1e-4, anchor_length: 2.0, max_angle_degrees: 60.0 }
+        Self {
+            static_fraction: 1e-4,
+            anchor_length: 2.0,
+            max_angle_degrees: 60.0,
+            collision_margin: 0.25,
+            collision_stiffness: 100.0,
+            collision_tolerance: 1e-3,
+        }
     }
 }
 
@@ -66,6 +83,10 @@ pub struct CarryResult {
     /// character's bbox diagonal: large values mean parts of the character the template does
     /// not cover (they get the nearest template motion).
     pub max_binding_distance: f64,
+    /// Per shape, what the collision pass did (empty when it was off).
+    pub collisions: Vec<CarryCollision>,
+    /// The carried keys' penetration on the character (with the collision pass only).
+    pub penetration: Option<CarryPenetration>,
 }
 
 /// Each point's closest point on a surface (rayon across points).
@@ -117,14 +138,19 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 }
 
 /// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
-/// (`wrapped`, `template_triangles`) onto the character. Inputs are validated by the caller
-/// (`wrap::carry`).
+/// (`wrapped`, `template_triangles`) onto the character. With `template_added` (per shape,
+/// the curve the template's own shape adds to the template's neutral, in the character's
+/// units), each carried shape worse than it is re-solved by the collision pass
+/// ([`super::collisions`]; screened carry only). Inputs are validated by the caller
+/// (`wrap::carry_shapes`).
+#[allow(clippy::too_many_arguments)]
 pub fn carry_shapes(
     wrapped: &[[f32; 3]],
     template_triangles: &[[u32; 3]],
     template_deltas: &[[f32; 3]],
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
+    template_added: Option<&[AddedCurve]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -181,16 +207,30 @@ pub fn carry_shapes(
     let (piece, n_pieces) = connected_components(nc, character_triangles);
     let diagonal = crate::rig::bbox_diagonal(character).max(f64::MIN_POSITIVE);
     let max_binding_distance = vertex_binding.iter().map(|hit| hit.distance_squared.sqrt()).fold(0.0, f64::max) / diagonal;
+    let guard = match (template_added, whole.is_some()) {
+        (Some(_), true) => Some(Guard::new(
+            &points,
+            character,
+            character_triangles,
+            (&piece, n_pieces),
+            &laplacian,
+            &order,
+            params,
+            params.anchor_length * edge_length,
+            diagonal,
+        )),
+        _ => None,
+    };
     let setup_seconds = started.elapsed().as_secs_f64();
 
     let solving = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let shapes: Vec<Vec<[f32; 3]>> = (0..n_shapes)
+    let shapes: Vec<CarriedShape> = (0..n_shapes)
         .into_par_iter()
         .map(|k| {
             let deltas = &template_deltas[k * nt..(k + 1) * nt];
             let shape = Shape { deltas, template: &template, template_triangles, rest_inverse: &rest_inverse };
-            let result = shape.carry(
+            let (solved, rhs, static_vertex) = shape.carry(
                 &points,
                 character_triangles,
                 &operators,
@@ -203,18 +243,36 @@ pub fn carry_shapes(
                 (&piece, n_pieces),
                 params.static_fraction,
             )?;
+            let result = match (&guard, template_added) {
+                (Some(guard), Some(added)) => {
+                    let (deltas, outcome, penetration) = guard.resolve(&solved, &rhs, &static_vertex, &added[k], &laplacian)?;
+                    (deltas, Some((outcome, penetration)))
+                }
+                _ => (solved.iter().map(|d| d.map(|x| x as f32)).collect(), None),
+            };
             let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress.checkpoint(finished as f64 / n_shapes.max(1) as f64)?;
             Ok(result)
         })
         .collect::<ShapesmithResult<_>>()?;
+    let collisions = shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.0)).collect();
+    let penetration = guard.as_ref().map(|guard| CarryPenetration {
+        neutral: guard.rest(),
+        shapes: shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.1)).collect(),
+    });
     Ok(CarryResult {
-        deltas: shapes.into_iter().flatten().collect(),
+        deltas: shapes.into_iter().flat_map(|(deltas, _)| deltas).collect(),
         setup_seconds,
         solve_seconds: solving.elapsed().as_secs_f64(),
         max_binding_distance,
+        collisions,
+        penetration,
     })
 }
+
+/// A carried shape's deltas, and with the collision pass what it did and the kept result's
+/// penetration.
+type CarriedShape = (Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>);
 
 /// One template shape on the wrapped template.
 struct Shape<'a> {
@@ -252,11 +310,11 @@ impl Shape<'_> {
         anchor: &[f64],
         (piece, n_pieces): (&[u32], usize),
         static_fraction: f64,
-    ) -> ShapesmithResult<Vec<[f32; 3]>> {
+    ) -> ShapesmithResult<(Vec<Vec3>, Vec<Vec3>, Vec<bool>)> {
         let nc = points.len();
         let largest = self.deltas.iter().map(|d| length(to_f64(d))).fold(0.0, f64::max);
         if largest == 0.0 {
-            return Ok(vec![[0.0; 3]; nc]);
+            return Ok((vec![[0.0; 3]; nc], Vec::new(), vec![true; nc]));
         }
         let is_static: Vec<bool> = self.deltas.iter().map(|d| length(to_f64(d)) < static_fraction * largest).collect();
         // The barycentric copy: which character vertices are static, and where a piece that
@@ -293,6 +351,7 @@ impl Shape<'_> {
             }
         }
         let mut deltas = vec![[0.0; 3]; nc];
+        let mut whole_rhs = Vec::new();
         if kept > 0 {
             let mut rhs = vec![[0.0; 3]; kept];
             for ((t, op), &s) in triangles.iter().zip(operators).zip(triangle_binding) {
@@ -315,7 +374,11 @@ impl Shape<'_> {
                 }
             }
             let solved = match whole {
-                Some(factor) => factor.solve_points(&rhs),
+                Some(factor) => {
+                    let solved = factor.solve_points(&rhs);
+                    whole_rhs = rhs;
+                    solved
+                }
                 None => laplacian.factor_restricted(&position, kept, order)?.solve_points(&rhs),
             };
             for v in 0..nc {
@@ -336,6 +399,6 @@ impl Shape<'_> {
                 deltas[v] = add(deltas[v], shift);
             }
         }
-        Ok(deltas.iter().map(|d| d.map(|x| x as f32)).collect())
+        Ok((deltas, whole_rhs, static_vertex))
     }
 }

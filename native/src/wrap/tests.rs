@@ -122,6 +122,7 @@ fn carry_reproduces_a_smooth_deformation_far_better_than_nearest_vertex() {
         &deltas,
         &as_f32(&character),
         &character_triangles,
+        None,
         &CarryParams::default(),
         &NoProgress,
     )
