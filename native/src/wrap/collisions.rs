@@ -77,38 +77,10 @@ use std::collections::BTreeMap;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, cross, dot, length, scale, sub, Vec3};
+pub use crate::geometry::penetration::AddedCurve;
 use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
 use crate::geometry::topology::Adjacency;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
-
-/// The intersection curve a shape adds to its neutral, per part of issue 9's criterion:
-/// inside one connected piece and between two pieces (in the character's units).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
-pub struct AddedCurve {
-    pub inside: f64,
-    pub between: f64,
-}
-
-impl AddedCurve {
-    /// What a mesh whose penetration is `shape` adds to its neutral's `rest`.
-    pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
-        let inside = |p: &Penetration| p.length - p.between_pieces;
-        AddedCurve { inside: inside(shape) - inside(rest), between: shape.between_pieces - rest.between_pieces }
-    }
-
-    /// Per part, how much more this adds than `template` (zero or more), a part where the
-    /// template removes curve allowing none.
-    pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
-        AddedCurve {
-            inside: (self.inside - template.inside.max(0.0)).max(0.0),
-            between: (self.between - template.between.max(0.0)).max(0.0),
-        }
-    }
-
-    pub fn total(&self) -> f64 {
-        self.inside + self.between
-    }
-}
 
 /// What the collision pass did to one carried shape.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]

@@ -5,64 +5,9 @@
 use std::collections::{HashMap, HashSet};
 
 use super::CollisionGuard;
-use crate::geometry::penetration::{crossings, Penetration};
+use crate::geometry::penetration::{crossings, AddedCurve};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, to_f64, Vec3};
-
-/// The intersection curve a shape adds to its neutral (its length in the shape minus at
-/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
-/// and between two pieces (skin through teeth, an eyeball, lashes).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
-pub struct AddedCurve {
-    pub inside: f64,
-    pub between: f64,
-}
-
-impl AddedCurve {
-    /// The curve a shape whose penetration is `shape` adds to its neutral's `rest`.
-    pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
-        let inside = |p: &Penetration| p.length - p.between_pieces;
-        AddedCurve { inside: inside(shape) - inside(rest), between: shape.between_pieces - rest.between_pieces }
-    }
-
-    /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
-    /// total `rest`, `piece` giving each triangle's piece.
-    pub(super) fn of(pairs: impl Iterator<Item = (u32, u32, f64)>, piece: impl Fn(u32) -> u32, rest: AddedCurve) -> Self {
-        let mut added = AddedCurve { inside: -rest.inside, between: -rest.between };
-        for (a, b, l) in pairs {
-            if piece(a) == piece(b) {
-                added.inside += l;
-            } else {
-                added.between += l;
-            }
-        }
-        added
-    }
-
-    /// How much more this adds than the template's shape `template` adds, per part, a part
-    /// where the template removes some of its neutral's curve counting as adding none (issue
-    /// 9's criterion: where the template adds none, the transfer adds none), and removing in
-    /// one part not paying for adding in the other. Zero when the shape meets the criterion.
-    pub fn excess(&self, template: &AddedCurve) -> f64 {
-        let parts = self.excess_parts(template);
-        parts.inside + parts.between
-    }
-
-    /// The same curve at `factor` times the size (lengths scale linearly): a template
-    /// shape's curve at the target's size and units, before it is compared with the target's.
-    pub fn scaled(&self, factor: f64) -> Self {
-        AddedCurve { inside: factor * self.inside, between: factor * self.between }
-    }
-
-    /// [`Self::excess`] part by part (each zero or more): what the report gives per shape, so
-    /// the add-on reads the criterion instead of computing it again.
-    pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
-        AddedCurve {
-            inside: (self.inside - template.inside.max(0.0)).max(0.0),
-            between: (self.between - template.between.max(0.0)).max(0.0),
-        }
-    }
-}
 
 impl DeformationTransfer {
     /// The template shape's own crossing pairs (one sweep of its moved triangles, plus its

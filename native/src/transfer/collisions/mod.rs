@@ -140,7 +140,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
-pub use contacts::AddedCurve;
+pub use crate::geometry::penetration::AddedCurve;
 use contacts::{piece_key, pieces_grown, TemplateContacts};
 
 use super::deformation::DeformationTransfer;
