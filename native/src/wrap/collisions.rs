@@ -216,11 +216,11 @@ impl<'a> Guard<'a> {
     /// kept; the same pairs and lengths as a full sweep (`crossings_of`).
     fn resweep(&self, plain: &Swept, deltas: &[[f32; 3]], region: &[bool]) -> Swept {
         let posed = self.posed(deltas);
-        let listed: Vec<u32> = (0..self.triangles.len() as u32).filter(|&t| self.triangles[t as usize].iter().any(|&v| region[v as usize])).collect();
-        let mut moved = plain.moved.clone();
-        listed.iter().for_each(|&t| moved[t as usize] = true);
-        let is_listed = |t: u32| self.triangles[t as usize].iter().any(|&v| region[v as usize]);
-        let mut pairs: Vec<(u32, u32, f64)> = plain.pairs.iter().copied().filter(|&(a, b, _)| !is_listed(a) && !is_listed(b)).collect();
+        let touched: Vec<bool> = self.triangles.iter().map(|t| t.iter().any(|&v| region[v as usize])).collect();
+        let listed: Vec<u32> = (0..self.triangles.len() as u32).filter(|&t| touched[t as usize]).collect();
+        let moved: Vec<bool> = plain.moved.iter().zip(&touched).map(|(&m, &t)| m || t).collect();
+        let mut pairs: Vec<(u32, u32, f64)> =
+            plain.pairs.iter().copied().filter(|&(a, b, _)| !touched[a as usize] && !touched[b as usize]).collect();
         pairs.extend(crossings_of(&posed, self.triangles, &self.bvh.refitted(&posed, self.triangles), &listed));
         pairs.sort_by_key(|&(a, b, _)| (a, b));
         self.swept(posed, pairs, moved)
