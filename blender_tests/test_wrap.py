@@ -154,10 +154,26 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
     transfer = module(shapesmith, "blender.transfer")
     plain_truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY], collisions=False)
     plain_reference = sampled_truth(shapesmith, motion, obj, plain_truth.deltas.astype(np.float64))
-    plain_carried = module(shapesmith, "blender.wrap").carry_onto_character(
+    plain_result = module(shapesmith, "blender.wrap").carry_onto_character(
         bpy.data.objects["Template"], obj, wrapped_object, transfer_options={"collisions": False}
-    ).deltas
+    )
+    plain_carried = plain_result.deltas
     plain_carry_error = moving_error(plain_carried, plain_reference, diagonal)
+    # Without the pass the carried keys are still judged on the character's own mesh: each
+    # row's excess is the curve its key adds to the character's neutral beyond the template
+    # shape's (in the character's units), per part, from a full sweep of the written key.
+    character_triangles = module(shapesmith, "blender.mesh_arrays").read_triangles(obj)
+    measured = native.measure_penetration(positions(obj).astype(np.float32), plain_carried, character_triangles)
+    inside = lambda p: p["length"] - p["between_pieces"]  # noqa: E731
+    rest = measured["neutral"]
+    for row, shape in zip(plain_result.report["penetration"], measured["shapes"], strict=True):
+        assert (row["length"], row["pairs"]) == (shape["length"], shape["pairs"]), row["name"]
+        allowed = row["template_added"]
+        expected = {
+            "inside": max(0.0, inside(shape) - inside(rest) - max(0.0, allowed["inside"])),
+            "between": max(0.0, shape["between_pieces"] - rest["between_pieces"] - max(0.0, allowed["between"])),
+        }
+        assert row["excess"] == pytest.approx(expected, abs=1e-9 * diagonal), row["name"]
     print(f"carry {carry_error:.2e}, nearest vertex {nearest_error:.2e}, barycentric {barycentric_error:.2e} of the diagonal; "
           f"without the collision pass, carry {plain_carry_error:.2e}")
     # Measured (session 9): carry 1.46e-3, nearest vertex 1.62e-3, barycentric 1.57e-3; without

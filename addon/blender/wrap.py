@@ -258,45 +258,25 @@ def store_wrap(wrapped, stage):
     result.seconds = sum(wrapped.seconds.values())
 
 
-def added_parts(lengths, neutral):
-    """The intersection curve a shape whose lengths are `lengths` adds to its neutral's
-    (`neutral`), per part of issue 9's criterion: (inside one piece, between pieces)."""
-    inside = (lengths["length"] - lengths["between_pieces"]) - (neutral["length"] - neutral["between_pieces"])
-    return inside, lengths["between_pieces"] - neutral["between_pieces"]
-
-
 def template_added_curve(report):
     """Per shape of the transfer report, the curve the template's own shape adds to the
-    template's neutral (inside, between), in the character's units (`template_to_target`):
-    float64 (K, 2), what the carry's collision pass holds each carried shape to."""
-    scale = report["template_to_target"]
-    template_rest = report["template_neutral_penetration"]
-    rows = [
-        added_parts({"length": row["template_length"], "between_pieces": row["template_between_pieces"]}, template_rest)
-        for row in report["penetration"]
-    ]
-    return scale * np.asarray(rows, dtype=np.float64).reshape(-1, 2)
+    template's neutral (inside, between) in the character's units, as the native report gives
+    it (`template_added`): float64 (K, 2), the criterion the carried keys are judged by."""
+    rows = [[row["template_added"]["inside"], row["template_added"]["between"]] for row in report["penetration"]]
+    return np.asarray(rows, dtype=np.float64).reshape(-1, 2)
 
 
 def character_rows(report, character_penetration):
     """The transfer report's per-shape penetration rows, for the keys carried onto the
-    character: its own curve lengths, the template's beside them, and issue 9's criterion
-    (`excess`: per part, the curve a shape adds to the character's neutral beyond what the
-    template's shape adds to the template's, read in the character's units with the factor the
-    native transfer used, `template_to_target`; a part the template's shape removes allows
-    none), as the native report gives it for a same-topology target. What the collision pass
-    did on the wrapped template stays with each row (`collisions`), what the carry's did on the
-    character beside it (`carry_collisions`, when it ran)."""
-    scale = report["template_to_target"]
-    template_rest = report["template_neutral_penetration"]
-    rest = character_penetration["neutral"]
+    character: its own curve lengths, the template's beside them, and issue 9's criterion as
+    the native carry judged it on the character's mesh (`excess`, per part). What the
+    collision pass did on the wrapped template stays with each row (`collisions`), what the
+    carry's did on the character beside it (`carry_collisions`, when it ran)."""
     carry_collisions = report.get("carry", {}).get("collisions") or []
-
     rows = []
-    for k, (wrapped_row, measured) in enumerate(zip(report["penetration"], character_penetration["shapes"])):
-        template = {"length": wrapped_row["template_length"], "between_pieces": wrapped_row["template_between_pieces"]}
-        added, allowed = added_parts(measured, rest), added_parts(template, template_rest)
-        inside, between = (max(0.0, a - scale * max(0.0, t)) for a, t in zip(added, allowed))
+    for k, (wrapped_row, measured, excess) in enumerate(
+        zip(report["penetration"], character_penetration["shapes"], character_penetration["excess"])
+    ):
         rows.append(
             {
                 "name": wrapped_row["name"],
@@ -306,9 +286,10 @@ def character_rows(report, character_penetration):
                 "template_length": wrapped_row["template_length"],
                 "template_pairs": wrapped_row["template_pairs"],
                 "template_between_pieces": wrapped_row["template_between_pieces"],
+                "template_added": wrapped_row["template_added"],
                 "collisions": wrapped_row.get("collisions"),
                 "carry_collisions": carry_collisions[k] if k < len(carry_collisions) else None,
-                "excess": {"inside": inside, "between": between},
+                "excess": excess,
             }
         )
     return rows
@@ -324,15 +305,13 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
-    # With the transfer's collision pass on, the carry's holds the carried keys on the
-    # character's own mesh to the same criterion, with the same margin.
+    # The carried keys are judged on the character's own mesh by the criterion the transfer
+    # used; with the transfer's collision pass on, the carry's holds them to it, with the same
+    # margin.
     collisions = onto_wrapped.report["params"]["transfer"]["collisions"]
-    collision_options = {}
+    collision_options = {"template_added": template_added_curve(onto_wrapped.report), "collisions": collisions is not None}
     if collisions is not None:
-        collision_options = {
-            "template_added": template_added_curve(onto_wrapped.report),
-            "collision_margin": float(collisions["margin"]),
-        }
+        collision_options["collision_margin"] = float(collisions["margin"])
     deltas, carry_report = native.module().carry_shapes(
         np.ascontiguousarray(wrapped_neutral),
         wrapped_triangles,
@@ -349,10 +328,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     # The keys as the rigger gets them: judged on the character's own mesh, not on the
     # wrapped template the transfer (and its collision pass) worked on.
     report["wrapped_penetration"] = report["penetration"]
-    # The carry's collision pass measured the keys it kept (the same numbers, to the bit).
-    character_penetration = carry_report.pop("penetration", None)
-    if character_penetration is None:
-        character_penetration = native.module().measure_penetration(character_neutral, deltas, character_triangles)
+    character_penetration = carry_report.pop("penetration")
     report["penetration"] = character_rows(report, character_penetration)
     report["neutral_penetration"] = character_penetration["neutral"]
     stage_seconds = dict(seconds or {})

@@ -71,19 +71,22 @@ fn wrap_template<'py>(
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
-///              template_added=None, collision_margin=0.25, progress=None)
+///              template_added=None, collisions=True, collision_margin=0.25, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
 /// `template_added` (float64 (K, 2): per shape, the intersection curve the template's own
 /// shape adds to the template's neutral inside one piece and between pieces, in the
-/// character's units) turns on the collision pass: a carried shape adding more to the
-/// character's neutral is held off the surfaces it goes through (`collision_margin` x the
-/// local edge length) and re-solved; the report's `collisions` has one row per shape.
+/// character's units: the transfer report rows' `template_added`) has every carried shape
+/// judged on the character (the report's `penetration`: the neutral's and each shape's, and
+/// per shape the `excess` over the template's), and with `collisions` turns on the collision
+/// pass: a carried shape adding more to the character's neutral is held off the surfaces it
+/// goes through (`collision_margin` x the local edge length) and re-solved; the report's
+/// `collisions` has one row per shape.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None, collision_margin=0.25,
-                    progress=None))]
+                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None, collisions=true,
+                    collision_margin=0.25, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -95,6 +98,7 @@ fn carry_shapes<'py>(
     anchor_length: f64,
     max_angle: f64,
     template_added: Option<PyReadonlyArray2<'py, f64>>,
+    collisions: bool,
     collision_margin: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
@@ -113,7 +117,14 @@ fn carry_shapes<'py>(
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
-    let params = CarryParams { static_fraction, anchor_length, max_angle_degrees: max_angle, collision_margin, ..CarryParams::default() };
+    let params = CarryParams {
+        static_fraction,
+        anchor_length,
+        max_angle_degrees: max_angle,
+        collision_pass: collisions,
+        collision_margin,
+        ..CarryParams::default()
+    };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
         run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_added.as_deref(), &params, progress)
     })?;

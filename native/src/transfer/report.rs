@@ -46,6 +46,10 @@ pub struct ShapePenetration {
     pub template_length: f64,
     pub template_pairs: usize,
     pub template_between_pieces: f64,
+    /// The curve the template's own shape adds to the template's neutral, per part, at the
+    /// target's size and units (`template_to_target`): what the criterion allows. The wrap
+    /// holds the keys it carries onto a character to it.
+    pub template_added: AddedCurve,
     /// The result before the collision pass (equal to the result when the pass left the shape
     /// alone); `None` when the pass is off.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -233,6 +237,7 @@ pub fn transfer_shapes(
                         template_length: template_shape.length,
                         template_pairs: template_shape.pairs,
                         template_between_pieces: template_shape.between_pieces,
+                        template_added,
                         before_collisions_length: before.map(|p| p.length),
                         before_collisions_pairs: before.map(|p| p.pairs),
                         before_collisions_between_pieces: before.map(|p| p.between_pieces),
@@ -353,6 +358,7 @@ mod tests {
             let ratio = rms_radius(target) / rms_radius(source);
             let units = if ratio.ln().abs() > crate::transfer::deformation::OTHER_UNITS.ln() { ratio } else { 1.0 };
             let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral).scaled(units);
+            assert_eq!(row.template_added, template_added);
             assert_eq!(row.excess, AddedCurve::from_penetrations(&result, &neutral).excess_parts(&template_added));
             assert_eq!(row.before_collisions_excess, Some(AddedCurve::from_penetrations(&plain_solve, &neutral).excess_parts(&template_added)));
             assert!(row.plain_excess.is_some_and(|e| e.inside >= 0.0 && e.between >= 0.0));

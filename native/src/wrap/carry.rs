@@ -31,7 +31,7 @@ use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
 use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard};
-use crate::geometry::penetration::Penetration;
+use crate::geometry::penetration::{Penetration, PenetrationBaseline};
 use super::pieces::ANY_PART;
 
 /// Knobs of [`carry_shapes`].
@@ -47,8 +47,11 @@ pub struct CarryParams {
     /// A binding (a character vertex or triangle to a template triangle) must have normals
     /// within this angle, so that an upper lip never binds to the lower lip it touches.
     pub max_angle_degrees: f64,
-    /// The collision pass's margin `m_u` (when the template's added curve is given to
-    /// [`carry_shapes`]), in mean lengths of the character's edges at `u`, as the transfer's.
+    /// Whether the collision pass holds the carried shapes worse than the template's added
+    /// curve (when it is given to [`carry_shapes`]; without the pass they are only judged).
+    pub collision_pass: bool,
+    /// The collision pass's margin `m_u`, in mean lengths of the character's edges at `u`,
+    /// as the transfer's.
     pub collision_margin: f64,
     /// `w_u / A_uu`, the weight of a held vertex's target against its row of the system.
     pub collision_stiffness: f64,
@@ -63,6 +66,7 @@ impl Default for CarryParams {
             static_fraction: 1e-4,
             anchor_length: 2.0,
             max_angle_degrees: 60.0,
+            collision_pass: true,
             collision_margin: 0.25,
             collision_stiffness: 100.0,
             collision_tolerance: 1e-3,
@@ -85,7 +89,8 @@ pub struct CarryResult {
     pub max_binding_distance: f64,
     /// Per shape, what the collision pass did (empty when it was off).
     pub collisions: Vec<CarryCollision>,
-    /// The carried keys' penetration on the character (with the collision pass only).
+    /// The carried keys' penetration on the character and issue 9's criterion on it (when
+    /// the template's added curve is given).
     pub penetration: Option<CarryPenetration>,
 }
 
@@ -140,9 +145,10 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 /// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
 /// (`wrapped`, `template_triangles`) onto the character. With `template_added` (per shape,
 /// the curve the template's own shape adds to the template's neutral, in the character's
-/// units), each carried shape worse than it is re-solved by the collision pass
-/// ([`super::collisions`]; screened carry only). Inputs are validated by the caller
-/// (`wrap::carry_shapes`).
+/// units), every carried shape is judged by issue 9's criterion on the character's own mesh,
+/// and with [`CarryParams::collision_pass`] each one worse than the template is re-solved by
+/// the collision pass ([`super::collisions`]; screened carry only). Inputs are validated by
+/// the caller (`wrap::carry_shapes`).
 #[allow(clippy::too_many_arguments)]
 pub fn carry_shapes(
     wrapped: &[[f32; 3]],
@@ -207,7 +213,7 @@ pub fn carry_shapes(
     let (piece, n_pieces) = connected_components(nc, character_triangles);
     let diagonal = crate::rig::bbox_diagonal(character).max(f64::MIN_POSITIVE);
     let max_binding_distance = vertex_binding.iter().map(|hit| hit.distance_squared.sqrt()).fold(0.0, f64::max) / diagonal;
-    let guard = match (template_added, whole.is_some()) {
+    let guard = match (template_added, whole.is_some() && params.collision_pass) {
         (Some(_), true) => Some(Guard::new(
             &points,
             character,
@@ -256,9 +262,17 @@ pub fn carry_shapes(
         })
         .collect::<ShapesmithResult<_>>()?;
     let collisions = shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.0)).collect();
-    let penetration = guard.as_ref().map(|guard| CarryPenetration {
-        neutral: guard.rest(),
-        shapes: shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.1)).collect(),
+    // The pass measured the shapes it kept; without it they are swept here, so that the
+    // criterion is always read on the character's own mesh.
+    let penetration = template_added.map(|added| {
+        let (neutral, shapes) = match &guard {
+            Some(guard) => (guard.rest(), shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.1)).collect()),
+            None => {
+                let baseline = PenetrationBaseline::new(character, character_triangles);
+                (baseline.neutral(), shapes.par_iter().map(|(deltas, _)| baseline.shape(deltas)).collect())
+            }
+        };
+        CarryPenetration::judged(neutral, shapes, added)
     });
     Ok(CarryResult {
         deltas: shapes.into_iter().flat_map(|(deltas, _)| deltas).collect(),

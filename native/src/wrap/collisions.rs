@@ -44,7 +44,7 @@
 //! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
 //!
 //! # Deviations (measured with `scripts/bench_wrap.py` and the sample's Character_YoungWoman;
-//! "worse": excess over 1e-3 of the character's diagonal, the add-on's `character_rows`)
+//! "worse": excess over 1e-3 of the character's diagonal in [`CarryPenetration::excess`])
 //!
 //! - **The carry has its own pass; the wrapped template's is not enough.** Shapes worse than
 //!   the template, plain carry -> with this pass: Character_YoungWoman 20 -> 1 (jawLeft +7.5
@@ -97,11 +97,25 @@ pub struct CarryCollision {
 }
 
 /// The character's penetration (SPEC section 3's metric) at rest and in each kept shape, as
-/// `measure_penetration` gives it: the pass sweeps every shape anyway, so the add-on need not.
+/// `measure_penetration` gives it (the pass sweeps every shape anyway, so the add-on need
+/// not), and per shape issue 9's criterion on it: the curve the shape adds to the character's
+/// neutral beyond what the template's shape adds to the template's, per part
+/// ([`AddedCurve::excess_parts`]), as the transfer's report gives it for a same-topology
+/// target.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct CarryPenetration {
     pub neutral: Penetration,
     pub shapes: Vec<Penetration>,
+    pub excess: Vec<AddedCurve>,
+}
+
+impl CarryPenetration {
+    /// `shapes` judged against the template's added curve, `template_added` (one per shape,
+    /// in the character's units).
+    pub(super) fn judged(neutral: Penetration, shapes: Vec<Penetration>, template_added: &[AddedCurve]) -> Self {
+        let excess = shapes.iter().zip(template_added).map(|(p, t)| AddedCurve::from_penetrations(p, &neutral).excess_parts(t)).collect();
+        Self { neutral, shapes, excess }
+    }
 }
 
 /// The attempts, each from the plain carry, while the shape is still worse: skin that moved
@@ -490,6 +504,10 @@ mod tests {
     /// The carry of the template's closing onto the character, with the template's added
     /// curve (none) given or not.
     fn carried(amount: f64, collisions: bool) -> (Vec<[f32; 3]>, Vec<[u32; 3]>, crate::wrap::CarryResult) {
+        carried_with(amount, collisions, &CarryParams::default())
+    }
+
+    fn carried_with(amount: f64, collisions: bool, params: &CarryParams) -> (Vec<[f32; 3]>, Vec<[u32; 3]>, crate::wrap::CarryResult) {
         let (template, template_triangles) = lips(1.0, 20, 8);
         let (character, character_triangles) = lips(0.5, 40, 16);
         let deltas = closing(&template, amount);
@@ -503,7 +521,7 @@ mod tests {
             &character,
             &character_triangles,
             collisions.then_some(&none[..]),
-            &CarryParams::default(),
+            params,
             &NoProgress,
         )
         .unwrap();
@@ -520,9 +538,10 @@ mod tests {
         assert!(outcome.applied && outcome.plain_excess > 0.5, "{outcome:?}");
         let after = measure_penetration(&posed(&character, &held.deltas), &triangles);
         assert_eq!(after.pairs, 0, "{after:?}, {outcome:?}");
-        // The pass's own numbers are the full sweep's.
+        // The pass's own numbers are the full sweep's, and its verdict the criterion's.
         let penetration = held.penetration.as_ref().unwrap();
         assert_eq!((penetration.shapes[0], penetration.neutral), (after, measure_penetration(&character, &triangles)));
+        assert_eq!(penetration.excess, vec![AddedCurve::default()]);
         // The lips still close: the gap at the centre (x = 2.5, y = 1), 1.0 at rest, is
         // within a few margins (0.25 x the 0.25 edge, each side). Measured: the plain carry
         // crosses along 3.0 (64 pairs), the pass clears it in 4 re-solves, gap 0.085.
@@ -540,5 +559,22 @@ mod tests {
         assert!(plain.deltas.iter().any(|d| d[2] != 0.0));
         assert_eq!(plain.deltas, guarded.deltas);
         assert!(!guarded.collisions[0].applied && guarded.collisions[0].excess == 0.0);
+    }
+
+    #[test]
+    fn without_the_pass_the_carried_shapes_are_judged_and_left_as_carried() {
+        let (character, triangles, plain) = carried(0.9, false);
+        assert!(plain.penetration.is_none() && plain.collisions.is_empty());
+        let judged_only = CarryParams { collision_pass: false, ..CarryParams::default() };
+        let (_, _, judged) = carried_with(0.9, true, &judged_only);
+        assert_eq!(judged.deltas, plain.deltas);
+        assert!(judged.collisions.is_empty());
+        // The template adds no curve: all the lips' crossing is excess, inside one piece.
+        let crossed = measure_penetration(&posed(&character, &plain.deltas), &triangles);
+        let penetration = judged.penetration.as_ref().unwrap();
+        assert_eq!((penetration.shapes[0], penetration.neutral), (crossed, measure_penetration(&character, &triangles)));
+        let excess = penetration.excess[0];
+        assert!(excess.between == 0.0 && excess.inside > 0.5, "{excess:?}");
+        assert!((excess.inside - (crossed.length - penetration.neutral.length)).abs() < 1e-12, "{excess:?} {crossed:?}");
     }
 }
