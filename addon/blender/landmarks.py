@@ -15,7 +15,7 @@ import numpy as np
 from mathutils import Matrix
 
 from .. import native
-from .mesh_arrays import MeshDataError, read_rig
+from .mesh_arrays import MeshDataError, read_rig, read_triangles
 from .packing import stored_weights
 
 COLLECTION_NAME = "Landmarks"
@@ -63,25 +63,8 @@ def mesh_parts(obj):
     """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
     teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
     not refused."""
-    mesh = obj.data
-    loop_edges = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("edge_index", loop_edges)
-    boundary = int(np.count_nonzero(np.bincount(loop_edges, minlength=len(mesh.edges)) == 1))
-    edges = np.empty(len(mesh.edges) * 2, dtype=np.int64)
-    mesh.edges.foreach_get("vertices", edges)
-    edges = edges.reshape(-1, 2)
-    # Connected components by min-label propagation with pointer jumping.
-    labels = np.arange(len(mesh.vertices))
-    while True:
-        low = np.minimum(labels[edges[:, 0]], labels[edges[:, 1]])
-        merged = labels.copy()
-        np.minimum.at(merged, edges[:, 0], low)
-        np.minimum.at(merged, edges[:, 1], low)
-        merged = merged[merged]
-        if np.array_equal(merged, labels):
-            break
-        labels = merged
-    return {"loose_parts": int(len(np.unique(labels))), "boundary_edges": boundary, "part_of_vertex": labels}
+    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), read_triangles(obj))
+    return {"loose_parts": count, "boundary_edges": boundary, "part_of_vertex": labels}
 
 
 def mesh_note(parts, landmark_vertices):

@@ -1,6 +1,6 @@
-//! Binding of [`crate::analysis::analyze_rig`].
+//! Bindings of [`crate::analysis::analyze_rig`] and of the mesh's parts (for the reports).
 
-use numpy::{PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 
 use super::arrays;
@@ -8,6 +8,7 @@ use super::errors::py_err;
 use super::run::detached;
 use crate::analysis::{analyze_rig as analyze, AnalysisParams};
 use crate::geometry::mirror::SymmetryParams;
+use crate::geometry::topology::{boundary_edges, connected_components};
 use crate::rig::RigView;
 
 /// analyze_rig(neutral, deltas, triangles, names, *, axis=0, mirror_tolerance=1e-3,
@@ -44,6 +45,22 @@ fn analyze_rig<'py>(
     arrays::to_python(py, &report)
 }
 
+/// mesh_parts(vertex_count, triangles) -> (part int32 (N,), parts, boundary_edges)
+///
+/// The connected part of each vertex (0..parts; a vertex in no triangle is a part of its
+/// own), the number of parts, and the number of open boundary edges (edges of one triangle).
+#[pyfunction]
+fn mesh_parts<'py>(py: Python<'py>, vertex_count: usize, triangles: PyReadonlyArray2<'py, i32>) -> PyResult<(Bound<'py, PyArray1<i32>>, usize, usize)> {
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let (labels, count, boundary) = detached(py, || {
+        crate::rig::validate_triangle_indices(vertex_count, &tris)?;
+        let (labels, count) = connected_components(vertex_count, &tris);
+        Ok((labels, count, boundary_edges(&tris).len()))
+    })?;
+    Ok((PyArray1::from_vec(py, labels.into_iter().map(|l| l as i32).collect()), count, boundary))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(analyze_rig, m)?)
+    m.add_function(wrap_pyfunction!(analyze_rig, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh_parts, m)?)
 }
