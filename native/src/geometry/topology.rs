@@ -60,6 +60,18 @@ impl Adjacency {
     pub fn neighbours(&self, v: usize) -> &[u32] {
         &self.targets[self.offsets[v]..self.offsets[v + 1]]
     }
+
+    /// The mean length of the edges at each vertex (0 for a vertex on no edge): the local
+    /// scale both collision passes measure their margins in.
+    pub fn mean_edge_lengths(&self, points: &[[f64; 3]]) -> Vec<f64> {
+        (0..self.offsets.len() - 1)
+            .map(|v| {
+                let ring = self.neighbours(v);
+                let total: f64 = ring.iter().map(|&u| crate::geometry::mat3::length(crate::geometry::mat3::sub(points[u as usize], points[v]))).sum();
+                total / ring.len().max(1) as f64
+            })
+            .collect()
+    }
 }
 
 /// Connected component label per vertex (0..count), and the count. A vertex in no triangle

@@ -147,6 +147,8 @@ pub(super) struct Guard<'a> {
     bvh: TriangleBvh,
     /// Crossing pairs at rest, `(a, b, length)` sorted.
     rest_pairs: Vec<(u32, u32, f64)>,
+    /// Each triangle's unit normal at rest (`None` when degenerate).
+    rest_normal: Vec<Option<Vec3>>,
     rest: Penetration,
     /// Connected piece of each triangle and each vertex.
     triangle_piece: Vec<u32>,
@@ -179,16 +181,11 @@ impl<'a> Guard<'a> {
     ) -> Self {
         let bvh = TriangleBvh::build(points, triangles);
         let rest_pairs = crossings(points, triangles, &bvh, None);
+        let rest_normal = triangles.iter().map(|t| unit_normal(t.map(|w| points[w as usize]))).collect();
         let triangle_piece: Vec<u32> = triangles.iter().map(|t| vertex_piece[t[0] as usize]).collect();
         let rest = shape_penetration(&rest_pairs, &[], &vec![true; triangles.len()], &triangle_piece);
         let adjacency = Adjacency::from_triangles(points.len(), triangles);
-        let margin = (0..points.len())
-            .map(|v| {
-                let around = adjacency.neighbours(v);
-                let mean = around.iter().map(|&w| length(sub(points[v], points[w as usize]))).sum::<f64>() / around.len().max(1) as f64;
-                (params.collision_margin * mean).max(1e-3 * diagonal)
-            })
-            .collect();
+        let margin = adjacency.mean_edge_lengths(points).iter().map(|mean| (params.collision_margin * mean).max(1e-3 * diagonal)).collect();
         let mut rank = vec![0usize; order.len()];
         order.iter().enumerate().for_each(|(slot, &v)| rank[v] = slot);
         Self {
@@ -197,6 +194,7 @@ impl<'a> Guard<'a> {
             triangles,
             bvh,
             rest_pairs,
+            rest_normal,
             rest,
             triangle_piece,
             vertex_piece,
@@ -362,7 +360,7 @@ impl<'a> Guard<'a> {
         let on_piece = |t: u32| self.triangle_piece[t as usize] == piece;
         let side = |p: Vec3| -> Option<(f64, Vec3, Vec3)> {
             let hit = self.bvh.closest_point_where(&p, f64::INFINITY, on_piece)?;
-            let n = unit_normal(self.triangles[hit.triangle as usize].map(|w| self.points[w as usize]))?;
+            let n = self.rest_normal[hit.triangle as usize]?;
             Some((dot(sub(p, hit.point), n), n, hit.point))
         };
         let (rest_height, ..) = side(self.points[u])?;
@@ -383,7 +381,7 @@ impl<'a> Guard<'a> {
     /// plus the margin; `None` when it is there already.
     fn off_plane(&self, posed: &[Vec3], u: usize, other: usize) -> Option<Vec3> {
         let tri = self.triangles[other];
-        let rest_normal = unit_normal(tri.map(|w| self.points[w as usize]))?;
+        let rest_normal = self.rest_normal[other]?;
         let s = dot(sub(self.points[u], self.points[tri[0] as usize]), rest_normal).signum();
         let n = unit_normal(tri.map(|w| posed[w as usize]))?;
         let h = dot(sub(posed[u], posed[tri[0] as usize]), n);

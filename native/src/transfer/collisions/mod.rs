@@ -266,13 +266,7 @@ impl CollisionGuard {
         let (rest_pairs, rest_lengths) = rest.into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
         let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
         let adjacency = Adjacency::from_triangles(n, triangles);
-        let edge_length = (0..n)
-            .map(|v| {
-                let ring = adjacency.neighbours(v);
-                let total: f64 = ring.iter().map(|&u| length(sub(neutral[u as usize], neutral[v]))).sum();
-                total / ring.len().max(1) as f64
-            })
-            .collect();
+        let edge_length = adjacency.mean_edge_lengths(neutral);
         let mut ring_offsets = vec![0usize; n + 1];
         for tri in triangles {
             for &v in tri {
