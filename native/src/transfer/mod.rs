@@ -118,7 +118,15 @@
 //!   `collisions/mod.rs`). The whole call on the 25k head is about 1.5 s against the 0.5 s
 //!   target: the sweep of every result that the criterion needs costs about as much as the
 //!   report's (see docs/transfer.md). Decisions can flip under another frame's rounding (the
-//!   wrap invariance test runs without the pass).
+//!   wrap invariance test runs without the pass). Where the time goes (session 11, `perf` with
+//!   frame pointers, 25k, share of the transfer's samples): the pass 51% (the sweep of each
+//!   plain solve and its refit 19%, the template shapes' sweeps 7%, re-sweeps 9%, holds 7%,
+//!   local factorisations 3%), virtual edges 16%, the shapes' factorisations and solves 14%;
+//!   the sweeps' time is the leaf loops' box tests and the rejection of neighbouring
+//!   triangles (which always overlap). Tried and dropped: the leaf loops' boxes as f32 lanes
+//!   rounded outwards, eight at a time (same pairs; +1.5G instructions on the 25k call,
+//!   0.75G of it converting the boxes on each sweep); a shape's hierarchy as a copy of the
+//!   written neutral's with only the moved triangles refitted (same boxes; -50M of 0.43G).
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
 //!   triangle: scans trusted up to their own noise (estimated from the vertices an
 //!   expression does not move), the transfer's error taken proportional to each shape's own
