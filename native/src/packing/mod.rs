@@ -278,7 +278,7 @@ pub fn pack_expressions(
     let prep = prepare(rig, target_neutral, params, &Stage { whole: progress, start: 0.0, span: PREPARE_SHARE })?;
     let progress = &Stage { whole: progress, start: PREPARE_SHARE, span: 1.0 - PREPARE_SHARE };
     let graph = &prep.graph;
-    let options = IlpOptions { time_limit: params.time_limit };
+    let options = IlpOptions { time_limit: params.time_limit, skip_feasibility_jump: true };
     let mut remaining = vec![true; graph.n_nodes()];
     let mut placed_shapes: Vec<usize> = Vec::new();
     let total: usize = graph.nodes.iter().map(Vec::len).sum();
