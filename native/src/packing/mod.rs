@@ -40,6 +40,20 @@
 //!   ([`conflicts::ConflictReason`]).
 //! - Beyond the paper: [`PackingParams::fewest`] proves the fewest expressions for the same
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
+//! - Issue 13's speed target (under 50 ms native with both poseability tests on a 26k head,
+//!   2 cores) is not met: 0.78 s on the 26k copy, 0.07-0.08 s with the tests off (session 11,
+//!   time_pack best of 5, load about 4). Thread CPU per part there (instrumented run, ms):
+//!   occlusion about 400 (each tested shape posed alone, one ray per active vertex, 180-220;
+//!   per direction the vertices in the partner's reach traced again, 160-190), collisions
+//!   about 380 (each shape's moved triangles cut from the rest hierarchy and posed, 100-130;
+//!   its crossings alone, 100; the mixes of the 694 pairs, 120-135), the rest hierarchy
+//!   build 40-50 beside the regions (17); with the tests off, the symmetry 40 beside the
+//!   cosines 12-16, HiGHS 16-21 (wall, 36 solves), binary blendshapes 4. Every part grows
+//!   with the triangles the shapes move (the 9x copy costs 1.4x the 26k one), so 50 ms asks
+//!   for a tenth of today's work, not a constant factor. Tried and dropped: a grid on the
+//!   view plane for the occlusion rays (the same answers; no gain measured, the rays against
+//!   the mesh at rest are not where that test's time goes) and the symmetry's exact mirror
+//!   errors and mirror map on both cores (no gain measured in the packing).
 
 pub mod collisions;
 pub mod conflicts;
