@@ -52,8 +52,11 @@
 //!   with the triangles the shapes move (the 9x copy costs 1.4x the 26k one), so 50 ms asks
 //!   for a tenth of today's work, not a constant factor. Tried and dropped: a grid on the
 //!   view plane for the occlusion rays (the same answers; no gain measured, the rays against
-//!   the mesh at rest are not where that test's time goes) and the symmetry's exact mirror
-//!   errors and mirror map on both cores (no gain measured in the packing).
+//!   the mesh at rest are not where that test's time goes), the symmetry's exact mirror
+//!   errors and mirror map on both cores (no gain measured in the packing), and the rest
+//!   hierarchy built beside the symmetry instead of beside the regions (the regions part
+//!   0.06 -> 0.02 s, the whole 26k packing 5% faster on a quiet machine, 0-4% slower on the
+//!   9x copy under load).
 
 pub mod collisions;
 pub mod conflicts;
