@@ -371,7 +371,7 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
         max_per_shape: params.max_per_shape,
         radius: params.radius * rig.bbox_diagonal(),
         share_limit: params.share_limit,
-        ilp: IlpOptions { time_limit: params.time_limit },
+        ilp: IlpOptions { time_limit: params.time_limit, skip_feasibility_jump: false },
     };
     let chosen = adaptive_multi_cover(
         &relation,

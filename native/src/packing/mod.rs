@@ -40,6 +40,23 @@
 //!   ([`conflicts::ConflictReason`]).
 //! - Beyond the paper: [`PackingParams::fewest`] proves the fewest expressions for the same
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
+//! - Issue 13's speed target (under 50 ms native with both poseability tests on a 26k head,
+//!   2 cores) is not met: 0.78 s on the 26k copy, 0.07-0.08 s with the tests off (session 11,
+//!   time_pack best of 5, load about 4). Thread CPU per part there (instrumented run, ms):
+//!   occlusion about 400 (each tested shape posed alone, one ray per active vertex, 180-220;
+//!   per direction the vertices in the partner's reach traced again, 160-190), collisions
+//!   about 380 (each shape's moved triangles cut from the rest hierarchy and posed, 100-130;
+//!   its crossings alone, 100; the mixes of the 694 pairs, 120-135), the rest hierarchy
+//!   build 40-50 beside the regions (17); with the tests off, the symmetry 40 beside the
+//!   cosines 12-16, HiGHS 16-21 (wall, 36 solves), binary blendshapes 4. Every part grows
+//!   with the triangles the shapes move (the 9x copy costs 1.4x the 26k one), so 50 ms asks
+//!   for a tenth of today's work, not a constant factor. Tried and dropped: a grid on the
+//!   view plane for the occlusion rays (the same answers; no gain measured, the rays against
+//!   the mesh at rest are not where that test's time goes), the symmetry's exact mirror
+//!   errors and mirror map on both cores (no gain measured in the packing), and the rest
+//!   hierarchy built beside the symmetry instead of beside the regions (the regions part
+//!   0.06 -> 0.02 s, the whole 26k packing 5% faster on a quiet machine, 0-4% slower on the
+//!   9x copy under load).
 
 pub mod collisions;
 pub mod conflicts;
@@ -278,7 +295,7 @@ pub fn pack_expressions(
     let prep = prepare(rig, target_neutral, params, &Stage { whole: progress, start: 0.0, span: PREPARE_SHARE })?;
     let progress = &Stage { whole: progress, start: PREPARE_SHARE, span: 1.0 - PREPARE_SHARE };
     let graph = &prep.graph;
-    let options = IlpOptions { time_limit: params.time_limit };
+    let options = IlpOptions { time_limit: params.time_limit, skip_feasibility_jump: true };
     let mut remaining = vec![true; graph.n_nodes()];
     let mut placed_shapes: Vec<usize> = Vec::new();
     let total: usize = graph.nodes.iter().map(Vec::len).sum();
