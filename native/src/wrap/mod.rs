@@ -347,7 +347,8 @@ pub fn wrap_template(
 /// Carries the template's shapes (K x Nt deltas of the wrapped template, shape-major) onto
 /// the character's vertices (K x Nc); see the `carry` module. With `template_added` (K
 /// rows: the curve each template shape adds to the template's neutral, in the character's
-/// units), the collision pass holds the carried shapes worse than that (`collisions`).
+/// units), every carried shape is judged by it on the character (`penetration`), and with
+/// [`CarryParams::collision_pass`] the pass holds those worse than that (`collisions`).
 #[allow(clippy::too_many_arguments)]
 pub fn carry_shapes(
     wrapped: &[[f32; 3]],
