@@ -59,11 +59,13 @@ def camera_positions(obj, source, scene=None, collection=None):
     return np.array([(to_local @ cam.matrix_world.translation)[:] for cam in cameras], dtype=np.float32)
 
 
-def mesh_parts(obj):
+def mesh_parts(obj, triangles=None):
     """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
     teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
-    not refused."""
-    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), read_triangles(obj))
+    not refused. `triangles`: the mesh's, when already read (`read_rig`)."""
+    if triangles is None:
+        triangles = read_triangles(obj)
+    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), triangles)
     return {"loose_parts": count, "boundary_edges": boundary, "part_of_vertex": labels}
 
 
@@ -123,7 +125,7 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None
     check_design(**params)
     started = time.perf_counter()
     rig = read_rig(obj)
-    parts = mesh_parts(obj)
+    parts = mesh_parts(obj, rig.triangles)
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(

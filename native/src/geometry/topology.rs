@@ -3,6 +3,8 @@
 
 use std::collections::{HashMap, HashSet};
 
+use super::mat3::{length, sub};
+
 /// Unique undirected edges `(a, b)` with `a < b`, sorted.
 pub fn unique_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
     let mut edges: Vec<(u32, u32)> = triangles
@@ -67,7 +69,7 @@ impl Adjacency {
         (0..self.offsets.len() - 1)
             .map(|v| {
                 let ring = self.neighbours(v);
-                let total: f64 = ring.iter().map(|&u| crate::geometry::mat3::length(crate::geometry::mat3::sub(points[u as usize], points[v]))).sum();
+                let total: f64 = ring.iter().map(|&u| length(sub(points[u as usize], points[v]))).sum();
                 total / ring.len().max(1) as f64
             })
             .collect()
