@@ -132,6 +132,7 @@
 //!   the numbers): docs/transfer.md, "Earlier rounds of the collision pass".
 
 mod contacts;
+mod guard;
 mod holds;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -142,15 +143,15 @@ use rayon::prelude::*;
 
 pub use crate::geometry::penetration::AddedCurve;
 use contacts::{piece_key, pieces_grown, TemplateContacts};
+pub(super) use guard::CollisionGuard;
+use guard::Neutral;
 
 use super::deformation::DeformationTransfer;
 use super::gradients::{add, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
-use crate::geometry::bvh::{RefitLinks, TriangleBvh};
-use crate::geometry::closest_point::SurfacePoint;
-use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, triangle_pieces, Penetration};
-use crate::geometry::topology::Adjacency;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -199,164 +200,6 @@ pub struct CollisionOutcome {
     pub penetration: Option<Penetration>,
     #[serde(skip)]
     pub plain_penetration: Option<Penetration>,
-}
-
-/// What the pass needs of the two neutrals, computed once per transfer.
-pub(super) struct CollisionGuard {
-    params: CollisionParams,
-    /// Pairs `(a, b)`, `a < b`, crossing at the target's rest, sorted, with their lengths,
-    /// swept on the written positions (the target's own frame and precision, as the report
-    /// measures them).
-    rest_pairs: Vec<(u32, u32)>,
-    rest_lengths: Vec<f64>,
-    /// The same on the template's neutral.
-    template_rest_pairs: Vec<(u32, u32, f64)>,
-    /// Over the target neutral: refitted to each result, and the static obstacles' surface.
-    bvh: TriangleBvh,
-    /// Where `bvh`'s triangles and nodes sit, for refitting a few of them in place.
-    refit_links: RefitLinks,
-    /// Over the template neutral, refitted to each template shape that needs it.
-    template_bvh: TriangleBvh,
-    /// Per vertex, the mean length of its edges on the target neutral.
-    edge_length: Vec<f64>,
-    /// The target neutral's bounding-box diagonal.
-    diagonal: f64,
-    /// The target neutral as given (its own frame, f32): results are swept where they are
-    /// written, `written_neutral + delta` in f32, so the report can take the pass's numbers.
-    written_neutral: Vec<[f32; 3]>,
-    /// The connected piece of each triangle, and the target neutral's own penetration.
-    triangle_piece: Vec<u32>,
-    pub(super) rest_penetration: Penetration,
-    adjacency: Adjacency,
-    /// Triangles around each vertex (compressed rows).
-    ring_offsets: Vec<usize>,
-    ring_triangles: Vec<u32>,
-    /// Per triangle, itself and the triangles sharing a corner with it (compressed rows,
-    /// each sorted).
-    around_offsets: Vec<usize>,
-    around_triangles: Vec<u32>,
-    /// Per neutral (`bvh`, `template_bvh`) and piece, which nodes hold one of the piece's
-    /// triangles, made on the first query against that piece
-    /// ([`CollisionGuard::closest_on_piece`]).
-    piece_nodes: [Vec<OnceLock<Vec<bool>>>; 2],
-}
-
-/// Which of the two neutrals a query reads.
-#[derive(Clone, Copy)]
-pub(super) enum Neutral {
-    Target = 0,
-    Template = 1,
-}
-
-impl CollisionGuard {
-    /// `neutral` is the target's neutral in the working frame, `written_neutral` as given.
-    pub(super) fn new(
-        source: &[Vec3],
-        neutral: &[Vec3],
-        written_neutral: &[[f32; 3]],
-        triangles: &[[u32; 3]],
-        params: CollisionParams,
-    ) -> Self {
-        let n = neutral.len();
-        let (bvh, template_bvh) = (TriangleBvh::build(neutral, triangles), TriangleBvh::build(source, triangles));
-        let written: Vec<Vec3> = written_neutral.iter().map(|p| p.map(f64::from)).collect();
-        let rest = crossings(&written, triangles, &bvh.refitted(&written, triangles), None);
-        let triangle_piece = triangle_pieces(n, triangles);
-        let rest_penetration = shape_penetration(&[], &rest, &vec![false; triangles.len()], &triangle_piece);
-        let (rest_pairs, rest_lengths) = rest.into_iter().map(|(a, b, l)| ((a, b), l)).unzip();
-        let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
-        let adjacency = Adjacency::from_triangles(n, triangles);
-        let edge_length = adjacency.mean_edge_lengths(neutral);
-        let mut ring_offsets = vec![0usize; n + 1];
-        for tri in triangles {
-            for &v in tri {
-                ring_offsets[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..n {
-            ring_offsets[v + 1] += ring_offsets[v];
-        }
-        let mut fill = ring_offsets.clone();
-        let mut ring_triangles = vec![0u32; ring_offsets[n]];
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                ring_triangles[fill[v as usize]] = t as u32;
-                fill[v as usize] += 1;
-            }
-        }
-        // Per triangle, itself and the triangles sharing a corner with it, sorted: the
-        // template-contact test reads them for every pair that crosses in every round.
-        let mut around_offsets = Vec::with_capacity(triangles.len() + 1);
-        around_offsets.push(0);
-        let mut around_triangles = Vec::with_capacity(13 * triangles.len());
-        let mut near = Vec::new();
-        for tri in triangles {
-            near.clear();
-            near.extend(tri.iter().flat_map(|&v| ring_triangles[ring_offsets[v as usize]..ring_offsets[v as usize + 1]].iter().copied()));
-            near.sort_unstable();
-            near.dedup();
-            around_triangles.extend_from_slice(&near);
-            around_offsets.push(around_triangles.len());
-        }
-        let diagonal = crate::rig::bbox_diagonal(&neutral.iter().map(|p| p.map(|x| x as f32)).collect::<Vec<_>>());
-        let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
-        Self {
-            piece_nodes: [0, 1].map(|_| (0..n_pieces).map(|_| OnceLock::new()).collect()),
-            params,
-            diagonal,
-            written_neutral: written_neutral.to_vec(),
-            triangle_piece,
-            rest_penetration,
-            rest_pairs,
-            rest_lengths,
-            template_rest_pairs,
-            refit_links: bvh.refit_links(),
-            bvh,
-            template_bvh,
-            edge_length,
-            adjacency,
-            ring_offsets,
-            ring_triangles,
-            around_offsets,
-            around_triangles,
-        }
-    }
-
-    fn triangles_at(&self, v: u32) -> &[u32] {
-        &self.ring_triangles[self.ring_offsets[v as usize]..self.ring_offsets[v as usize + 1]]
-    }
-
-    /// Triangle `t` and the triangles sharing a corner with it, sorted.
-    fn around(&self, t: u32) -> &[u32] {
-        &self.around_triangles[self.around_offsets[t as usize]..self.around_offsets[t as usize + 1]]
-    }
-
-    /// The point of piece `piece`'s surface on `neutral` closest to `query`: the hierarchy's
-    /// query among that piece's triangles, never entering a subtree without one (the same
-    /// point to the bit as filtering the whole hierarchy's triangles).
-    fn closest_on_piece(&self, neutral: Neutral, query: &Vec3, piece: u32) -> Option<SurfacePoint> {
-        let bvh = match neutral {
-            Neutral::Target => &self.bvh,
-            Neutral::Template => &self.template_bvh,
-        };
-        let holding = self.piece_nodes[neutral as usize].get(piece as usize)?.get_or_init(|| {
-            let marked: Vec<bool> = self.triangle_piece.iter().map(|&p| p == piece).collect();
-            bvh.nodes_holding(&marked)
-        });
-        bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
-    }
-
-    /// [`DeformationTransfer::written_positions`] of the vertices `vertices` only, whose
-    /// deltas are `deltas` (in order): each vertex's the same to the bit.
-    fn written_at(&self, dt: &DeformationTransfer, vertices: &[usize], deltas: &[Vec3]) -> Vec<Vec3> {
-        let written = dt.to_target_frame(deltas);
-        vertices.iter().zip(written).map(|(&v, d)| [0, 1, 2].map(|a| (self.written_neutral[v][a] + d[a]) as f64)).collect()
-    }
-
-    /// The distance kept from the other surface at vertex `u`.
-    fn margin(&self, u: usize) -> f64 {
-        (self.params.margin * self.edge_length[u]).max(self.params.min_margin * self.diagonal)
-    }
 }
 
 /// One shape's solve as the pass sees it.
