@@ -127,6 +127,21 @@
 //!   rounded outwards, eight at a time (same pairs; +1.5G instructions on the 25k call,
 //!   0.75G of it converting the boxes on each sweep); a shape's hierarchy as a copy of the
 //!   written neutral's with only the moved triangles refitted (same boxes; -50M of 0.43G).
+//!   Session 12, one thread on the 25k head: the pass's 1.71 s of CPU is half in three mouth
+//!   shapes that run the attempts (14-26 local re-solves, 0.20-0.35 s each); each of the 38
+//!   shapes it leaves alone costs about 0.01 s, the sweep of its plain solve (per sweep
+//!   ~450k box tests in the leaf loops, 78k overlapping pairs of which 81% share a vertex,
+//!   ~15k triangle tests). Every attempt is the one kept on some shape of the ten heads
+//!   measured, so none can go. Tried and dropped: normal-cone culling of a node against
+//!   itself (Volino & Magnenat-Thalmann 1994, with the star-contour test of Schvartzman,
+//!   Perez & Otaduy 2010: a disc patch whose normals fit in a half-space and whose projected
+//!   boundary winds once around a point cannot cross itself): the same bits but slower
+//!   (1.45 -> 1.71 s), as only a fifth of the nodes with a narrow cone have a star contour,
+//!   and even certifying every such disc without the contour test (unsafe, a bound on the
+//!   gain) saved nothing (1.21-1.23 -> 1.27 s): the leaf loops' time is in pairs of
+//!   neighbouring subtrees, not in a subtree against itself. Shapes taken largest first, so
+//!   that no long mouth shape runs alone at the end: no gain measurable (idle tails 0.08-0.58
+//!   s against 0.20-0.39 s at load 4-5).
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
 //!   triangle: scans trusted up to their own noise (estimated from the vertices an
 //!   expression does not move), the transfer's error taken proportional to each shape's own
