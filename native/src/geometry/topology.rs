@@ -76,6 +76,37 @@ impl Adjacency {
     }
 }
 
+/// Per vertex, the triangles it is a corner of, in ascending order (compressed rows).
+pub struct VertexTriangles {
+    offsets: Vec<usize>,
+    list: Vec<u32>,
+}
+
+impl VertexTriangles {
+    /// Triangle indices must be below `n_vertices` (the rig validated them).
+    pub fn new(n_vertices: usize, triangles: &[[u32; 3]]) -> Self {
+        let mut offsets = vec![0usize; n_vertices + 1];
+        triangles.iter().flatten().for_each(|&v| offsets[v as usize + 1] += 1);
+        for v in 0..n_vertices {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut next = offsets.clone();
+        let mut list = vec![0u32; 3 * triangles.len()];
+        for (t, corners) in triangles.iter().enumerate() {
+            for &v in corners {
+                list[next[v as usize]] = t as u32;
+                next[v as usize] += 1;
+            }
+        }
+        Self { offsets, list }
+    }
+
+    /// The triangles vertex `v` is a corner of.
+    pub fn of(&self, v: usize) -> &[u32] {
+        &self.list[self.offsets[v]..self.offsets[v + 1]]
+    }
+}
+
 /// Connected component label per vertex (0..count), and the count. A vertex in no triangle
 /// is a component of its own.
 pub fn connected_components(n_vertices: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, usize) {
@@ -135,6 +166,11 @@ mod tests {
         let mut n1 = adj.neighbours(1).to_vec();
         n1.sort();
         assert_eq!(n1, vec![0, 2, 3]);
+        let rings = VertexTriangles::new(8, &tris);
+        let expected: [&[u32]; 8] = [&[0], &[0, 1], &[0, 1], &[1], &[2], &[2], &[2], &[]];
+        for (v, triangles) in expected.iter().enumerate() {
+            assert_eq!(rings.of(v), *triangles, "vertex {v}");
+        }
         assert_eq!(unique_edges(&tris).len(), 8);
     }
 }

@@ -20,6 +20,7 @@ use rayon::prelude::*;
 
 use crate::geometry::bvh::{Aabb, TriangleBvh};
 use crate::geometry::mat3::Vec3;
+use crate::geometry::topology::VertexTriangles;
 use crate::rig::{norm, RigView};
 
 /// Share of a shape's largest displacement below which a vertex counts as still.
@@ -39,39 +40,10 @@ pub struct MovingRegion {
     pub hi: Vec3,
 }
 
-/// Per vertex, the triangles it is a corner of: `list[start[v]..start[v + 1]]`.
-struct Incidence {
-    start: Vec<u32>,
-    list: Vec<u32>,
-}
-
-impl Incidence {
-    fn new(n_vertices: usize, triangles: &[[u32; 3]]) -> Self {
-        let mut start = vec![0u32; n_vertices + 1];
-        triangles.iter().flatten().for_each(|&v| start[v as usize + 1] += 1);
-        for v in 0..n_vertices {
-            start[v + 1] += start[v];
-        }
-        let mut next = start.clone();
-        let mut list = vec![0u32; 3 * triangles.len()];
-        for (t, corners) in triangles.iter().enumerate() {
-            for &v in corners {
-                list[next[v as usize] as usize] = t as u32;
-                next[v as usize] += 1;
-            }
-        }
-        Self { start, list }
-    }
-
-    fn of(&self, v: usize) -> &[u32] {
-        &self.list[self.start[v] as usize..self.start[v + 1] as usize]
-    }
-}
-
 impl MovingRegion {
     /// The triangles are those around the moving vertices (`incidence`), in ascending order:
     /// one pass over the moving vertices instead of one over every triangle per shape.
-    fn new(rig: &RigView, k: usize, incidence: &Incidence) -> Self {
+    fn new(rig: &RigView, k: usize, incidence: &VertexTriangles) -> Self {
         let delta = rig.delta(k);
         let norms: Vec<f64> = delta.iter().map(norm).collect();
         let floor = MOVING_FRACTION * norms.iter().copied().fold(0.0, f64::max);
@@ -131,7 +103,7 @@ impl MovingRegion {
 
 /// The moving region of every shape marked in `wanted` (others get an empty one).
 pub fn moving_regions(rig: &RigView, wanted: &[bool]) -> Vec<MovingRegion> {
-    let incidence = Incidence::new(rig.n_vertices(), rig.triangles);
+    let incidence = VertexTriangles::new(rig.n_vertices(), rig.triangles);
     (0..rig.n_shapes())
         .into_par_iter()
         .map(|k| {

@@ -8,7 +8,7 @@ use super::CollisionParams;
 use crate::geometry::bvh::{RefitLinks, TriangleBvh};
 use crate::geometry::closest_point::SurfacePoint;
 use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, Penetration};
-use crate::geometry::topology::Adjacency;
+use crate::geometry::topology::{Adjacency, VertexTriangles};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::Vec3;
 
@@ -39,9 +39,8 @@ pub(in crate::transfer) struct CollisionGuard {
     pub(super) triangle_piece: Vec<u32>,
     pub(in crate::transfer) rest_penetration: Penetration,
     pub(super) adjacency: Adjacency,
-    /// Triangles around each vertex (compressed rows).
-    ring_offsets: Vec<usize>,
-    ring_triangles: Vec<u32>,
+    /// Triangles around each vertex.
+    rings: VertexTriangles,
     /// Per triangle, itself and the triangles sharing a corner with it (compressed rows,
     /// each sorted).
     around_offsets: Vec<usize>,
@@ -78,23 +77,7 @@ impl CollisionGuard {
         let template_rest_pairs = crossings(source, triangles, &template_bvh, None);
         let adjacency = Adjacency::from_triangles(n, triangles);
         let edge_length = adjacency.mean_edge_lengths(neutral);
-        let mut ring_offsets = vec![0usize; n + 1];
-        for tri in triangles {
-            for &v in tri {
-                ring_offsets[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..n {
-            ring_offsets[v + 1] += ring_offsets[v];
-        }
-        let mut fill = ring_offsets.clone();
-        let mut ring_triangles = vec![0u32; ring_offsets[n]];
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                ring_triangles[fill[v as usize]] = t as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let rings = VertexTriangles::new(n, triangles);
         // Per triangle, itself and the triangles sharing a corner with it, sorted: the
         // template-contact test reads them for every pair that crosses in every round.
         let mut around_offsets = Vec::with_capacity(triangles.len() + 1);
@@ -103,7 +86,7 @@ impl CollisionGuard {
         let mut near = Vec::new();
         for tri in triangles {
             near.clear();
-            near.extend(tri.iter().flat_map(|&v| ring_triangles[ring_offsets[v as usize]..ring_offsets[v as usize + 1]].iter().copied()));
+            near.extend(tri.iter().flat_map(|&v| rings.of(v as usize).iter().copied()));
             near.sort_unstable();
             near.dedup();
             around_triangles.extend_from_slice(&near);
@@ -126,15 +109,14 @@ impl CollisionGuard {
             template_bvh,
             edge_length,
             adjacency,
-            ring_offsets,
-            ring_triangles,
+            rings,
             around_offsets,
             around_triangles,
         }
     }
 
     pub(super) fn triangles_at(&self, v: u32) -> &[u32] {
-        &self.ring_triangles[self.ring_offsets[v as usize]..self.ring_offsets[v as usize + 1]]
+        self.rings.of(v as usize)
     }
 
     /// Triangle `t` and the triangles sharing a corner with it, sorted.
