@@ -265,6 +265,11 @@ impl MatrixRows {
     }
 }
 
+/// The error of a factorisation that failed at step `what`.
+fn factorisation_failed(what: &str, e: &dyn std::fmt::Debug) -> ShapesmithError {
+    ShapesmithError::Solver(format!("a sparse system could not be factorised ({what}: {e:?})"))
+}
+
 /// A sparse `L L^T` factor, sequential inside.
 pub struct Cholesky(Factor);
 
@@ -296,14 +301,13 @@ impl Cholesky {
     fn factor(n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64], order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
         let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
         let matrix = SparseColMatRef::new(structure, values);
-        let failed = |what: &str, e: &dyn std::fmt::Debug| ShapesmithError::Solver(format!("a sparse system could not be factorised ({what}: {e:?})"));
         let nnz = row_idx.len();
         let scratch = StackReq::any_of(&[
             StackReq::new::<usize>(n + 1),
             prefactorize_symbolic_cholesky_scratch::<usize>(n, nnz),
             factorize_simplicial_numeric_llt_scratch::<usize, f64>(n),
         ]);
-        let mut buffer = MemBuffer::try_new(scratch).map_err(|e| failed("memory", &e))?;
+        let mut buffer = MemBuffer::try_new(scratch).map_err(|e| factorisation_failed("memory", &e))?;
         let stack = MemStack::new(&mut buffer);
         let (mut upper_col_ptr, mut upper_row_idx, mut upper_values) = (vec![0usize; n + 1], vec![0usize; nnz], vec![0.0; nnz]);
         let permuted =
@@ -325,22 +329,21 @@ impl Cholesky {
         }
         let (mut factor_row_idx, mut factor_values) = (vec![0usize; factor_nnz], vec![0.0; factor_nnz]);
         factorize_simplicial_numeric_llt_with_row_idx(&mut factor_values, &mut factor_row_idx, &factor_col_ptr, tree, upper, Default::default(), stack)
-            .map_err(|e| failed("not positive definite", &e))?;
+            .map_err(|e| factorisation_failed("not positive definite", &e))?;
         let forward = order.arrays().0.to_vec();
         Ok(Self(Factor::Simplicial { forward, col_ptr: factor_col_ptr, row_idx: factor_row_idx, values: factor_values }))
     }
 
     /// faer's general path: symbolic analysis, then numeric factorisation.
     fn factor_general(matrix: SparseColMatRef<'_, usize, f64>, order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
-        let failed = |what: &str, e: &dyn std::fmt::Debug| ShapesmithError::Solver(format!("a sparse system could not be factorised ({what}: {e:?})"));
         let symbolic = factorize_symbolic_cholesky(matrix.symbolic(), Side::Lower, SymmetricOrdering::Custom(order), Default::default())
-            .map_err(|e| failed("symbolic", &e))?;
+            .map_err(|e| factorisation_failed("symbolic", &e))?;
         let mut factor_values = vec![0.0; symbolic.len_val()];
         let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
-        let mut buffer = MemBuffer::try_new(StackReq::any_of(&[scratch])).map_err(|e| failed("memory", &e))?;
+        let mut buffer = MemBuffer::try_new(StackReq::any_of(&[scratch])).map_err(|e| factorisation_failed("memory", &e))?;
         symbolic
             .factorize_numeric_llt(&mut factor_values, matrix, Side::Lower, Default::default(), Par::Seq, MemStack::new(&mut buffer), Default::default())
-            .map_err(|e| failed("not positive definite", &e))?;
+            .map_err(|e| factorisation_failed("not positive definite", &e))?;
         Ok(Self(Factor::General { symbolic, values: factor_values }))
     }
 
