@@ -1,7 +1,7 @@
 //! Times `transfer_shapes` (virtual edges, collision pass, penetration report) outside
 //! Blender, on the arrays `scripts/bench_transfer.py -- --save-arrays DIR` writes:
 //!
-//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS]
+//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS] [--no-collisions] [--no-report]
 //!
 //! Prints the best of RUNS (default 3) runs' native seconds split as the bench reports them
 //! (setup, virtual edges, solves, collision pass, report), the seconds of the template's own
@@ -9,6 +9,9 @@
 //! intersection length and pairs, shapes the pass changed, summed excess over the template,
 //! summed absolute deltas, local re-solves, and a hash of every written delta's bits) so that
 //! two builds run one after the other can be compared for both speed and sameness.
+//! `--no-collisions` turns the collision pass off (virtual edges alone) and `--no-report` the
+//! penetration report, so that what each adds to the call is measured in one place (without
+//! the report, the checksum's report fields are zero: only `|deltas|` and `bits` compare).
 
 use std::time::Instant;
 
@@ -20,8 +23,13 @@ mod arrays;
 use arrays::{points, read};
 
 fn main() {
-    let dir = std::env::args().nth(1).expect("usage: time_transfer DIR [RUNS]");
-    let runs: usize = std::env::args().nth(2).map_or(3, |r| r.parse().expect("RUNS is a count"));
+    let usage = "usage: time_transfer DIR [RUNS] [--no-collisions] [--no-report]";
+    let (flags, positional): (Vec<String>, Vec<String>) = std::env::args().skip(1).partition(|a| a.starts_with("--"));
+    let dir = positional.first().expect(usage).clone();
+    let runs: usize = positional.get(1).map_or(3, |r| r.parse().expect("RUNS is a count"));
+    if let Some(unknown) = flags.iter().find(|f| !matches!(f.as_str(), "--no-collisions" | "--no-report")) {
+        panic!("unknown flag {unknown}; {usage}");
+    }
     let source = points(&format!("{dir}/source.f32"));
     let target = points(&format!("{dir}/target.f32"));
     let deltas = points(&format!("{dir}/deltas.f32"));
@@ -30,7 +38,10 @@ fn main() {
     let started = Instant::now();
     let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
     let template_seconds = started.elapsed().as_secs_f64();
-    let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
+    let mut params = TransferShapesParams { measure_penetration: !flags.iter().any(|f| f == "--no-report"), ..Default::default() };
+    if flags.iter().any(|f| f == "--no-collisions") {
+        params.transfer.collisions = None;
+    }
     let mut best: Option<(f64, StageSeconds)> = None;
     let mut checksum = (0.0, 0, 0, 0.0, 0.0, 0, 0u64);
     for _ in 0..runs {
