@@ -75,7 +75,7 @@ pub struct CarryCollision {
 
 /// The character's penetration (SPEC section 3's metric) at rest and in each kept shape, as
 /// `measure_penetration` gives it (the pass sweeps every shape anyway, so the add-on need
-/// not), and per shape issue 9's criterion on it: the curve the shape adds to the character's
+/// not), and per shape the worse-than-template criterion on it: the curve the shape adds to the character's
 /// neutral beyond what the template's shape adds to the template's, per part
 /// ([`AddedCurve::excess_parts`]), as the transfer's report gives it for a same-topology
 /// target.
