@@ -162,7 +162,7 @@ impl Default for PackingParams {
 }
 
 /// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
-/// docs/pack.md).
+/// docs/design.md, "Poseable and observable expressions").
 pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
 
 /// What the poseability tests found, and what they cost.
