@@ -572,8 +572,6 @@ pub(super) fn skin_over_teeth(top: f32) -> Mesh {
     (pts, tris)
 }
 
-/// Shape 0 presses the middle of the skin down by 0.15 (the teeth stay); shape 1 raises a
-/// bump in a corner, far from the teeth.
 /// The skin plane cutting through the teeth at rest (both meshes cross from the start: the
 /// MakeHuman lids and lips rest inside their eyeballs and teeth), and a small rise of the skin
 /// over the teeth (first shape; the second is [`press_and_bump`]'s bump) that stays inside the
@@ -590,6 +588,8 @@ pub(super) fn skin_rising_over_teeth() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u3
     (source, target, tris, deltas)
 }
 
+/// Shape 0 presses the middle of the skin down by 0.15 (the teeth stay); shape 1 raises a
+/// bump in a corner, far from the teeth.
 pub(super) fn press_and_bump(pts: &[[f32; 3]]) -> Vec<[f32; 3]> {
     let skin = 15 * 15;
     let mut deltas = vec![[0.0f32; 3]; 2 * pts.len()];
