@@ -46,8 +46,8 @@
 //!   0.1% scan noise, packed: 1.22e-3 at `beta` 0.25, 1.32e-3 at 1, 1.65e-3 at 4 (the warp is
 //!   a large error for the transfer; real scans may favour it more). Scans are followed where
 //!   shapes move strongly, so their noise enters the shapes nearly one to one there (1.32e-3
-//!   at 0.1% noise, the scans' own mean noise being 1.6e-3); smoothing the scans' residual
-//!   against the transfer before the fit is the next step, not done.
+//!   at 0.1% noise, the scans' own mean noise being 1.6e-3); the scans' residual is not
+//!   smoothed against the transfer before the fit.
 //! - **Weight refinement against the transferred shapes, once, members only** (EBFR
 //!   alternates with the shapes). With the scans trusted, shapes fitted with wrong weights
 //!   absorb the error (a shape at 0.8 with weight 1 explains a scan as well as the truth at
