@@ -484,7 +484,7 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
             assert 0.0 <= row["between_pieces"] <= row["length"] + 1e-9
             assert 0.0 <= row["template_between_pieces"] <= row["template_length"] + 1e-9
         assert 0.0 < target["neutral_penetration"]["between_pieces"] <= target["neutral_penetration"]["length"]
-        # The native report's excess over the template (issue 9's criterion, read by the
+        # The native report's excess over the template (the worse-than-template criterion, read by the
         # add-on) is that of the lengths it reports, part by part, before and after the pass.
         rest, template_rest = target["neutral_penetration"], target["template_neutral_penetration"]
         for row in target["penetrations"]:

@@ -176,13 +176,13 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
         assert row["excess"] == pytest.approx(expected, abs=1e-9 * diagonal), row["name"]
     print(f"carry {carry_error:.2e}, nearest vertex {nearest_error:.2e}, barycentric {barycentric_error:.2e} of the diagonal; "
           f"without the collision pass, carry {plain_carry_error:.2e}")
-    # Measured (session 9): carry 1.46e-3, nearest vertex 1.62e-3, barycentric 1.57e-3; without
-    # the pass, carry 1.20e-3. With session 7's pass the carry was 1.33e-3; since session 8's rest
-    # and follow attempts, mouthClose, mouthRight and mouthSmileRight differ most (2.9e-3 each,
-    # against 2.1-2.2e-3 without the pass): the pass's holds on the wrapped template differ
-    # from those on the true head. The rest is the skin fit's slide along the surface
-    # between the pairs, a floor every copy shares: with the true correspondence in place of
-    # the fit, the carry is 4.1e-4 from the truth (docs/wrap.md).
+    # Measured: carry 1.46e-3, nearest vertex 1.62e-3, barycentric 1.57e-3; without the pass,
+    # carry 1.20e-3. With the pass, mouthClose, mouthRight and mouthSmileRight differ most
+    # (2.9e-3 each, against 2.1-2.2e-3 without it): the pass's holds on the wrapped template
+    # differ from those on the true head, hence the two bounds. The rest is the skin fit's
+    # slide along the surface between the pairs, a floor every copy shares: with the true
+    # correspondence in place of the fit, the carry is 4.1e-4 from the truth (docs/wrap.md,
+    # Limits).
     assert plain_carry_error < 1.3e-3, plain_carry_error
     assert carry_error < 1.6e-3, carry_error
     assert carry_error < nearest_error and carry_error < barycentric_error, (carry_error, nearest_error, barycentric_error)

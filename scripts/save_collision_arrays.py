@@ -7,12 +7,12 @@ scripts/bench_transfer.py (its subdivided Template / first target pairs), and DI
 scripts/bench_personalise.py's warp ground truth (with `truth.f32`, the true shapes' deltas);
 DIR/face_<head>/ for the face region alone of each Target_* head and of the 19k head (one surface: the skin's
 moving vertices and two rings around them, no eyes, teeth or lashes; what a face-region rig
-is, like the held-back one issue 9 names); DIR/names.txt holds the template's shape names, one
+is); DIR/names.txt holds the template's shape names, one
 a line. Then
 
     cargo run --release --example collision_counts -- DIR/<head> DIR/names.txt
 
-prints the shapes worse than the template (issue 9's criterion) plain, with virtual edges and
+prints the shapes worse than the template plain, with virtual edges and
 with the collision pass, and on DIR/warp the warp error with and without the pass.
 """
 

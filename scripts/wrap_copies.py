@@ -17,8 +17,8 @@ def moving_error(estimate, reference, diagonal):
 
 
 def nearest_vertex_copy(surface_positions, surface_deltas, points):
-    """Each point takes the delta of the nearest surface vertex (the simple binding the issue
-    names), brute force in chunks: (K, len(points), 3)."""
+    """Each point takes the delta of the nearest surface vertex (the simplest binding, a
+    baseline), brute force in chunks: (K, len(points), 3)."""
     nearest = np.empty(len(points), dtype=int)
     for start in range(0, len(points), 128):
         chunk = points[start:start + 128]

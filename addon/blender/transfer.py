@@ -302,7 +302,7 @@ def added_beyond_template(report, row, key="length"):
     """How much more intersection curve the shape adds to the target's neutral than the
     template's shape adds to the template's, split into (inside one piece: lips or lids
     through each other, between pieces: skin through a separate eyeball, lashes or teeth),
-    each part zero or more: issue 9's criterion, as the native report computes it (`excess`:
+    each part zero or more: the worse-than-template criterion, as the native report computes it (`excess`:
     a part where the template's shape removes curve allows none, and removing in one part does
     not pay for adding in the other). `key="plain_length"` reads plain transfer's,
     `key="before_collisions_length"` the result's before the collision pass."""

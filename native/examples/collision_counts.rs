@@ -1,4 +1,4 @@
-//! Counts the shapes worse than the template by issue 9's criterion (SPEC 3), plain, with
+//! Counts the shapes worse than the template by the worse-than-template criterion (SPEC 3), plain, with
 //! virtual edges before the collision pass and after it, on the arrays
 //! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
 //! --save-arrays DIR`):

@@ -40,23 +40,9 @@
 //!   ([`conflicts::ConflictReason`]).
 //! - Beyond the paper: [`PackingParams::fewest`] proves the fewest expressions for the same
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
-//! - Issue 13's speed target (under 50 ms native with both poseability tests on a 26k head,
-//!   2 cores) is not met: 0.78 s on the 26k copy, 0.07-0.08 s with the tests off (session 11,
-//!   time_pack best of 5, load about 4). Thread CPU per part there (instrumented run, ms):
-//!   occlusion about 400 (each tested shape posed alone, one ray per active vertex, 180-220;
-//!   per direction the vertices in the partner's reach traced again, 160-190), collisions
-//!   about 380 (each shape's moved triangles cut from the rest hierarchy and posed, 100-130;
-//!   its crossings alone, 100; the mixes of the 694 pairs, 120-135), the rest hierarchy
-//!   build 40-50 beside the regions (17); with the tests off, the symmetry 40 beside the
-//!   cosines 12-16, HiGHS 16-21 (wall, 36 solves), binary blendshapes 4. Every part grows
-//!   with the triangles the shapes move (the 9x copy costs 1.4x the 26k one), so 50 ms asks
-//!   for a tenth of today's work, not a constant factor. Tried and dropped: a grid on the
-//!   view plane for the occlusion rays (the same answers; no gain measured, the rays against
-//!   the mesh at rest are not where that test's time goes), the symmetry's exact mirror
-//!   errors and mirror map on both cores (no gain measured in the packing), and the rest
-//!   hierarchy built beside the symmetry instead of beside the regions (the regions part
-//!   0.06 -> 0.02 s, the whole 26k packing 5% faster on a quiet machine, 0-4% slower on the
-//!   9x copy under load).
+//! - Not met: SPEC's 50 ms for a cold pack of a 26k-vertex head with both poseability tests
+//!   (0.52 s; a re-pack reusing the stored results 0.15 s). Every part of the tests grows with
+//!   the triangles the shapes move, so it asks for a tenth of the work (docs/design.md).
 
 pub mod collisions;
 pub mod conflicts;
@@ -176,7 +162,7 @@ impl Default for PackingParams {
 }
 
 /// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
-/// docs/pack.md).
+/// docs/design.md, "Poseable and observable expressions").
 pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
 
 /// What the poseability tests found, and what they cost.

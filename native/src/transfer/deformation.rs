@@ -576,10 +576,9 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
 /// (centimetres, millimetres, inches against metres; a wrapped template in its character's),
 /// and the template's intersection curve is read at the target's size. Heads of one unit
 /// differ by about 10% (the bundled identities: 0.92 to 1.02 in RMS radius, the warp ground
-/// truth 1.08) and compare raw lengths, as issue 9's criterion states: read at the RMS size
-/// ratio there instead, the bundled targets stayed at 0 shapes worse, but the pass's
-/// decisions on the warp ground truth moved its error from +4.2% to +7.9% (+5.6% with the
-/// bounding-box ratio, 1.01), past the issue's 5%.
+/// truth 1.08) and compare raw lengths: read at the size ratio there too, the pass's
+/// decisions on the warp ground truth raise its error +7.9% instead of +4.2%, past the 5%
+/// allowed (docs/design.md, "The template's curve read in the target's units").
 pub const OTHER_UNITS: f64 = 1.5;
 
 /// The largest collision margin accepted, in local edge lengths: beyond it the kept distance

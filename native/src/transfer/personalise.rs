@@ -18,7 +18,7 @@
 //! - (P5) closed form in the variance (push-through) form, one J x J solve per triangle:
 //!   `M_k = S_k + tau_k sum_j alpha_jk Y_j`, `(N_t + alpha T_t alpha^T) Y_t = A_t P_t - alpha S_t P_t`.
 //!
-//! What this does with packed expressions (the point): where one member of an
+//! What this does with packed expressions: where one member of an
 //! expression moves a triangle and the others barely do, `tau` of that member dwarfs theirs
 //! and, the scan being trusted, that member's gradient becomes the scan's (up to `nu`); where
 //! members overlap in their weak tails the residual is split in proportion to `tau`, i.e. to
@@ -34,7 +34,7 @@
 //! # Deviations (measured by `scripts/bench_personalise.py`, bundled head, 18 packed
 //! expressions, virtual edges on; mean error on active vertices / diagonal)
 //! - **EBFR's adaptive weight replaced.** `w_k = ((1 + |S|) / (kappa + |S|))^theta` with
-//!   `beta = 0.1` (the previous version, normalised at each shape's peak strain) held every
+//!   `beta = 0.1` (normalised at each shape's peak strain) held every
 //!   shape towards the transfer even where the scan shows it alone: 1.51e-3 (additive copy
 //!   2.69e-3). The variance model P1-P5 alone: 9.26e-4; with the pieces' translations (P7):
 //!   5.26e-4; with the springs' targets (P8): 3.49e-4 (4x head 3.42e-4; without virtual edges
@@ -46,14 +46,14 @@
 //!   0.1% scan noise, packed: 1.22e-3 at `beta` 0.25, 1.32e-3 at 1, 1.65e-3 at 4 (the warp is
 //!   a large error for the transfer; real scans may favour it more). Scans are followed where
 //!   shapes move strongly, so their noise enters the shapes nearly one to one there (1.32e-3
-//!   at 0.1% noise, the scans' own mean noise being 1.6e-3); smoothing the scans' residual
-//!   against the transfer before the fit is the next step, not done.
+//!   at 0.1% noise, the scans' own mean noise being 1.6e-3); the scans' residual is not
+//!   smoothed against the transfer before the fit.
 //! - **Weight refinement against the transferred shapes, once, members only** (EBFR
 //!   alternates with the shapes). With the scans trusted, shapes fitted with wrong weights
 //!   absorb the error (a shape at 0.8 with weight 1 explains a scan as well as the truth at
 //!   0.8), so alternating cannot move the weights; the transfer, wrong in direction more than
 //!   in size, can. Members posed at weights in [0.75, 1] and told 1: mean weight error 0.128
-//!   -> 0.085, shapes 1.67e-3 -> 1.38e-3 (the previous alternation: 1.82e-3 -> 2.08e-3).
+//!   -> 0.085, shapes 1.67e-3 -> 1.38e-3 (alternating with the shapes: 1.82e-3 -> 2.08e-3).
 //!   Shapes the user left out of an expression stay out.
 
 use std::sync::atomic::{AtomicUsize, Ordering};

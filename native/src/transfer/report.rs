@@ -67,7 +67,7 @@ pub struct ShapePenetration {
     pub plain_pairs: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_between_pieces: Option<f64>,
-    /// Issue 9's criterion, per part: how much more curve the result adds to the target's
+    /// The worse-than-template criterion, per part: how much more curve the result adds to the target's
     /// neutral than the template's shape adds to the template's ([`AddedCurve::excess_parts`];
     /// zero in both parts when the shape is no worse than the template's). The add-on reads
     /// these instead of judging again.

@@ -56,7 +56,7 @@ pub struct CarryParams {
     /// `w_u / A_uu`, the weight of a held vertex's target against its row of the system.
     pub collision_stiffness: f64,
     /// A shape is worse than the template when its excess is over this fraction of the
-    /// character's bbox diagonal (issue 9's criterion as the add-on reads it).
+    /// character's bbox diagonal (the worse-than-template criterion as the add-on reads it).
     pub collision_tolerance: f64,
 }
 
@@ -89,7 +89,7 @@ pub struct CarryResult {
     pub max_binding_distance: f64,
     /// Per shape, what the collision pass did (empty when it was off).
     pub collisions: Vec<CarryCollision>,
-    /// The carried keys' penetration on the character and issue 9's criterion on it (when
+    /// The carried keys' penetration on the character and the worse-than-template criterion on it (when
     /// the template's added curve is given).
     pub penetration: Option<CarryPenetration>,
 }
@@ -145,7 +145,7 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 /// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
 /// (`wrapped`, `template_triangles`) onto the character. With `template_added` (per shape,
 /// the curve the template's own shape adds to the template's neutral, in the character's
-/// units), every carried shape is judged by issue 9's criterion on the character's own mesh,
+/// units), every carried shape is judged by the worse-than-template criterion on the character's own mesh,
 /// and with [`CarryParams::collision_pass`] each one worse than the template is re-solved by
 /// the collision pass ([`super::collisions`]; screened carry only). Inputs are validated by
 /// the caller (`wrap::carry_shapes`).

@@ -1,15 +1,14 @@
 //! Collision-aware carry (SPEC section 3's collision-aware solve, on the character's own mesh):
 //! a carried shape that adds more intersection curve to the character's neutral than the
-//! template's own shape adds to the template's (issue 9's criterion, per part: inside one
-//! piece, between pieces; the template's curve given in the character's units) has the
-//! vertices that went through another surface held on their rest side of it, with a margin,
-//! and is re-solved around them; a few rounds at most, and the round with least excess is
-//! kept. A shape meeting the criterion is returned untouched, bit for bit.
+//! template's own shape adds to the template's (per part: inside one piece, between pieces;
+//! the template's curve given in the character's units) has the vertices that went through
+//! another surface held on their rest side of it, with a margin, and is re-solved around them;
+//! a few rounds at most, and the round with least excess is kept. A shape meeting the
+//! criterion is returned untouched, bit for bit.
 //!
 //! Why on the character and not only on the wrapped template: the character's own lips are
 //! closer (and coarser) than the wrapped template's, so the wrapped template's motion, copied
-//! faithfully, still brings them through each other (on the sample's Character_YoungWoman
-//! 20 of 52 carried shapes worse than the template while the wrapped template has 2).
+//! faithfully, still brings them through each other.
 //!
 //! **Judge.** The shape is swept on its moved triangles (two unmoved triangles cross exactly
 //! as at rest, `geometry::penetration`), and its added curve per part compared with the
@@ -27,10 +26,7 @@
 //! triangle moves (its corners get the other half from the pair seen the other way round).
 //! `m_u` is `collision_margin` x the mean length of the edges at `u` (at least 1e-3 of the
 //! diagonal). A vertex held by several pairs takes its largest push; targets accumulate over
-//! the rounds. Against a static piece, a first attempt sends a corner that moved at most
-//! twice the margin back to rest instead (skin resting on the teeth or an eyeball crosses it
-//! there as the neutral does); while the shape is still worse, a second attempt from the
-//! plain carry holds every such corner at the margin ([`ATTEMPTS`]).
+//! the rounds.
 //!
 //! **Re-solve.** The energy gains `w_u |d_u - (t_u - x_u^0)|^2`, `w_u = stiffness x A_uu`
 //! (a scalar weight: the diagonal of the x, y and z systems, so one factor serves the three).
@@ -38,39 +34,20 @@
 //! times its push) are unknowns; the rest of the shape stays as the plain carry solved it
 //! (Dirichlet), so a round factorises a small principal submatrix plus the diagonal
 //! (`SymmetricMatrix::factor_subset_plus_diagonal`) instead of the character's matrix.
-//! Targets and the region accumulate over the rounds (each round re-solves from the plain
-//! carry); a round's re-sweep tests again only the triangles with a corner in its region
+//! A round's re-sweep tests again only the triangles with a corner in its region
 //! (`crossings_of`; the same pairs and lengths as a full sweep), and the kept round's
 //! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
 //!
-//! # Deviations (measured with `scripts/bench_wrap.py` and the sample's Character_YoungWoman;
-//! "worse": excess over 1e-3 of the character's diagonal in [`CarryPenetration::excess`])
-//!
-//! - **The carry has its own pass; the wrapped template's is not enough.** Shapes worse than
-//!   the template, plain carry -> with this pass: Character_YoungWoman 20 -> 1 (jawLeft +7.5
-//!   -> +0.11 cm left; the barycentric copy of the same wrapped keys 24, nearest-vertex 27);
-//!   bench_wrap's 10k character 22 -> 11 (excess summed 0.67 -> 0.12 of the diagonal), 25k
-//!   19 -> 10 (0.72 -> 0.18). Error against the same-topology transfer 1.30e-3 -> 1.31e-3 /
-//!   1.32e-3 -> 1.32e-3, roughness 4.30e-4 -> 4.40e-4 / 2.48e-4 -> 2.53e-4 (+2%). Carry
-//!   seconds, plain and with the pass in the same run, three runs (2 cores, noisy): 10k
-//!   0.12-0.14 -> 0.43-0.49, 25k 0.26-0.32 -> 1.14-1.31, of which the sweep of every shape
-//!   was paid before by the add-on's `measure_penetration` (0.20 / 0.49 s, now 0.002 s): the
-//!   whole chain on the 25k character 2.1-2.3 s.
-//! - **Two attempts against static pieces.** Skin that moved at most twice the margin sent
-//!   back to rest (as the transfer's pass does) against holding it at the margin: 25k 12 ->
-//!   10 worse (mouthPucker, mouthDimpleRight cleared), but 10k 12 -> 13 and YoungWoman's
-//!   mouthPucker worse; both in turn, the second only while the shape is still worse, the
-//!   least excess kept: 1 / 11 / 10.
-//! - **Left worse:** the rolled lips (mouthRollLower / Upper, 3.4-5.2 cm on the bench's
-//!   characters: the lip turns over, so the side of the other triangle's plane it had at rest
-//!   says nothing; no round lowers the excess and the plain carry is kept), the squints and
-//!   brows (0.1-0.7 cm), and partial clears of jawLeft, mouthFrown, mouthDimple,
-//!   mouthLowerDown (the kept round lowers them by half or more).
-//! - **Tried and dropped:** stopping the rounds when one does not lower the excess of the
-//!   one before (the hopeless rolled lips take four rounds otherwise): 10k 14 and 25k 13
-//!   shapes worse instead of 12 / 12 (a worse round can be followed by one that clears), 25k
-//!   carry 1.27 s against 1.42 s. A region of 1 screening length instead of 1.5: 10k 12
-//!   worse instead of 11, no faster (25k carry 1.08 s, within the noise).
+//! # Deviations (numbers and the alternatives that lost: docs/design.md, "Wrap")
+//! - **Two attempts against static pieces** ([`ATTEMPTS`]): first a corner that moved at most
+//!   twice the margin goes back to rest (skin resting on the teeth or an eyeball crosses it
+//!   there as the neutral does); while the shape is still worse, a second attempt from the
+//!   plain carry holds every such corner at the margin. The least excess is kept.
+//! - **All rounds run**: a round that does not lower the excess can be followed by one that
+//!   clears the shape.
+//! - **Left worse**: the rolled lips (the lip turns over, so the side of the other triangle's
+//!   plane it had at rest says nothing; no round helps and the plain carry is kept), and small
+//!   excesses in squints and brows.
 
 use std::collections::BTreeMap;
 
@@ -98,7 +75,7 @@ pub struct CarryCollision {
 
 /// The character's penetration (SPEC section 3's metric) at rest and in each kept shape, as
 /// `measure_penetration` gives it (the pass sweeps every shape anyway, so the add-on need
-/// not), and per shape issue 9's criterion on it: the curve the shape adds to the character's
+/// not), and per shape the worse-than-template criterion on it: the curve the shape adds to the character's
 /// neutral beyond what the template's shape adds to the template's, per part
 /// ([`AddedCurve::excess_parts`]), as the transfer's report gives it for a same-topology
 /// target.

@@ -15,72 +15,44 @@
 //! | `p_i`, `q_i` (point pairs on template and character) | [`PointPairs`] |
 //! | `s`, `R`, `t` (Umeyama's similarity) | [`Similarity`] |
 //! | `alpha` (stiffness), its schedule | [`FitParams::stiffness`] |
-//! | `beta` (landmark weight, decays with `alpha`: `beta = landmark_weight * alpha`, 100 by default: 1 left the pairs 0.9% of the diagonal apart on a decimated identity, 100 leaves 0.04%) | [`FitParams::landmark_weight`] |
+//! | `beta` (landmark weight, decays with `alpha`: `beta = landmark_weight * alpha`) | [`FitParams::landmark_weight`] |
 //! | `w_i` (0 for rejected closest points) | `nricp::closest_points` |
 //! | rim targets (a template rim vertex's place on the character's matching hole) | `rims::RimTarget`, weight [`FitParams::rim_weight`] |
 //! | `u_i` (closest character point) | `SurfacePoint::point` |
 //! | `H_{k,s}` (template delta gradient sampled on a character triangle) | `carry::Shape::delta_gradient` |
 //!
-//! # Deviations
-//! - **Displacements with a bending stiffness, not per-vertex affine maps.** Amberg et al.
-//!   solve for a 3x4 affine map per vertex (4N x 4N system, stiffness `|(M (x) G) X|^2`).
-//!   Here the unknowns are the skin's displacements (N x N, three right-hand sides) and the
-//!   stiffness is the bending energy `alpha |L d|^2` (`L` the template's uniform Laplacian),
-//!   which like Amberg's costs nothing for a translation and little for a smooth stretch.
-//!   Measured on a decimated MakeHuman identity (`blender_tests/test_wrap.py`'s case): the
-//!   closest-point term only pulls along the normal, so where the template lands along the
-//!   surface is the stiffness's choice. Started from the true correspondence, one step at
-//!   `alpha = 0.5` slid the face 0.33% of the diagonal away from it with the membrane
-//!   `alpha sum_(i,j) |d_i - d_j|^2` (which wants the displacement constant) but 0.10% with
-//!   the bending term; from the alignment, the bending fit lands 0.71% from the truth on the
-//!   face against 0.80% (and 0.05% from the surface against 0.16%). Amberg's affine
-//!   stiffness (implemented and measured, `gamma = 1` on the normalised mesh) gave 0.84% and
-//!   took 2.5 times as long, so it was not kept.
-//! - **One factorisation per stiffness step, weights frozen within the step.** Amberg et al.
-//!   recompute the weights `w_i` with every closest-point iteration, which changes the
-//!   matrix. Here `w_i` is decided at the start of each step; a vertex whose closest point is
-//!   rejected later in the same step is held where it is (its target is its current
-//!   position) rather than released, so the factor stays valid.
-//! - **Pieces follow the skin, then fit the character's own.** Every template piece other
-//!   than the skin (the largest connected component) moves by the similarity (Umeyama) that
-//!   best maps the skin vertices around it from their aligned to their fitted positions; a
-//!   piece whose centre and size then match a character piece's (one to one) is fitted onto
-//!   it by a similarity ICP (`pieces`). The pairing is automatic (place and size), not by the
-//!   user's pairs.
+//! # Deviations (each a decision in docs/design.md, "Wrap", with its numbers)
+//! - **Displacements with a bending stiffness, not per-vertex affine maps.** The unknowns are
+//!   the skin's displacements (N x N, three right-hand sides) with the bending energy
+//!   `alpha |L d|^2` (`L` the template's uniform Laplacian) instead of Amberg's 3x4 affine map
+//!   per vertex (4N x 4N, `|(M (x) G) X|^2`); like Amberg's it costs nothing for a translation
+//!   and little for a smooth stretch, and it lands closer to the true correspondence.
+//! - **One factorisation per stiffness step, weights frozen within the step.** A vertex whose
+//!   closest point is rejected later in the step is held where it is (its target is its
+//!   current position) rather than released, so the factor stays valid.
+//! - **Pieces follow the skin, then fit the character's own.** Every template piece other than
+//!   the skin (the largest component) moves by the similarity that best maps the skin around
+//!   it from aligned to fitted; a piece whose centre and size match a character piece's (one
+//!   to one, by place and size, not by the user's pairs) is then fitted onto it by a
+//!   similarity ICP (`pieces`).
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected
-//!   (SPEC), which left a template vertex on an eye opening's rim with no data term: on the
-//!   sample's Character_YoungWoman the rims landed 2.5% of the diagonal from their true places
-//!   (0.82% on `blender_tests/test_wrap.py`'s decimated Target_OldMan) and the closed lid of a
-//!   blink was jagged. The skin's small boundary loops (eye and mouth openings, not the neck
-//!   cut) are paired with the character's by place and size and each template rim vertex
-//!   targets its arc-length place between the loop's corners on the character's (`rims`):
-//!   0.52% and 0.47%, the lids smooth. The arc-length places themselves are 0.53-0.58% from
-//!   the truth (a MakeHuman identity stretches its lids unevenly), so the pull has weight 1,
-//!   like a closest point, and the skin around it has its say.
-//! - **Only the character's largest piece is fitted to by the skin.** The character's eyes, teeth or
-//!   lashes, if any, would otherwise catch the template's eyelids and lips.
-//! - **The carry is screened towards the barycentric copy.** Pure gradient integration
-//!   (SPEC) carries every error of a sampled gradient to everything between it and the static
-//!   region: on a decimated MakeHuman identity it gave 4.8e-3 of the diagonal against the
-//!   same-topology transfer, worse than the nearest-vertex copy (2.2e-3). With the screening
-//!   `m_v / l^2 |d_v - c_v|^2` (`l` = 2 template edges: the copy sets the shape above that
-//!   scale, the gradients below it, so no template edge shows as a crease) and bindings
-//!   restricted to triangles whose normals agree (an upper lip never samples the lower lip it
-//!   touches), 1.7e-3, below the nearest-vertex (2.2e-3) and barycentric (2.4e-3) copies
-//!   (`blender_tests/test_wrap.py`). `anchor_length = 0` is the pure Poisson solve.
-//! - **Static vertices are zeroed after the solve.** Screened, the system is definite on its
-//!   own, so it is factorised once for all shapes (SPEC) and every shape is one
-//!   back-substitution; the character's vertices bound to static template vertices are then
-//!   set to exactly zero. Their solved values are already near zero (the copy there is zero
-//!   and the screening damps the moving region's influence within a few template edges).
-//!   With `anchor_length = 0` each shape instead factorises the principal submatrix on its
-//!   moving vertices (Dirichlet elimination, as in `transfer`).
-//! - **The carried keys get their own collision pass** (`collisions`, beyond SPEC section 5,
-//!   which carries the wrapped template's collision-free keys as they are): the character's
-//!   lips are closer and coarser than the wrapped template's, so its motion copied faithfully
-//!   still crosses them. Character_YoungWoman: 20 of 52 carried shapes worse than the template
-//!   without it, 1 with it; bench_wrap's 10k / 25k characters 22 / 19 -> 11 / 10, the error
-//!   against the same-topology transfer unchanged (numbers in `collisions`).
+//!   (SPEC), which leaves rim vertices without a data term; the skin's small boundary loops
+//!   (eye and mouth openings, not the neck cut) are paired with the character's by place and
+//!   size, and each rim vertex targets its arc-length place on the matching loop (`rims`),
+//!   with weight 1 like a closest point.
+//! - **Only the character's largest piece is fitted to by the skin**: its eyes, teeth or
+//!   lashes would otherwise catch the template's eyelids and lips.
+//! - **The carry is screened towards the barycentric copy**, `m_v / l^2 |d_v - c_v|^2` with
+//!   `l` = 2 template edges (the copy sets the shape above that scale, the gradients below
+//!   it), and each character triangle binds to a template triangle whose normal agrees, on
+//!   the matching part. `anchor_length = 0` is SPEC's pure Poisson solve.
+//! - **Static vertices are zeroed after the solve.** Screened, the system is definite, so it
+//!   is factorised once for all shapes and each shape is one back-substitution; the vertices
+//!   bound to static template vertices are then set to exactly zero. With
+//!   `anchor_length = 0` each shape factorises the submatrix on its moving vertices instead.
+//! - **The carried keys get their own collision pass** (`collisions`, beyond SPEC section 5):
+//!   the character's lips are closer and coarser than the wrapped template's, so a faithful
+//!   copy of its motion still crosses them.
 
 mod align;
 mod carry;

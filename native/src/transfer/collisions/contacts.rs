@@ -1,5 +1,5 @@
 //! What a shape adds to its neutral's intersection curve, and what the template's own shape
-//! adds: issue 9's criterion ([`AddedCurve::excess`]) and the template's contacts the pass
+//! adds: the worse-than-template criterion ([`AddedCurve::excess`]) and the template's contacts the pass
 //! leaves alone ([`TemplateContacts::near`]).
 
 use std::collections::{HashMap, HashSet};

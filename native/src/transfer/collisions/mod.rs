@@ -1,135 +1,60 @@
-//! Collision-aware pass (SPEC section 3, after Ichim et al. 2016's collision handling): after
-//! a shape is solved, a result that adds more intersection curve to the target's neutral than
-//! the template's own shape adds to the template's has the vertices that went through another
-//! surface held on the side they were on at rest (plus a margin) and is re-solved around
-//! them; a few rounds at most, and the round with least excess over the template is kept.
+//! Collision-aware pass (SPEC section 3, after Ichim et al. 2016's collision handling): a
+//! solved shape that adds more intersection curve to the target's neutral than the template's
+//! own shape adds to the template's has the vertices that went through another surface held on
+//! the side they were on at rest (plus a margin) and is re-solved around them; the round with
+//! least excess over the template is kept.
 //!
-//! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
-//! triangles cross exactly as at rest) and its added curve compared with the template
-//! shape's (from the report's template numbers when given, else one sweep of the template
-//! shape), part by part: inside one piece and between pieces, a part where the template's
-//! shape removes curve allowing none ([`AddedCurve::excess`], issue 9's criterion). A shape
-//! adding no more is returned untouched, bit for bit: the criterion is "no more than the
-//! template", so the artist's own contacts (lips pressed together in mouthClose) stay, and
+//! **Judge.** The result is swept on the triangles with a moving corner and its added curve
+//! compared with the template shape's part by part, inside one piece and between pieces
+//! ([`AddedCurve::excess`]; a part where the template removes curve allows none). A shape
+//! adding no more is returned untouched, bit for bit: the artist's own contacts stay and
 //! self-transfer stays exact.
 //!
-//! **Which pairs.** Pairs of the part in excess only, sharing no vertex, crossing in the
-//! result, not at the target's rest (or at rest with over 5% more curve: skin resting in an
-//! eyeball or the teeth adds curve by sliding along pairs that already cross), and not near a
-//! pair the template's shape adds: some triangle sharing a corner with one crosses some
-//! triangle sharing a corner with the other in the template's shape and not at the
-//! template's rest (the template's crossing triangles are listed once per shape, then each
-//! pair is a lookup). Only vertices the solve is free to move (moving, in a piece anchored by
-//! its static vertices) are held. When every pair of the part in excess lies near a template
-//! contact (the template's skin slides a little along its teeth, the target's far more), the
-//! pairs of that part are acted on regardless of the template's contacts. Of the pairs of the
-//! part in excess, only those of two pieces (or one piece with itself) whose own curve grew
-//! are acted on ([`contacts::pieces_grown`]): skin sliding out of the teeth it rests in while
-//! the lids slide into the eyeballs adds curve between pieces, but pushing it off the teeth
-//! does nothing for the eyeballs and presses the lips into each other. When the pairs left
-//! hold no vertex, all pairs of the part in excess (of pieces whose curve grew) are tried.
+//! **Which pairs.** Pairs of the part in excess that cross in the result, not at the target's
+//! rest (or at rest with over 5% more curve), not near a pair the template's shape adds (found
+//! once per shape, then a lookup among the two one-rings), and of pieces whose own curve grew
+//! ([`contacts::pieces_grown`]). When those hold no vertex, all pairs of the part are tried.
 //!
-//! **Which vertices, and where to.** A vertex that the template's own shape takes to the other
-//! side of the corresponding obstacle (the same triangle's plane, the same static piece's
-//! surface, read on the template's neutral and shape; the topology is shared) is never held:
-//! there the target follows the artist. Against a piece that is static in the shape (teeth, an
-//! eyeball, lashes: an obstacle exactly where the target's neutral has it), a corner of a new
-//! pair offends when it is on the other side of that piece's surface than at rest, the side
-//! read at its closest point on the piece (`TriangleBvh::closest_point_where`); its target is
-//! that closest point plus the margin along the surface normal. A corner that moved at most
-//! half an edge goes back to rest instead, where its triangle crosses the piece as in the
-//! neutral. Against a surface that moves
-//! too (lip through lip), it offends when it is on the other side of the other triangle's
-//! plane than at rest; its target is pushed along that plane's normal to the rest side plus
-//! the margin, `t_u = x_u + (s m_u - h) n` (`s` the rest side, `h` the signed distance now),
-//! half of it when the other triangle can move (its corners get the other half from the pair
-//! seen the other way round). Triangle pairs cross only along a curve, so the vertices beyond
-//! it are reached by a flood over mesh neighbours with the same tests. The margin `m_u` is
-//! `margin` x the mean length of the edges at `u`, at least `min_margin` x the diagonal.
+//! **Which vertices, and where to.** A vertex the template's own shape takes across the same
+//! obstacle follows the artist and is never held. Against a piece static in the shape (teeth,
+//! an eyeball, lashes) a corner on the other side of its surface than at rest (read at its
+//! closest point, `TriangleBvh::closest_point_where`) targets that point plus the margin along
+//! the normal; one that moved at most half an edge goes back to rest. Against a moving surface
+//! (lip through lip) the push is `t_u = x_u + (s m_u - h) n` across the other triangle's plane
+//! (`s` the rest side, `h` the signed distance now), half of it when that triangle moves too. A
+//! flood over mesh neighbours reaches the vertices beyond the crossing curve. The margin `m_u`
+//! is `margin` x the mean edge length at `u`, at least `min_margin` x the diagonal.
 //!
-//! **Constraint and local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u =
-//! stiffness x A_uu`: a point target with a scalar weight adds the same number to the
-//! diagonal of the x, y and z systems, so the coordinates stay separable (a half-space term
-//! would couple them). Only the free vertices within reach of a held vertex (3 edge lengths,
-//! or 3x its push) are unknowns; the rest of the shape stays as solved (Dirichlet), so a
-//! round factorises a small system (`NormalMatrix::solve_local`) instead of the shape's.
-//! Targets and the region accumulate over the rounds. Of the plain solve and the rounds,
-//! the one with least excess over the template is kept: it never makes a shape worse.
+//! **Local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u = stiffness x A_uu`:
+//! a scalar weight on the diagonal, so x, y and z stay separate systems. Only the free vertices
+//! within 3 edge lengths (or 3x the push) of a hold are unknowns, the rest stays as solved
+//! (`NormalMatrix::solve_local`). Targets and region accumulate over the rounds.
 //!
-//! **Folds.** A triangle the plain solve turns over (normal against the target neutral's)
-//! while the template's shape keeps it upright, with a corner a virtual-edge spring pulls at,
-//! was folded by the springs (the dense heads' jawOpen and mouthClose: without virtual edges
-//! they add no curve). There a side test reads the turned-over triangle's plane the wrong way
-//! round, and holds push the lips into each other (Deviations). A pair with such a triangle
-//! is not held: the springs with an end within reach of its corners (the region's rule) are
-//! released in the local re-solve (`NormalMatrix::solve_local`'s `released`: out of the
-//! region's rows, which follow the gradients alone), and a round that releases springs anew
-//! holds nothing; later rounds hold the other pairs as before. A shape no spring folds is
-//! untouched by this.
+//! **Folds.** A triangle the plain solve turns over while the template keeps it upright, with a
+//! corner a virtual-edge spring pulls at, was folded by the springs; its pairs are not held and
+//! the springs near them are released in the re-solve (`solve_local`'s `released`).
 //!
-//! **Attempts.** A shape still worse than the template after the rounds is tried again from
-//! its plain solve with other holds (`ATTEMPTS`): twice the margin, then ten times the
-//! stiffness, then holding the whole lip contact strip (a vertex on its rest side of the other
-//! lip's plane but nearer than the margin is held at the margin too, so the re-solve cannot
-//! pull the crossing's neighbours through), then sending skin back to rest against a static
-//! piece the template's shape adds no curve to (rest), then following the template's own
-//! contacts (follow: holds near them too, a lip vertex placed where the template's shape has it
-//! relative to the same triangle), then, last, the follow attempt with the skin that rests
-//! across a static piece kept where it rests (embedded: a corner of a new pair against a static
-//! piece goes back to rest when its triangle crosses the same piece at the target's rest,
-//! whichever side the corner is on, or when the corner is on its rest side of the piece; skin
-//! resting in the teeth adds curve by sliding along them with every corner on its rest side,
-//! a tooth's edge through its triangles, which no side test sees). The attempt with least
-//! excess is kept, and the next is tried only while the shape is still worse; the embedded
-//! attempt, which holds skin that the template moves, is kept only when it clears the shape. No single setting clears every shape
-//! (Deviations). Every attempt starts from the plain solve, so its sweep and the template
-//! shape's contacts are found once per shape (`PlainRound`); the later attempts run two side
-//! by side (the few shapes needing them are a dozen rounds each, the last to finish otherwise)
-//! and are then taken in order, so the result is the same as one after the other.
+//! **Attempts** (`ATTEMPTS`). A shape still worse is tried again from its plain solve with
+//! other holds: twice the margin, ten times the stiffness, the whole lip contact strip, skin
+//! back to rest against static pieces the template adds no curve to, following the template's
+//! contacts, and last the skin resting across a static piece kept where it rests (kept only
+//! when it clears the shape). The next runs only while the shape is still worse; the plain
+//! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
+//! run two side by side and are taken in order, so the result is that of a serial run.
 //!
-//! **Re-sweeps.** A re-solve changes its region's rows only, so a round's positions, written
-//! positions and hierarchy are updated there only (`TriangleBvh::refit_listed` from a copy of
-//! the plain solve's), and only the triangles with a corner written elsewhere are swept
-//! again, one hierarchy query each (`crossings_of`); the other pairs are kept. Every number
-//! is the same to the bit as a full sweep's (tested in `geometry/`).
+//! **Re-sweeps.** A round changes its region's rows only, so its hierarchy is refitted there
+//! (`TriangleBvh::refit_listed`) and only triangles with a corner written elsewhere are swept
+//! again (`crossings_of`); every number equals a full sweep's to the bit (tested in `geometry/`).
 //!
-//! # Deviations (measured with `native/examples/collision_counts.rs` on the arrays of
-//! `scripts/save_collision_arrays.py`; shapes worse than the template after the
-//! pass on Boy / OldMan / YoungWoman, issue 9's criterion)
-//!
-//! - Session 10 (worse after the pass on Boy / OldMan / YoungWoman / 19k / 25k, warp; `face_*`
-//!   0 throughout): from 0 / 0 / 0 / 1 / 2, +4.2% (19k mouthClose +1.12 cm inside; 25k jawOpen
-//!   +7.67 cm inside, mouthClose +3.83 inside / +2.39 between). Diagnosis (excess in 1e-3 of
-//!   the diagonal): on 25k both shapes' plain transfer without virtual edges adds no curve
-//!   (0.0 / 0.0); with them jawOpen adds 213.0 inside, all 370 pairs acted on in the lips,
-//!   and the solve turns 337 triangles over that the template's shape keeps upright (it turns
-//!   65 others over): the springs fold the lips (mouthClose: 286). 160 of the 370 pairs have a
-//!   turned-over triangle, 293 of 1108 pushes went across a turned-over triangle's plane (its
-//!   normal reversed, so the side test reads the wrong side), and each round's pairs were the
-//!   holds' own (round 1: 405 of 495 pairs new, 492 with a held corner; turned-over
-//!   triangles in the region 57 -> 111 -> 168 -> 220): excess 213 -> 291 -> 389 -> 453 ->
-//!   812. Tried: no push across a turned-over triangle, 25k jawOpen +6.01 cm, 19k mouthClose
-//!   +0.53; releasing every spring in the local region, holds kept: 19k 0, 25k unchanged;
-//!   both: jawOpen +2.78, mouthClose +5.57 / 0; releasing with no hold at all: jawOpen and
-//!   mouthClose 0 / +0.65 between, 12 other 25k shapes worse (they need holds); fold pairs
-//!   read on each round's positions: 25k mouthLeft/Right +0.98 between (folds the holds made);
-//!   without the spring-end condition, YoungWoman's eyeSquintLeft/Right (5 triangles turned
-//!   over, no spring at them, the same without virtual edges) 0 -> 0.64 (below 1) or 7.9 when
-//!   no fold pair may be held. Kept ("Folds"): **0 / 0 / 0 / 0 / 0, +4.2%** (warp digits the
-//!   same); 25k jawOpen 213.0 -> 0, mouthClose 106.3 / 66.4 -> 0 / 0, 19k mouthClose 31.1 / 0
-//!   -> 0. Shapes whose bits change: those five with spring folds (19k jawOpen, mouthClose; 25k
-//!   jawOpen, mouthClose; face_19k jawOpen), every other shape of the ten heads bit for bit.
-//!   Cost in shape, vertices moved by over 10% of the shape's largest delta from the
-//!   virtual-edge solve, before / after (largest move in mm, of the shape's largest delta):
-//!   19k jawOpen 0 / 44 (3.2 / 11.2 of 40.0), face_19k jawOpen 0 / 50 (2.6 / 11.9 of 38.4),
-//!   19k mouthClose 1318 / 41 (30.9 / 10.3 of 30.9), 25k jawOpen 0 / 127 (- / 12.8 of 40.6),
-//!   mouthClose 0 / 156 (- / 10.8 of 30.2): the lips around a fold follow the gradients
-//!   without the springs. Pass seconds on the 25k head (`time_transfer`, before and after
-//!   alternately, load 4-6 from other work, two runs of 3): 4.76 / 3.28 / 4.11 and 2.91 / 2.66
-//!   / 2.88 against 1.72 / 1.99 / 2.54 and 1.58 / 1.62 / 0.98, best -48% and -63%; local
-//!   re-solves 188 -> 135; bits edabb6258832579c -> d66bb356a4a6bde1.
-//! - Earlier rounds (from 5 / 5 / 5 down to 0 / 0 / 0 / 1 / 2, what was tried and dropped, with
-//!   the numbers): docs/transfer.md, "Earlier rounds of the collision pass".
+//! # Deviations (numbers and the alternatives that lost: docs/design.md, "Transfer")
+//! - Only the part in excess is acted on, and only pieces whose curve grew: pushing skin off
+//!   the teeth does nothing for lids sliding into the eyeballs and presses the lips together.
+//! - Against static pieces a corner that barely moved goes back to rest rather than to the
+//!   surface: the MakeHuman lids and lips rest inside their eyeballs and teeth.
+//! - Springs are released where they fold the lips, instead of holding across a turned-over
+//!   triangle whose plane the side test reads the wrong way round.
+//! - No single setting clears every shape: each attempt is the one kept on some shape of the
+//!   ten heads measured with `native/examples/collision_counts.rs`.
 
 mod contacts;
 mod guard;
