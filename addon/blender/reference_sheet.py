@@ -19,8 +19,10 @@ import textwrap
 import numpy as np
 
 import bpy
+from mathutils import Matrix
 
-from .mesh_arrays import MeshDataError, read_positions
+from .front import rig_front, to_front_view
+from .mesh_arrays import MeshDataError, read_positions, read_rig
 
 MARGIN = 0.06  # of the head's height, around the head in each tile
 LABEL_SHARE = 0.24  # of each tile's height, under the head, for the member names
@@ -60,7 +62,7 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     rows = math.ceil(len(expressions) / columns)
     pair_width = 2 * tile_width
     sheet = np.full((rows * tile_height, columns * pair_width, 4), BACKGROUND, dtype=np.float32)
-    stage = _Stage(obj, tile_width, tile_height)
+    stage = _Stage(obj, tile_width, tile_height, _stored_front(obj, result))
     try:
         for j, members in enumerate(expressions):
             front, side = stage.render(f"{j + 1}", members, [regions[name] for name in members])
@@ -77,12 +79,24 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     return sheet.shape[1], sheet.shape[0]
 
 
+def _stored_front(obj, result):
+    """The front and up the packing used (its occlusion conflicts looked from there), in mesh
+    coordinates; found again for a result stored without them."""
+    params = json.loads(result.params_json or "{}")
+    if "front" in params and "up" in params:
+        return params["front"], params["up"]
+    found = rig_front(obj, read_rig(obj), axis=params.get("axis", 0))
+    return found["front"], found["up"]
+
+
 class _Stage:
     """A throwaway scene: a copy of the rig (its own mesh, so tinting never touches the
-    user's), an orthographic camera looking along +Y at the face (which looks towards -Y)
-    and one turned to three-quarters, and two text objects for the number and the legend."""
+    user's), turned so that the face's front (mesh coordinates, `front` and `up`) looks towards
+    -Y with its up along +Z whatever the mesh's or the object's orientation, an orthographic
+    camera looking along +Y at it and one turned to three-quarters, and two text objects for
+    the number and the legend."""
 
-    def __init__(self, obj, tile_width, tile_height):
+    def __init__(self, obj, tile_width, tile_height, front_and_up):
         self.created = []
         self.materials = []
         self.folder = tempfile.mkdtemp(prefix="shapesmith-sheet-")
@@ -98,7 +112,8 @@ class _Stage:
         shading.light, shading.color_type = "STUDIO", "MATERIAL"
 
         self.rig = self._add("Shapesmith Sheet Rig", obj.data.copy())
-        self.rig.matrix_world = obj.matrix_world
+        turn = to_front_view(*front_and_up)
+        self.rig.matrix_world = Matrix([[*row, 0.0] for row in turn] + [[0.0, 0.0, 0.0, 1.0]])
         self.rig.data.materials.clear()
         self.rig.data.materials.append(self._material(SKIN))
         polygons = self.rig.data.polygons
@@ -109,8 +124,8 @@ class _Stage:
         self.loop_vertex = np.empty(len(self.rig.data.loops), np.int32)
         self.rig.data.loops.foreach_get("vertex_index", self.loop_vertex)
 
-        world = np.c_[read_positions(obj), np.ones(len(obj.data.vertices))] @ np.array(obj.matrix_world).T
-        low, high = world[:, :3].min(axis=0), world[:, :3].max(axis=0)
+        world = read_positions(obj).astype(np.float64) @ turn.T
+        low, high = world.min(axis=0), world.max(axis=0)
         head_height = high[2] - low[2]
         label_height = head_height * LABEL_SHARE / (1 - LABEL_SHARE)
         frame_height = head_height * (1 + 2 * MARGIN) + label_height

@@ -1,0 +1,88 @@
+"""The rig's front and up, in the mesh's own coordinates (where the tools work): found by the
+native `find_front` from the rig itself, or taken from a scene camera the user picks (its
+view direction reversed is the front, its up the up). Packing's occlusion conflicts and the
+reference sheet both see the face from this front."""
+
+import numpy as np
+
+from .. import native
+from .mesh_arrays import MeshDataError
+
+AXIS_NAMES = "XYZ"
+
+
+def rig_front(obj, rig, axis=0, camera=None):
+    """{"front", "up", "front_source", "front_camera", "warnings"} for `obj`'s `rig` (a
+    `read_rig` Rig): from `camera` when given, else found with `axis` the symmetry axis tried
+    first. Directions are unit 3-lists in `obj`'s mesh coordinates."""
+    if camera is not None:
+        return _camera_front(obj, camera)
+    found = native.module().find_front(rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis)
+    warnings = []
+    lateral = found["lateral_axis"]
+    if lateral is None:
+        warnings.append(
+            f"'{obj.name}' is not mirror-symmetric across X, Y or Z = 0: its front, {direction_label(found['front'])}, "
+            "is the mean normal of its moving regions; pick a front camera in the Pack panel if it is wrong"
+        )
+    elif lateral != axis:
+        warnings.append(
+            f"'{obj.name}' is mirror-symmetric across {AXIS_NAMES[lateral]} = 0, not {AXIS_NAMES[axis]} = 0: "
+            f"set the Rig panel's symmetry axis to {AXIS_NAMES[lateral]} for symmetric pairs"
+        )
+    if found["up_source"] == "assumed":
+        warnings.append(
+            f"no shape key named for the eyes or the mouth moves on '{obj.name}': its up is taken as "
+            f"{direction_label(found['up'])}; pick a front camera in the Pack panel if it is wrong"
+        )
+    return {"front": found["front"], "up": found["up"], "front_source": "found", "front_camera": None, "warnings": warnings}
+
+
+def _camera_front(obj, camera):
+    """The camera's view reversed (towards the camera) and its up, taken into `obj`'s mesh
+    coordinates: a direction d in the world is L^-1 d locally (L: the object's linear part)."""
+    if camera.type != "CAMERA":
+        raise MeshDataError(f"'{camera.name}' is a {camera.type.lower()}, not a camera")
+    linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
+    if abs(np.linalg.det(linear)) < 1e-12:
+        raise MeshDataError(f"'{obj.name}' has a zero scale: its mesh directions cannot be found")
+    view = np.array(camera.matrix_world.to_3x3(), dtype=np.float64)
+    toward = np.linalg.solve(linear, view[:, 2])  # the camera looks along its local -Z
+    up = np.linalg.solve(linear, view[:, 1])
+    toward /= np.linalg.norm(toward)
+    up -= toward * float(up @ toward)
+    if np.linalg.norm(up) < 1e-9:
+        raise MeshDataError(f"camera '{camera.name}' has no usable up direction for '{obj.name}'")
+    up /= np.linalg.norm(up)
+    return {
+        "front": [float(x) for x in toward],
+        "up": [float(x) for x in up],
+        "front_source": "camera",
+        "front_camera": camera.name,
+        "warnings": [],
+    }
+
+
+def direction_label(vector):
+    """'-Y' for a signed mesh axis, else the rounded components."""
+    v = np.asarray(vector, dtype=np.float64)
+    axis = int(np.argmax(np.abs(v)))
+    if abs(abs(v[axis]) - 1.0) < 1e-6:
+        return f"{'-' if v[axis] < 0 else '+'}{AXIS_NAMES[axis]}"
+    return "(" + ", ".join(f"{x:.2f}" for x in v) + ")"
+
+
+def front_summary(params):
+    """'-Y (found), up +Z' or 'camera Camera' from a packing's stored params; None before any."""
+    if "front" not in params:
+        return None
+    if params.get("front_source") == "camera":
+        return f"camera {params.get('front_camera')}"
+    return f"{direction_label(params['front'])} (found), up {direction_label(params['up'])}"
+
+
+def to_front_view(front, up):
+    """The rotation (3 x 3) taking mesh coordinates to a frame where `front` is -Y and `up`
+    is +Z: the reference sheet's fixed stage then shows the face from its front."""
+    f, u = np.asarray(front, dtype=np.float64), np.asarray(up, dtype=np.float64)
+    return np.array([np.cross(u, f), -f, u])
