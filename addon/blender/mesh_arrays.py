@@ -58,22 +58,25 @@ def check_topology(obj):
     from .. import native
 
     mesh = obj.data
-    mesh.calc_loop_triangles()
+    triangles = read_triangles(obj)
     faces = np.empty(len(mesh.loop_triangles), dtype=np.int32)
     mesh.loop_triangles.foreach_get("polygon_index", faces)
-    faults = native.module().mesh_faults(read_positions(obj), read_triangles(obj))
+    positions = read_positions(obj)
+    if mesh.shape_keys is not None:  # the rest shape, which the vertex array can lag behind
+        mesh.shape_keys.reference_key.data.foreach_get("co", positions.reshape(-1))
+    faults = native.module().mesh_faults(positions, triangles)
     name = obj.name
     fault = faults["duplicate_triangles"]
     if fault["count"]:
         earlier, later = (int(faces[t]) for t in fault["first"])
         raise MeshDataError(
-            f"'{name}' has {fault['count']} duplicate face(s) (e.g. face {later} repeats face {earlier}): "
-            "delete them (Edit Mode > Mesh > Clean Up > Merge by Distance, or delete the copy)"
+            f"'{name}' has faces listed twice ({fault['count']} triangle(s); e.g. face {later} repeats face {earlier}): "
+            "delete the copies"
         )
     fault = faults["zero_area_triangles"]
     if fault["count"]:
         raise MeshDataError(
-            f"'{name}' has {fault['count']} zero-area face(s) (e.g. face {int(faces[fault['first']])}): "
+            f"'{name}' has zero-area faces ({fault['count']} triangle(s); e.g. face {int(faces[fault['first']])}): "
             "remove them (Edit Mode > Mesh > Clean Up > Degenerate Dissolve)"
         )
     fault = faults["non_manifold_edges"]
@@ -131,7 +134,9 @@ def read_rig(obj):
         deltas[k] = buffer.reshape(n, 3) - neutral
         if block.relative_key != reference and block.relative_key != block:
             warnings.append(
-                f"shape key '{block.name}' is relative to '{block.relative_key.name}'; it is taken against '{reference.name}'"
+                f"shape key '{block.name}' is relative to '{block.relative_key.name}', not '{reference.name}': "
+                f"it is read as stored, against '{reference.name}' (posed alone in Blender it shows its difference "
+                f"from '{block.relative_key.name}'); set its Relative To to '{reference.name}' to see what the tools see"
             )
     return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], warnings)
 
