@@ -3,10 +3,12 @@ native `find_front` from the rig itself, or taken from a scene camera the user p
 view direction reversed is the front, its up the up). Packing's occlusion conflicts and the
 reference sheet both see the face from this front."""
 
+import json
+
 import numpy as np
 
 from .. import native
-from .mesh_arrays import MeshDataError
+from .mesh_arrays import MeshDataError, read_rig
 
 AXIS_NAMES = "XYZ"
 
@@ -86,3 +88,24 @@ def to_front_view(front, up):
     is +Z: the reference sheet's fixed stage then shows the face from its front."""
     f, u = np.asarray(front, dtype=np.float64), np.asarray(up, dtype=np.float64)
     return np.array([np.cross(u, f), -f, u])
+
+
+def view_front(obj):
+    """(front, up) for the pictures of `obj`: those its last packing used (its occlusions
+    looked from there, camera or found), else found now with the scene's symmetry axis."""
+    import bpy
+
+    result = obj.shapesmith.pack.result
+    params = json.loads(result.params_json or "{}") if result.done else {}
+    if "front" in params and "up" in params:
+        return params["front"], params["up"]
+    found = rig_front(obj, read_rig(obj), axis=int(bpy.context.scene.shapesmith.symmetry_axis))
+    return found["front"], found["up"]
+
+
+def front_view_matrix(obj):
+    """4 x 4 (numpy) taking world coordinates to the pictures' frame: `obj`'s mesh coordinates
+    turned by `to_front_view`, so that its front looks towards -Y with its up along +Z."""
+    turn = np.eye(4)
+    turn[:3, :3] = to_front_view(*view_front(obj))
+    return turn @ np.linalg.inv(np.array(obj.matrix_world))

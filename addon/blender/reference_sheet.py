@@ -21,8 +21,8 @@ import numpy as np
 import bpy
 from mathutils import Matrix
 
-from .front import rig_front, to_front_view
-from .mesh_arrays import MeshDataError, read_positions, read_rig
+from .front import to_front_view, view_front
+from .mesh_arrays import MeshDataError, read_positions
 
 MARGIN = 0.06  # of the head's height, around the head in each tile
 LABEL_SHARE = 0.24  # of each tile's height, under the head, for the member names
@@ -62,7 +62,7 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     rows = math.ceil(len(expressions) / columns)
     pair_width = 2 * tile_width
     sheet = np.full((rows * tile_height, columns * pair_width, 4), BACKGROUND, dtype=np.float32)
-    stage = _Stage(obj, tile_width, tile_height, _stored_front(obj, result))
+    stage = _Stage(obj, tile_width, tile_height, view_front(obj))
     try:
         for j, members in enumerate(expressions):
             front, side = stage.render(f"{j + 1}", members, [regions[name] for name in members])
@@ -77,16 +77,6 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     sheet[::tile_height, :, :3] = GRID
     _save_png(sheet, path)
     return sheet.shape[1], sheet.shape[0]
-
-
-def _stored_front(obj, result):
-    """The front and up the packing used (its occlusion conflicts looked from there), in mesh
-    coordinates; found again for a result stored without them."""
-    params = json.loads(result.params_json or "{}")
-    if "front" in params and "up" in params:
-        return params["front"], params["up"]
-    found = rig_front(obj, read_rig(obj), axis=params.get("axis", 0))
-    return found["front"], found["up"]
 
 
 class _Stage:
