@@ -13,7 +13,8 @@
 //!    negative (triangles wound inwards) every normal is flipped.
 //! 3. **The symmetry plane.** The mirror map across the caller's lateral axis
 //!    ([`MirrorMap`]) is tried first, then the two other coordinate planes; the first that
-//!    matches at least [`SYMMETRIC_SHARE`] of the vertices is the face's symmetry plane, its
+//!    matches at least [`SYMMETRIC_SHARE`] of the vertices, and across which the weights are
+//!    mirrored (within [`MOTION_ASYMMETRY`]), is the face's symmetry plane, its
 //!    normal the left-right axis, and the front is the raw front with its left-right
 //!    component removed. Without such a plane (a face turned off the axes, or not centred on
 //!    a coordinate plane), the raw front is used as it is.
@@ -25,8 +26,8 @@
 //!    from the moving regions of the shapes named for the mouth and jaw (`mouth`, `jaw`,
 //!    `lip`, `chin`, `tongue`) to those named for the eyes and brows (`eye`, `blink`, `brow`,
 //!    `lid`, `squint`), in the symmetry plane when there is one, and snapped to an axis like
-//!    the front. A rig whose names say neither gets the mesh axis most perpendicular to the
-//!    front, positive, and [`UpSource::Assumed`] says so.
+//!    the front. A rig whose names say neither gets +Z (Blender's up), or +Y (the glTF and
+//!    FBX up) when the front is along Z, and [`UpSource::Assumed`] says so.
 
 use serde::Serialize;
 
@@ -39,6 +40,10 @@ use crate::rig::{norm, RigView, INERT_FRACTION};
 /// The share of vertices the mirror map must match for a coordinate plane to be the face's
 /// symmetry plane.
 pub const SYMMETRIC_SHARE: f64 = 0.5;
+
+/// How far the motion weights may differ from their mirror images, as a share of their
+/// total, across the face's symmetry plane.
+pub const MOTION_ASYMMETRY: f64 = 0.25;
 
 /// A found direction within this angle of a signed mesh axis is snapped to it.
 pub const SNAP_DEGREES: f64 = 25.0;
@@ -56,8 +61,7 @@ const LOWER_NAMES: [&str; 5] = ["mouth", "jaw", "lip", "chin", "tongue"];
 pub enum UpSource {
     /// From the mouth's moving regions to the eyes'.
     Names,
-    /// No shape named for the eyes or the mouth moves: the mesh axis most perpendicular to
-    /// the front, positive.
+    /// No shape named for the eyes or the mouth moves: +Z, or +Y for a front along Z.
     Assumed,
 }
 
@@ -92,7 +96,7 @@ pub fn find_front(rig: &RigView, axis: usize) -> ShapesmithResult<Front> {
     for (n, &w) in normals.iter().zip(&weights) {
         raw = add(raw, scale(*n, w));
     }
-    let lateral_axis = symmetry_axis(rig.neutral, axis);
+    let lateral_axis = symmetry_axis(rig.neutral, &weights, axis);
     if let Some(a) = lateral_axis {
         raw[a] = 0.0;
     }
@@ -140,12 +144,25 @@ fn outward_normals(rig: &RigView) -> Vec<Vec3> {
 }
 
 /// The first of `preferred`, then the other axes, across whose zero plane the mirror map
-/// matches at least [`SYMMETRIC_SHARE`] of the vertices.
-fn symmetry_axis(points: &[[f32; 3]], preferred: usize) -> Option<usize> {
+/// matches at least [`SYMMETRIC_SHARE`] of the vertices and the motion is mirrored too: the
+/// weights differ from their mirror images by at most [`MOTION_ASYMMETRY`] of their total
+/// (a head can be as round front to back as left to right; only its left-right plane
+/// mirrors what moves).
+fn symmetry_axis(points: &[[f32; 3]], weights: &[f64], preferred: usize) -> Option<usize> {
     let order = [preferred, (preferred + 1) % 3, (preferred + 2) % 3];
     order.into_iter().find(|&axis| {
         let map = MirrorMap::new(points, axis, MIRROR_TOLERANCE);
-        (points.len() - map.unmatched.len()) as f64 >= SYMMETRIC_SHARE * points.len() as f64
+        if ((points.len() - map.unmatched.len()) as f64) < SYMMETRIC_SHARE * points.len() as f64 {
+            return false;
+        }
+        let (mut difference, mut total) = (0.0, 0.0);
+        for (v, partner) in map.partner.iter().enumerate() {
+            if let Some(m) = partner {
+                difference += (weights[v] - weights[*m as usize]).abs();
+                total += weights[v];
+            }
+        }
+        total > 0.0 && difference <= MOTION_ASYMMETRY * total
     })
 }
 
@@ -191,10 +208,10 @@ fn region_centroid(rig: &RigView, words: &[&str]) -> Option<Vec3> {
     (total > 0.0).then(|| scale(sum, 1.0 / total))
 }
 
-/// The positive mesh axis with the largest part perpendicular to `front`, made perpendicular.
+/// +Z (Blender's up), or +Y (the glTF and FBX up) for a front along Z, made perpendicular to
+/// `front`.
 fn assumed_up(front: Vec3) -> Vec3 {
-    let best = (0..3).min_by(|&a, &b| front[a].abs().total_cmp(&front[b].abs())).unwrap_or(2);
-    let e = axis_vector(best, 1.0);
+    let e = axis_vector(if front[2].abs() < 0.7 { 2 } else { 1 }, 1.0);
     unit(sub(e, scale(front, dot(e, front)))).map_or(e, |u| snap(u, Some(front)).0)
 }
 

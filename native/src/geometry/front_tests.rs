@@ -86,8 +86,8 @@ fn an_oblique_face_has_no_symmetry_plane_and_keeps_its_found_front() {
     let front = found(&r, 0, None, false).unwrap();
     assert_eq!(front.lateral_axis, None);
     assert!(!front.snapped);
-    assert!(angle_degrees(front.front, toward) < 5.0, "{front:?}");
-    assert!(angle_degrees(front.up, up) < 5.0, "{front:?}");
+    assert!(angle_degrees(front.front, toward) < 10.0, "{front:?}");
+    assert!(angle_degrees(front.up, up) < 10.0, "{front:?}");
     assert!(dot(front.front, front.up).abs() < 1e-12);
 }
 
