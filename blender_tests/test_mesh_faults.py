@@ -117,7 +117,8 @@ def test_a_loose_edge_is_ignored(sample):
 
     def add_loose_edge(bm):
         a = bm.verts[0]
-        b = next(v for v in bm.verts if v is not a and not set(a.link_edges) & set(v.link_edges) and v.link_faces)
+        neighbours = {e.other_vert(a).index for e in a.link_edges} | {a.index}
+        b = next(v for v in bm.verts if v.index not in neighbours and v.link_faces)
         bm.edges.new((a, b))
 
     edit(template, add_loose_edge)
