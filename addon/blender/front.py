@@ -16,10 +16,23 @@ AXIS_NAMES = "XYZ"
 def rig_front(obj, rig, axis=0, camera=None):
     """{"front", "up", "front_source", "front_camera", "warnings"} for `obj`'s `rig` (a
     `read_rig` Rig): from `camera` when given, else found with `axis` the symmetry axis tried
-    first. Directions are unit 3-lists in `obj`'s mesh coordinates."""
+    first (`front_source` "found"; "default", -Y with up +Z and a warning, when the rig gives
+    no front). Directions are unit 3-lists in `obj`'s mesh coordinates."""
     if camera is not None:
         return _camera_front(obj, camera)
-    found = native.module().find_front(rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis)
+    core = native.module()
+    try:
+        found = core.find_front(rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis)
+    except core.InvalidInputError as error:
+        # No key moves the mesh, a coordinate is not finite, or the normals cancel out: the
+        # tools' own checks name the first two; otherwise the default front is used, and said.
+        return {
+            "front": [0.0, -1.0, 0.0],
+            "up": [0.0, 0.0, 1.0],
+            "front_source": "default",
+            "front_camera": None,
+            "warnings": [f"the front of '{obj.name}' was not found ({error}): -Y is used, up +Z"],
+        }
     warnings = []
     lateral = found["lateral_axis"]
     if lateral is None:
@@ -80,7 +93,8 @@ def front_summary(params):
         return None
     if params.get("front_source") == "camera":
         return f"camera {params.get('front_camera')}"
-    return f"{direction_label(params['front'])} (found), up {direction_label(params['up'])}"
+    source = params.get("front_source", "found")
+    return f"{direction_label(params['front'])} ({source}), up {direction_label(params['up'])}"
 
 
 def to_front_view(front, up):
