@@ -65,7 +65,7 @@ def state(obj):
 FAULTS = {
     "non-manifold-edge": (lambda obj: edit(obj, add_fin), r"edge\(s\) shared by three or more faces \(e\.g\. the edge between vertices \d+ and \d+\)"),
     "loose-vertex": (lambda obj: edit(obj, add_loose_vertex), r"1 loose vertices in no face \(e\.g\. vertex \d+\).*Delete Loose"),
-    "zero-area-face": (lambda obj: edit(obj, add_zero_area_face), r"zero-area faces \(1 triangle\(s\); e\.g\. face \d+\)"),
+    "zero-area-face": (lambda obj: edit(obj, add_zero_area_face), r"degenerate faces of zero area \(1 triangle\(s\); e\.g\. face \d+\)"),
     "duplicate-face": (duplicate_first_face, r"faces listed twice .*e\.g\. face \d+ repeats face 0"),
 }
 

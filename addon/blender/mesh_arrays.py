@@ -76,7 +76,7 @@ def check_topology(obj):
     fault = faults["zero_area_triangles"]
     if fault["count"]:
         raise MeshDataError(
-            f"'{name}' has zero-area faces ({fault['count']} triangle(s); e.g. face {int(faces[fault['first']])}): "
+            f"'{name}' has degenerate faces of zero area ({fault['count']} triangle(s); e.g. face {int(faces[fault['first']])}): "
             "remove them (Edit Mode > Mesh > Clean Up > Degenerate Dissolve)"
         )
     fault = faults["non_manifold_edges"]
