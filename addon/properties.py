@@ -197,6 +197,13 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         min=0.01,
         max=1.0,
     )
+    front_camera: bpy.props.PointerProperty(
+        name="Front Camera",
+        type=bpy.types.Object,
+        poll=lambda settings, obj: obj.type == "CAMERA",
+        description="Camera whose view is the face's front for occlusions and the reference sheet (its up is "
+        "the face's up); empty: the front is found from the rig",
+    )
     explain: bpy.props.BoolProperty(
         name="Explain in Shot List",
         description="Add to the CSV shot list every pair of shapes kept apart and why",

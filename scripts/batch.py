@@ -211,6 +211,8 @@ def add_pack_args(parser):
                         help="allow a shape with one that hides its motion from the front camera")
     parser.add_argument("--occlusion-keep", type=float,
                         help="share of a shape's visible moving vertices that must stay in sight (default 0.5)")
+    parser.add_argument("--camera", help="camera object whose view is the face's front (default: the object's "
+                        "Front Camera, else the front found from the rig)")
     parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, conflicts with their "
                         "reasons, params, seconds) here")
     parser.add_argument("--csv", help="write the shot list here")
@@ -245,6 +247,10 @@ def run_pack(args):
     options["occlusion_conflicts"] = not args.no_occlusion_conflicts and options["occlusion_conflicts"]
     if args.target:
         options["target"] = find_object(args.target)
+    if args.camera:
+        options["camera"] = find_object(args.camera)
+        if options["camera"].type != "CAMERA":
+            raise BatchError(f"'{args.camera}' is a {options['camera'].type.lower()}, not a camera")
     report = packing.pack_object(obj, **options)
     started = time.perf_counter()
     packing.store_packing(obj, report)

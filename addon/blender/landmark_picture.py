@@ -9,7 +9,9 @@ import math
 import bmesh
 import bpy
 import numpy as np
+from mathutils import Matrix
 
+from .front import front_view_matrix
 from .landmarks import bbox_diagonal
 from .mesh_arrays import MeshDataError
 
@@ -34,9 +36,8 @@ def evaluated_world_positions(obj, depsgraph):
 
 
 def render_landmarks(obj, path, resolution=768):
-    """Renders `obj` from the front (camera looking along +Y: the face looks towards -Y) with a
-    sphere at each empty of its landmark layout, in the pose the shape keys are in now, and
-    writes a PNG to `path`."""
+    """Renders `obj` from its front (`render_points`) with a sphere at each empty of its
+    landmark layout, in the pose the shape keys are in now, and writes a PNG to `path`."""
     layout = obj.shapesmith.landmarks
     if not layout.done or layout.collection is None or not layout.collection.objects:
         raise MeshDataError(f"'{obj.name}' has no landmark layout yet: run Place Landmarks first")
@@ -54,11 +55,14 @@ def render_vertices(obj, vertices, path, colour=ROUND_COLOURS[0], resolution=768
 
 
 def render_points(obj, dots, path, resolution):
-    """The front view of `obj` with a sphere at each (world position, colour) of `dots`."""
-    head = evaluated_world_positions(obj, bpy.context.evaluated_depsgraph_get())
+    """The front view of `obj` with a sphere at each (world position, colour) of `dots`, seen
+    from the face's front (`front.view_front`): the picture is staged in a frame where the
+    front looks towards -Y and up is +Z, whatever the mesh's or the object's orientation."""
+    view = front_view_matrix(obj)
+    head = evaluated_world_positions(obj, bpy.context.evaluated_depsgraph_get()) @ view[:3, :3].T + view[:3, 3]
+    dots = [(view[:3, :3] @ np.asarray(position) + view[:3, 3], colour) for position, colour in dots]
     low, high = head.min(axis=0), head.max(axis=0)
-    scale = float(np.max(np.abs(np.array(obj.matrix_world.to_scale()))))
-    radius = SPHERE_SIZE * bbox_diagonal(obj) * scale
+    radius = SPHERE_SIZE * bbox_diagonal(obj)
     context_scene = bpy.context.scene
 
     scene = bpy.data.scenes.new("Shapesmith Landmark Picture")
@@ -78,7 +82,7 @@ def render_points(obj, dots, path, resolution):
         scene.world = context_scene.world
 
         stand_in = bpy.data.objects.new("Shapesmith Picture Head", obj.data)  # shares the posed shape keys
-        stand_in.matrix_world = obj.matrix_world
+        stand_in.matrix_world = Matrix((view @ np.array(obj.matrix_world)).tolist())
         stand_in.color = HEAD_COLOUR
         created_objects.append(stand_in)
 

@@ -22,9 +22,10 @@ class Rig:
     warnings: list = field(default_factory=list)
 
 
-def check_mesh(obj, need_shape_keys=True):
+def check_mesh(obj, need_shape_keys=True, topology=True):
     """Raises MeshDataError unless `obj` is a mesh in Object Mode with usable faces (and
-    shape keys beyond the Basis when asked)."""
+    shape keys beyond the Basis when asked), and, with `topology`, without the faults
+    `check_topology` names."""
     if obj is None:
         raise MeshDataError("no object given: select a mesh")
     if obj.type != "MESH":
@@ -42,10 +43,55 @@ def check_mesh(obj, need_shape_keys=True):
             f"'{obj.name}' has {len(ngons)} n-gon(s) (faces with more than 4 corners, e.g. face {ngons[0]}): "
             "triangulate or quadrangulate them first"
         )
+    if topology:
+        check_topology(obj)
     if need_shape_keys:
         keys = mesh.shape_keys
         if keys is None or len(keys.key_blocks) < 2:
             raise MeshDataError(f"'{obj.name}' has no shape keys besides the Basis")
+
+
+def check_topology(obj):
+    """Raises MeshDataError for the faults the native `mesh_faults` finds (the same for the
+    panel and batch), naming the first offending edge, vertex or face. Loose edges are no
+    fault: the tools read faces only."""
+    from .. import native
+
+    mesh = obj.data
+    triangles = read_triangles(obj)
+    faces = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", faces)
+    positions = read_positions(obj)
+    if mesh.shape_keys is not None:  # the rest shape, which the vertex array can lag behind
+        mesh.shape_keys.reference_key.data.foreach_get("co", positions.reshape(-1))
+    faults = native.module().mesh_faults(positions, triangles)
+    name = obj.name
+    fault = faults["duplicate_triangles"]
+    if fault["count"]:
+        earlier, later = (int(faces[t]) for t in fault["first"])
+        raise MeshDataError(
+            f"'{name}' has faces listed twice ({fault['count']} triangle(s); e.g. face {later} repeats face {earlier}): "
+            "delete the copies"
+        )
+    fault = faults["zero_area_triangles"]
+    if fault["count"]:
+        raise MeshDataError(
+            f"'{name}' has degenerate faces of zero area ({fault['count']} triangle(s); e.g. face {int(faces[fault['first']])}): "
+            "remove them (Edit Mode > Mesh > Clean Up > Degenerate Dissolve)"
+        )
+    fault = faults["non_manifold_edges"]
+    if fault["count"]:
+        a, b = fault["first"]
+        raise MeshDataError(
+            f"'{name}' has {fault['count']} edge(s) shared by three or more faces (e.g. the edge between "
+            f"vertices {a} and {b}): split or delete the extra faces (Select > Select All by Trait > Non Manifold)"
+        )
+    fault = faults["loose_vertices"]
+    if fault["count"]:
+        raise MeshDataError(
+            f"'{name}' has {fault['count']} loose vertices in no face (e.g. vertex {fault['first']}): "
+            "delete them (Edit Mode > Mesh > Clean Up > Delete Loose)"
+        )
 
 
 def read_positions(obj):
@@ -88,7 +134,9 @@ def read_rig(obj):
         deltas[k] = buffer.reshape(n, 3) - neutral
         if block.relative_key != reference and block.relative_key != block:
             warnings.append(
-                f"shape key '{block.name}' is relative to '{block.relative_key.name}'; it is taken against '{reference.name}'"
+                f"shape key '{block.name}' is relative to '{block.relative_key.name}', not '{reference.name}': "
+                f"it is read as stored, against '{reference.name}' (posed alone in Blender it shows its difference "
+                f"from '{block.relative_key.name}'); set its Relative To to '{reference.name}' to see what the tools see"
             )
     return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], warnings)
 

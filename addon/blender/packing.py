@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from .. import native
+from .front import front_summary, rig_front
 from .mesh_arrays import MeshDataError, check_mesh, read_positions, read_rig
 
 # The collision and occlusion results of the last packing, on the object (saved with the file,
@@ -67,19 +68,11 @@ def packing_options(obj, axis=0, time_limit=None):
         collision_tolerance=settings.collision_tolerance,
         occlusion_conflicts=settings.occlusion_conflicts,
         occlusion_keep=settings.occlusion_keep,
-        camera_direction=front_camera_direction(obj),
+        camera=settings.front_camera,
     )
     if obj.shapesmith.analysis.done:
         options["pairs"] = [(p.first, p.second) for p in obj.shapesmith.pairs]
     return options
-
-
-def front_camera_direction(obj):
-    """From the face towards the reference sheet's front camera (world -Y), in the mesh's own
-    coordinates, where the native occlusion test works."""
-    linear = np.array(obj.matrix_world.to_3x3())
-    local = np.linalg.solve(linear, np.array([0.0, -1.0, 0.0])) if abs(np.linalg.det(linear)) > 1e-12 else [0.0, -1.0, 0.0]
-    return [float(x) for x in local]
 
 
 def _check_named_pairs(pairs, what):
@@ -89,7 +82,16 @@ def _check_named_pairs(pairs, what):
 
 
 def pack_object(
-    obj, target=None, max_expressions=None, pairs=None, symmetric=True, time_limit=None, progress=None, reuse_conflicts=True, **params
+    obj,
+    target=None,
+    max_expressions=None,
+    pairs=None,
+    symmetric=True,
+    time_limit=None,
+    progress=None,
+    reuse_conflicts=True,
+    camera=None,
+    **params,
 ):
     """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
     returns its report with timings and shape-key warnings added. Writes nothing.
@@ -101,7 +103,9 @@ def pack_object(
 
     `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
     antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
-    collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction); `progress(fraction)`,
+    collision_tolerance, occlusion_conflicts, occlusion_keep). The occlusion test looks from the
+    rig's front (`rig_front`: `camera` when given, else found from the rig), which the report
+    gives as `front`, `up` and `front_source`. `progress(fraction)`,
     when given, is called on this thread as the work advances (False cancels). Raises MeshDataError
     (or the core's InvalidInputError) for anything the user has to fix."""
     started = time.perf_counter()
@@ -122,6 +126,8 @@ def pack_object(
         _check_named_pairs(params.get(what, ()), what.replace("_", " "))
     if symmetric and pairs is not None:
         _check_named_pairs(pairs, "symmetric pairs")
+    front = rig_front(obj, rig, axis=params.get("axis", 0), camera=camera)
+    params["camera_direction"] = front["front"]
     read = time.perf_counter()
     key = conflicts_key(rig, params)
     known = cached_conflicts(obj, key) if reuse_conflicts else None
@@ -149,7 +155,8 @@ def pack_object(
         )
     report["names"] = names
     report["target"] = target.name if target is not None else None
-    report["warnings"] = rig.warnings
+    report["warnings"] = rig.warnings + front["warnings"]
+    report.update({key: front[key] for key in ("front", "up", "front_source", "front_camera")})
     report["seconds"] = {"read": read - started, "cache_key": hashed - read, "native": solved - hashed}
     return report
 
@@ -196,7 +203,8 @@ def store_packing(obj, report):
     fewest = report.get("fewest")
     result.fewest = fewest["count"] if fewest else 0
     result.fewest_optimal = bool(fewest and fewest["optimal"])
-    result.params_json = json.dumps(dict(report["params"], target=report.get("target")))
+    front = {key: report.get(key) for key in ("front", "up", "front_source", "front_camera")}
+    result.params_json = json.dumps(dict(report["params"], target=report.get("target"), **front))
     result.regions_json = json.dumps(report["regions"], separators=(",", ":"))
     result.done = True
     obj[CONFLICTS_PROPERTY] = json.dumps(report["conflicts_cache"], separators=(",", ":"))
@@ -386,6 +394,8 @@ def summary_lines(report):
     lines.append("collisions kept apart: " + (", ".join("/".join(c["shapes"]) for c in report["collisions"]) or "none"))
     occlusions = [f"{o['hidden']} hidden by {o['by']}" for o in report["occlusions"]]
     lines.append("occlusions kept apart: " + (", ".join(occlusions) or "none"))
+    if front_summary(report):
+        lines.append(f"front: {front_summary(report)}")
     reused = report.get("poseability", {}).get("pairs_reused", 0)
     if reused:
         lines.append(f"collision and occlusion tests: {reused} pairs reused from the results stored on the object")

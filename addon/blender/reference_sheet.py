@@ -19,7 +19,9 @@ import textwrap
 import numpy as np
 
 import bpy
+from mathutils import Matrix
 
+from .front import to_front_view, view_front
 from .mesh_arrays import MeshDataError, read_positions
 
 MARGIN = 0.06  # of the head's height, around the head in each tile
@@ -60,7 +62,7 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     rows = math.ceil(len(expressions) / columns)
     pair_width = 2 * tile_width
     sheet = np.full((rows * tile_height, columns * pair_width, 4), BACKGROUND, dtype=np.float32)
-    stage = _Stage(obj, tile_width, tile_height)
+    stage = _Stage(obj, tile_width, tile_height, view_front(obj))
     try:
         for j, members in enumerate(expressions):
             front, side = stage.render(f"{j + 1}", members, [regions[name] for name in members])
@@ -79,10 +81,12 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
 
 class _Stage:
     """A throwaway scene: a copy of the rig (its own mesh, so tinting never touches the
-    user's), an orthographic camera looking along +Y at the face (which looks towards -Y)
-    and one turned to three-quarters, and two text objects for the number and the legend."""
+    user's), turned so that the face's front (mesh coordinates, `front` and `up`) looks towards
+    -Y with its up along +Z whatever the mesh's or the object's orientation, an orthographic
+    camera looking along +Y at it and one turned to three-quarters, and two text objects for
+    the number and the legend."""
 
-    def __init__(self, obj, tile_width, tile_height):
+    def __init__(self, obj, tile_width, tile_height, front_and_up):
         self.created = []
         self.materials = []
         self.folder = tempfile.mkdtemp(prefix="shapesmith-sheet-")
@@ -98,7 +102,8 @@ class _Stage:
         shading.light, shading.color_type = "STUDIO", "MATERIAL"
 
         self.rig = self._add("Shapesmith Sheet Rig", obj.data.copy())
-        self.rig.matrix_world = obj.matrix_world
+        turn = to_front_view(*front_and_up)
+        self.rig.matrix_world = Matrix([[*row, 0.0] for row in turn] + [[0.0, 0.0, 0.0, 1.0]])
         self.rig.data.materials.clear()
         self.rig.data.materials.append(self._material(SKIN))
         polygons = self.rig.data.polygons
@@ -109,8 +114,8 @@ class _Stage:
         self.loop_vertex = np.empty(len(self.rig.data.loops), np.int32)
         self.rig.data.loops.foreach_get("vertex_index", self.loop_vertex)
 
-        world = np.c_[read_positions(obj), np.ones(len(obj.data.vertices))] @ np.array(obj.matrix_world).T
-        low, high = world[:, :3].min(axis=0), world[:, :3].max(axis=0)
+        world = read_positions(obj).astype(np.float64) @ turn.T
+        low, high = world.min(axis=0), world.max(axis=0)
         head_height = high[2] - low[2]
         label_height = head_height * LABEL_SHARE / (1 - LABEL_SHARE)
         frame_height = head_height * (1 + 2 * MARGIN) + label_height

@@ -38,7 +38,9 @@ def read_surface(obj, what):
     """(rest positions (N, 3), triangles (T, 3)) of a mesh, or MeshDataError naming `what`."""
     if obj is None:
         raise MeshDataError(f"no {what} chosen")
-    check_mesh(obj, need_shape_keys=False)
+    # The character is only a surface to fit (closest points): loose vertices or extra faces
+    # on an edge of a scan change nothing there, so only the template's topology is checked.
+    check_mesh(obj, need_shape_keys=False, topology=what != "character")
     return rest_positions(obj), read_triangles(obj)
 
 

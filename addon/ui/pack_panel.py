@@ -1,8 +1,11 @@
 """The Pack Expressions panel: parameters, refinements, the packed expressions as a list with
 their members, and what to do with them."""
 
+import json
+
 import bpy
 
+from ..blender.front import front_summary
 from .panels import ShapesmithPanel
 
 
@@ -50,6 +53,14 @@ def _kept_apart(layout, result, members):
             layout.label(text=f"{member} / {other}: {reasons.replace(' ', ', ')}", icon="UNLINKED")
 
 
+def _front_text(settings):
+    """The front the next packing uses: the picked camera, or the one the last packing found."""
+    if settings.front_camera is not None:
+        return f"camera {settings.front_camera.name}"
+    stored = front_summary(json.loads(settings.result.params_json or "{}")) if settings.result.done else None
+    return stored if stored and not stored.startswith("camera") else "found when packing"
+
+
 class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Pack Expressions"
     bl_order = 1
@@ -89,6 +100,8 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
         sub = row.row(align=True)
         sub.active = settings.occlusion_conflicts
         sub.prop(settings, "occlusion_keep", text="Keep")
+        layout.prop(settings, "front_camera")
+        layout.label(text=f"Front: {_front_text(settings)}", icon="VIEW_CAMERA")
         layout.prop(settings, "fewest")
         box = layout.box()
         _refinement_list(box, settings, "Pin Together", "PIN", "pin_together", "active_pin", "SHAPESMITH_UL_pairs")

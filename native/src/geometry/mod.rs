@@ -3,7 +3,9 @@
 pub mod bvh;
 pub mod wide_bvh;
 pub mod closest_point;
+pub mod front;
 pub mod mat3;
+pub mod mesh_faults;
 pub mod mirror;
 pub mod neighbours;
 pub mod penetration;

@@ -1,4 +1,5 @@
-//! Bindings of [`crate::analysis::analyze_rig`] and of the mesh's parts (for the reports).
+//! Bindings of [`crate::analysis::analyze_rig`], of the rig's front
+//! ([`crate::geometry::front::find_front`]) and of the mesh's parts (for the reports).
 
 use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
@@ -7,6 +8,8 @@ use super::arrays;
 use super::errors::py_err;
 use super::run::detached;
 use crate::analysis::{analyze_rig as analyze, AnalysisParams};
+use crate::geometry::front::find_front as front_of;
+use crate::geometry::mesh_faults::find_mesh_faults;
 use crate::geometry::mirror::SymmetryParams;
 use crate::geometry::topology::{boundary_edges, connected_components};
 use crate::rig::RigView;
@@ -45,6 +48,44 @@ fn analyze_rig<'py>(
     arrays::to_python(py, &report)
 }
 
+/// find_front(neutral, deltas, triangles, names, *, axis=0) -> dict
+///
+/// The rig's front and up in mesh coordinates (`front`, `up`: unit 3-lists; `lateral_axis`:
+/// the symmetry plane's axis or None; `up_source`: "names" or "assumed"; `snapped`,
+/// `snap_degrees`). `axis` is the symmetry axis tried first.
+#[pyfunction]
+#[pyo3(signature = (neutral, deltas, triangles, names, *, axis=0))]
+fn find_front<'py>(
+    py: Python<'py>,
+    neutral: PyReadonlyArray2<'py, f32>,
+    deltas: PyReadonlyArray3<'py, f32>,
+    triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    axis: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let front = detached(py, || {
+        let rig = RigView::new(points, delta_rows, &tris, &names)?;
+        crate::rig::validate_triangle_indices(points.len(), &tris)?;
+        front_of(&rig, axis)
+    })?;
+    arrays::to_python(py, &front)
+}
+
+/// mesh_faults(neutral, triangles) -> dict
+///
+/// Non-manifold edges, loose vertices, zero-area and duplicate triangles, each as
+/// `{"count", "first"}` (see `geometry::mesh_faults`).
+#[pyfunction]
+fn mesh_faults<'py>(py: Python<'py>, neutral: PyReadonlyArray2<'py, f32>, triangles: PyReadonlyArray2<'py, i32>) -> PyResult<Bound<'py, PyAny>> {
+    let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
+    let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let faults = detached(py, || find_mesh_faults(points, &tris))?;
+    arrays::to_python(py, &faults)
+}
+
 /// mesh_parts(vertex_count, triangles) -> (part int32 (N,), parts, boundary_edges)
 ///
 /// The connected part of each vertex (0..parts; a vertex in no triangle is a part of its
@@ -62,5 +103,7 @@ fn mesh_parts<'py>(py: Python<'py>, vertex_count: usize, triangles: PyReadonlyAr
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analyze_rig, m)?)?;
+    m.add_function(wrap_pyfunction!(find_front, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh_faults, m)?)?;
     m.add_function(wrap_pyfunction!(mesh_parts, m)?)
 }

@@ -1,0 +1,169 @@
+"""Faults of real-world meshes, each made on the sample here: refused with a message naming
+the first offender and the mesh left as it was, or handled as documented (loose edges are
+ignored, a key relative to another key is read against the Basis with a warning, a head
+posed by an Armature modifier is read at its Basis)."""
+
+import bmesh
+import bpy
+import numpy as np
+import pytest
+
+from conftest import file_digest, make_active, run_batch
+
+
+def edit(obj, change):
+    """Applies `change(bm)` to the mesh through bmesh (shape keys kept)."""
+    bm = bmesh.new()
+    bm.from_mesh(obj.data)
+    bm.verts.ensure_lookup_table()
+    bm.edges.ensure_lookup_table()
+    bm.faces.ensure_lookup_table()
+    change(bm)
+    bm.to_mesh(obj.data)
+    bm.free()
+    obj.data.update()
+
+
+def add_fin(bm):
+    """A new triangle on an edge that already has two faces."""
+    edge = next(e for e in bm.edges if len(e.link_faces) == 2)
+    a, b = edge.verts
+    tip = bm.verts.new((a.co + b.co) / 2 + (a.co - b.co).orthogonal())
+    bm.faces.new((a, b, tip))
+
+
+def add_loose_vertex(bm):
+    bm.verts.new((0.0, 0.0, 0.0))
+
+
+def add_zero_area_face(bm):
+    corners = [bm.verts.new((0.01, 0.02, 0.03)) for _ in range(3)]
+    bm.faces.new(corners)
+
+
+def duplicate_first_face(obj):
+    """Face 0 listed a second time (bmesh refuses to make one): through the mesh arrays."""
+    mesh = obj.data
+    corners = list(mesh.polygons[0].vertices)
+    first_loop = len(mesh.loops)
+    mesh.loops.add(len(corners))
+    for i, v in enumerate(corners):
+        mesh.loops[first_loop + i].vertex_index = v
+    mesh.polygons.add(1)
+    mesh.polygons[-1].loop_start = first_loop
+    mesh.update(calc_edges=True)
+
+
+def state(obj):
+    """What a refused tool must leave as it was."""
+    mesh = obj.data
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return len(mesh.vertices), len(mesh.polygons), co.tobytes(), len(mesh.shape_keys.key_blocks), obj.shapesmith.pack.result.done
+
+
+FAULTS = {
+    "non-manifold-edge": (lambda obj: edit(obj, add_fin), r"edge\(s\) shared by three or more faces \(e\.g\. the edge between vertices \d+ and \d+\)"),
+    "loose-vertex": (lambda obj: edit(obj, add_loose_vertex), r"1 loose vertices in no face \(e\.g\. vertex \d+\).*Delete Loose"),
+    "zero-area-face": (lambda obj: edit(obj, add_zero_area_face), r"degenerate faces of zero area \(1 triangle\(s\); e\.g\. face \d+\)"),
+    "duplicate-face": (duplicate_first_face, r"faces listed twice .*e\.g\. face \d+ repeats face 0"),
+}
+
+
+@pytest.mark.parametrize("fault", FAULTS, ids=list(FAULTS))
+def test_a_faulty_mesh_is_refused_by_every_tool_and_left_unchanged(sample, fault):
+    make_fault, message = FAULTS[fault]
+    template = make_active(bpy.data.objects["Template"])
+    make_fault(template)
+    before = state(template)
+    for operator in (bpy.ops.shapesmith.analyze_rig, bpy.ops.shapesmith.pack_expressions, bpy.ops.shapesmith.place_landmarks):
+        with pytest.raises(RuntimeError, match=message):
+            operator()
+        assert state(template) == before
+
+
+def test_the_named_offender_is_the_fault(sample, shapesmith):
+    """The vertex and the edge the messages name are the ones the fault made."""
+    template = bpy.data.objects["Template"]
+    count = len(template.data.vertices)
+    edit(template, add_loose_vertex)
+    with pytest.raises(ValueError, match=f"vertex {count}\\)"):
+        shapesmith.blender.mesh_arrays.check_mesh(template)
+
+
+def test_batch_refuses_a_faulty_file_with_one_line_and_leaves_it_unchanged(sample, tmp_path):
+    template = bpy.data.objects["Template"]
+    edit(template, add_fin)
+    path = str(tmp_path / "fin.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    digest = file_digest(path)
+    proc = run_batch("pack", "--input", path, "--object", "Template")
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and lines[0].startswith("shapesmith: error: 'Template' has 1 edge(s)"), proc.stderr
+    assert file_digest(path) == digest
+
+
+def packed(obj):
+    make_active(obj)
+    assert bpy.ops.shapesmith.pack_expressions() == {"FINISHED"}
+    result = obj.shapesmith.pack.result
+    return [[m.name for m in e.members] for e in result.expressions], [(c.first, c.second, c.reasons) for c in result.conflicts]
+
+
+def test_a_loose_edge_is_ignored(sample):
+    template = bpy.data.objects["Template"]
+    clean = packed(template)
+    template.shapesmith.pack.result.done = False
+
+    def add_loose_edge(bm):
+        a = bm.verts[0]
+        neighbours = {e.other_vert(a).index for e in a.link_edges} | {a.index}
+        b = next(v for v in bm.verts if v.index not in neighbours and v.link_faces)
+        bm.edges.new((a, b))
+
+    edit(template, add_loose_edge)
+    bm = bmesh.new()
+    bm.from_mesh(template.data)
+    assert sum(not e.link_faces for e in bm.edges) == 1
+    bm.free()
+    assert packed(template) == clean
+
+
+def test_a_key_relative_to_another_key_is_read_against_the_basis_with_a_warning(sample, shapesmith):
+    template = bpy.data.objects["Template"]
+    keys = template.data.shape_keys
+    smile = keys.key_blocks["mouthSmileLeft"]
+    smile.relative_key = keys.key_blocks["jawOpen"]
+    rig = shapesmith.blender.mesh_arrays.read_rig(template)
+    n = len(template.data.vertices)
+    co, basis = np.empty(n * 3, np.float32), np.empty(n * 3, np.float32)
+    smile.data.foreach_get("co", co)
+    keys.reference_key.data.foreach_get("co", basis)
+    assert np.array_equal(rig.deltas[rig.names.index("mouthSmileLeft")], (co - basis).reshape(n, 3))
+    assert any("'mouthSmileLeft' is relative to 'jawOpen', not 'Basis'" in w for w in rig.warnings), rig.warnings
+    report = shapesmith.blender.packing.pack_object(template, **shapesmith.blender.packing.packing_options(template))
+    assert any("'mouthSmileLeft' is relative to 'jawOpen'" in w for w in report["warnings"])
+    assert smile.relative_key.name == "jawOpen"
+
+
+def test_a_head_posed_by_an_armature_is_read_at_its_basis(sample):
+    template = bpy.data.objects["Template"]
+    clean = packed(template)
+    template.shapesmith.pack.result.done = False
+    armature = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    bpy.context.scene.collection.objects.link(armature)
+    make_active(armature)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = armature.data.edit_bones.new("head")
+    bone.head, bone.tail = (0.0, 0.0, 0.0), (0.0, 0.0, 0.1)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    group = template.vertex_groups.new(name="head")
+    group.add(list(range(len(template.data.vertices))), 1.0, "REPLACE")
+    modifier = template.modifiers.new("Armature", "ARMATURE")
+    modifier.object = armature
+    armature.pose.bones["head"].rotation_mode = "XYZ"
+    armature.pose.bones["head"].rotation_euler = (0.6, 0.0, 0.4)
+    bpy.context.view_layer.update()
+    evaluated = template.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert abs(evaluated.vertices[0].co.z - template.data.vertices[0].co.z) + abs(evaluated.vertices[0].co.y - template.data.vertices[0].co.y) > 1e-4
+    assert packed(template) == clean
