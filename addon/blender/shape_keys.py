@@ -124,10 +124,26 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
     the target has no shape keys; then each template key with the template's name, slider
     range, vertex group, mute, interpolation and relative key (mapped by name, else the
     reference key); new keys at value 0. Vertex groups the transfer carries (a wrap's) are
-    written first. Existing keys and groups are kept unless `overwrite`. Returns (written,
-    skipped, warnings)."""
+    written first. Existing keys and groups are kept unless `overwrite`. A face in several
+    objects is written piece by piece (`Transfer.pieces`), each object its own keys, once
+    every piece has been checked. Returns (written, skipped, warnings), names over all
+    objects in the transfer's order."""
+    pieces = transfer.pieces or [transfer]
+    plans = [plan_keys(piece.target, piece.names, overwrite) for piece in pieces]
+    # Drivers re-targeted from every template object (and its mesh and keys) to its counterpart.
+    mapping = {}
+    for piece in pieces:
+        mapping.update({piece.source: piece.target, piece.source.data: piece.target.data})
+    written, skipped, warnings = set(), set(), []
+    for piece, plan in zip(pieces, plans):
+        warnings += _write_piece(piece, *plan, copy_drivers, mapping, overwrite)
+        written.update(plan[0])
+        skipped.update(plan[1])
+    return [n for n in transfer.names if n in written], [n for n in transfer.names if n in skipped], warnings
+
+
+def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
     source, target = transfer.source, transfer.target
-    written, skipped = plan_keys(target, transfer.names, overwrite)
     drivers = key_drivers(source, written) if copy_drivers else {}
     source_keys = source.data.shape_keys
     warnings = write_vertex_groups(target, transfer.vertex_groups, overwrite)
@@ -136,6 +152,8 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
         for n in written
         if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups
     ]
+    if not written and not skipped:
+        return warnings  # a part without keys of its own (an eye that never moves)
     if target.data.shape_keys is None:
         target.shape_key_add(name="Basis", from_mix=False).value = 0.0
     keys = target.data.shape_keys
@@ -151,8 +169,7 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
         _copy_key_settings(block, source_keys.key_blocks[name], keys, source_keys)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
-    mapping = {source: target, source.data: target.data, source_keys: keys}
     for fcurve in drivers.values():
-        warnings += copy_driver(fcurve, keys, mapping)
+        warnings += copy_driver(fcurve, keys, {**mapping, source_keys: keys})
     target.data.update()
-    return written, skipped, warnings
+    return warnings
