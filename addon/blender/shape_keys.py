@@ -143,14 +143,20 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
 
 
 def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
-    source, target = transfer.source, transfer.target
-    drivers = key_drivers(source, written) if copy_drivers else {}
-    source_keys = source.data.shape_keys
+    target = transfer.target
+    # Each key takes its settings from the template object that has it (a character's part
+    # may take keys of several template objects).
+    origin = {name: transfer.key_sources.get(name, transfer.source) for name in written}
+    drivers = {}
+    if copy_drivers:
+        for source in dict.fromkeys(origin.values()):
+            drivers.update(key_drivers(source, [n for n in written if origin[n] == source]))
+    source_blocks = {name: origin[name].data.shape_keys.key_blocks[name] for name in written}
     warnings = write_vertex_groups(target, transfer.vertex_groups, overwrite)
     warnings += [
-        f"vertex group '{source_keys.key_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
+        f"vertex group '{source_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
         for n in written
-        if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups
+        if source_blocks[n].vertex_group and source_blocks[n].vertex_group not in target.vertex_groups
     ]
     if not written and not skipped:
         return warnings  # a part without keys of its own (an eye that never moves)
@@ -166,10 +172,11 @@ def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
     for name in written:
         block = keys.key_blocks[name]
         block.data.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
-        _copy_key_settings(block, source_keys.key_blocks[name], keys, source_keys)
+        _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
+    mapping = {**mapping, **{o.data.shape_keys: keys for o in set(origin.values())}}
     for fcurve in drivers.values():
-        warnings += copy_driver(fcurve, keys, {**mapping, source_keys: keys})
+        warnings += copy_driver(fcurve, keys, mapping)
     target.data.update()
     return warnings

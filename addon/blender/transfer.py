@@ -38,6 +38,8 @@ class Transfer:
     # A face in several objects: one `Transfer` per object (head first), each with its own
     # keys and vertices, written in place of this one (`split_transfer`).
     pieces: list = field(default_factory=list)
+    # Template object of each key whose settings a piece takes, when not `source` alone.
+    key_sources: dict = field(default_factory=dict)
 
 
 def face_corners(obj):
@@ -79,15 +81,45 @@ def check_same_topology(obj, template, what="target"):
         )
 
 
-def _read_pair(source, target, source_parts=None, target_parts=None):
+def joined_face_corners(objects):
+    """`face_corners` of several meshes as one mesh: their faces in order, each object's
+    vertex indices after those of the objects before it."""
+    sizes, corners, offset = [], [], 0
+    for obj in objects:
+        own_sizes, own_corners = face_corners(obj)
+        sizes.append(own_sizes)
+        corners.append(own_corners + offset)
+        offset += len(obj.data.vertices)
+    return np.concatenate(sizes), np.concatenate(corners)
+
+
+def check_joined_topology(obj, objects):
+    """Raises MeshDataError unless `obj` has the faces of `objects` joined into one mesh (a
+    wrapped template made from a face in several objects)."""
+    check_mesh(obj, need_shape_keys=False)
+    (sizes, corners), (joined_sizes, joined_corners) = face_corners(obj), joined_face_corners(objects)
+    if not (np.array_equal(sizes, joined_sizes) and np.array_equal(corners, joined_corners)):
+        raise MeshDataError(
+            f"'{obj.name}' does not have the faces of '{objects[0].name}' and its face parts "
+            f"({', '.join(o.name for o in objects[1:])}) joined in that order: wrap the template again"
+        )
+
+
+def _read_pair(source, target, source_parts=None, target_parts=None, joined_target=False):
     """(rig, template face, target face, target rest positions): the template's face and the
     target's, object i of one paired with object i of the other (`face_parts.pair_parts`) and
-    each pair checked for the same topology."""
+    each pair checked for the same topology. With `joined_target`, the target is one mesh
+    with the faces of the template's objects joined (`check_joined_topology`)."""
     if source is None:
         raise MeshDataError("no template chosen: pick the mesh whose shape keys are transferred")
     if target is None:
         raise MeshDataError("no target: make the new head the active object")
     sources = face_objects(source, source_parts)
+    if joined_target and len(sources) > 1:
+        check_joined_topology(target, sources)
+        rig, face = read_face_rig(sources)
+        target_face = face_of([target])
+        return rig, face, target_face, read_face_rest(target_face)
     targets = pair_parts(sources, face_objects(target, target_parts))
     for obj in targets:
         template = next((s for s in sources if obj == s or obj.data == s.data), None)
@@ -105,8 +137,9 @@ def _read_pair(source, target, source_parts=None, target_parts=None):
 def split_transfer(transfer, face, target_face):
     """The transfer's pieces for writing, one per object of a face in several objects: the
     template object's own keys (in the transfer's order) with their deltas, in the target
-    object's own space, onto its own rest shape. None for a head without parts."""
-    if len(face.objects) == 1:
+    object's own space, onto its own rest shape; none for a head without parts or a joined
+    target."""
+    if len(face.objects) == 1 or len(target_face.objects) == 1:
         return []
     pieces = []
     for index, (source, target) in enumerate(zip(face.objects, target_face.objects)):
@@ -201,6 +234,7 @@ def transfer_object(
     template_penetration=None,
     source_parts=None,
     target_parts=None,
+    joined_target=False,
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
@@ -209,9 +243,10 @@ def transfer_object(
     called as the work advances and stops it by returning False (CancelledError).
     `template_penetration` is `measure_template_penetration(source)` when the caller already
     has it (a batch over many targets measures it once). `source_parts`, `target_parts`: the
-    face parts of each (`face_parts.face_objects`; default: the lists stored on the heads)."""
+    face parts of each (`face_parts.face_objects`; default: the lists stored on the heads);
+    `joined_target`: the target is one mesh of the template's objects joined (a wrap's)."""
     started = time.perf_counter()
-    rig, face, target_face, target_neutral = _read_pair(source, target, source_parts, target_parts)
+    rig, face, target_face, target_neutral = _read_pair(source, target, source_parts, target_parts, joined_target)
     examples = example_weights = None
     training = {}
     if training_objects and len(face.objects) > 1:
@@ -248,7 +283,9 @@ def transfer_object(
     )
     report["diagonal"] = float(np.linalg.norm(target_neutral.max(0) - target_neutral.min(0)))
     report["seconds"]["read"] = read - started
-    report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, target_face.objects)]
+    # Which template object went onto which target object (all onto one for a joined target).
+    counterparts = target_face.objects if len(target_face.objects) > 1 else [target] * len(face.objects)
+    report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, counterparts)]
     result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
     result.pieces = split_transfer(result, face, target_face)
     return result
