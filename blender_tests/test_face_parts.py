@@ -486,3 +486,57 @@ def test_transferred_keys_exported_to_gltf_come_back_as_named_morph_targets(face
         keys = bpy.data.objects[name].data.shape_keys
         assert keys is not None and [kb.name for kb in keys.key_blocks[1:]] == written[name], name
     assert "tongueOut" in written["Old_Teeth"] and len(written["Old_Head"]) == 51
+
+
+def add_seam_uvs(template_objects, target_objects):
+    """A cylindrical UV map around the head's vertical axis on every object, cut at the back
+    (the faces across the cut take u + 1 on one side, so the vertices there have two UVs): the
+    same per face corner on template and target, so that glTF splits both alike."""
+    for source, target in zip(template_objects, target_objects):
+        mesh = source.data
+        co = positions(source)
+        corners = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.loops.foreach_get("vertex_index", corners)
+        u = (np.arctan2(co[:, 0], -co[:, 1]) / (2 * np.pi) + 0.5)[corners]
+        v = co[corners, 2]
+        sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+        mesh.polygons.foreach_get("loop_total", sizes)
+        face_of_corner = np.repeat(np.arange(len(sizes)), sizes)
+        spread = np.zeros(len(sizes))
+        np.maximum.at(spread, face_of_corner, u)
+        low = np.full(len(sizes), 2.0)
+        np.minimum.at(low, face_of_corner, u)
+        across = (spread - low)[face_of_corner] > 0.5
+        u = np.where(across & (u < 0.5), u + 1.0, u)
+        uv = np.stack([u, v], axis=1).astype(np.float32).ravel()
+        for obj in (source, target):
+            obj.data.uv_layers.new(name="UVMap").data.foreach_set("uv", uv)
+
+
+@pytest.mark.xfail(strict=False, reason="a glTF import splits vertices along UV seams, and the seam copies are not yet "
+                   "welded into one surface point: the transfer opens the seams")
+def test_a_seam_split_gltf_round_trip_gives_the_same_transfer(triangulated_face, shapesmith, tmp_path):
+    face = triangulated_face
+    templates, targets = [face["template"], *parts(face["template"])], [face["target"], *parts(face["target"])]
+    add_seam_uvs(templates, targets)
+    names = [o.name for o in templates + targets]
+    path = tmp_path / "seams.glb"
+    export(path, names, "GLTF")
+    assert transfer(face["template"], face["target"]) == {"FINISHED"}
+    original = {(o.name, k.name): world(o, k.name) for o in targets for k in o.data.shape_keys.key_blocks}
+    counts = {o.name: len(o.data.vertices) for o in targets}
+
+    import_only(path, "GLTF")
+    assert len(bpy.data.objects["Old_Head"].data.vertices) > counts["Old_Head"]  # split along the seam
+    face_parts = module(shapesmith, "face_parts")
+    for prefix in ("Tpl_", "Old_"):
+        face_parts.store_parts(bpy.data.objects[prefix + "Head"], [bpy.data.objects[prefix + n] for n in OBJECTS[1:]])
+    assert transfer(bpy.data.objects["Tpl_Head"], bpy.data.objects["Old_Head"]) == {"FINISHED"}
+    diagonal_ = diagonal(np.concatenate([v for (o, k), v in original.items() if k == "Basis"]))
+    for name in counts:
+        obj = bpy.data.objects[name]
+        order, distance = nearest(world(obj), original[(name, "Basis")])
+        assert distance <= 1e-6 * diagonal_
+        for block in obj.data.shape_keys.key_blocks[1:]:
+            error = np.abs(world(obj, block.name) - original[(name, block.name)][order]).max()
+            assert error <= 1e-6 * diagonal_, f"{name} {block.name}: {error / diagonal_:.2e} of the diagonal"
