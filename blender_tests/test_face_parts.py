@@ -540,3 +540,30 @@ def test_a_seam_split_gltf_round_trip_gives_the_same_transfer(triangulated_face,
         for block in obj.data.shape_keys.key_blocks[1:]:
             error = np.abs(world(obj, block.name) - original[(name, block.name)][order]).max()
             assert error <= 1e-6 * diagonal_, f"{name} {block.name}: {error / diagonal_:.2e} of the diagonal"
+
+
+def test_the_wrap_takes_the_templates_parts_as_its_pieces(face, shapesmith):
+    """The split template wrapped onto the sample character and its keys carried there give
+    the joined template's wrap and keys."""
+    wrap = module(shapesmith, "wrap")
+    character = bpy.data.objects["Character_YoungWoman"]
+    entries = json.loads(character["shapesmith_wrap_pairs"])
+    rest, _, _ = template_arrays()
+    head = positions(face["template"])
+    index_in_head = {tuple(p): i for i, p in enumerate(head)}
+    template_points = np.array([head[index_in_head[tuple(rest[v])]] for v, _ in entries], dtype=np.float32)
+    character_points = np.array([q for _, q in entries], dtype=np.float32)
+    carried = {}
+    for label in ("template", "joined"):
+        template = face[label]
+        wrapped = wrap.wrap_object(template, character, template_points, character_points)
+        wrapped_object = wrap.show_wrapped(wrapped)
+        result = wrap.carry_onto_character(template, character, wrapped_object)
+        carried[label] = (wrapped.positions, dict(zip(result.names, result.deltas)))
+        assert not result.pieces  # the character is one mesh
+        wrap.remove_object(wrapped_object)
+    tolerance = 1e-6 * diagonal(positions(character))
+    assert np.abs(carried["template"][0] - carried["joined"][0]).max() <= 1e-6 * diagonal(head)
+    assert carried["template"][1].keys() == carried["joined"][1].keys()
+    for name, deltas in carried["template"][1].items():
+        assert np.abs(deltas - carried["joined"][1][name]).max() <= tolerance, name
