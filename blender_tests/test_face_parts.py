@@ -567,3 +567,51 @@ def test_the_wrap_takes_the_templates_parts_as_its_pieces(face, shapesmith):
     assert carried["template"][1].keys() == carried["joined"][1].keys()
     for name, deltas in carried["template"][1].items():
         assert np.abs(deltas - carried["joined"][1][name]).max() <= tolerance, name
+
+
+def test_keys_carried_onto_a_character_with_parts_land_on_each_of_its_objects(sample, shapesmith):
+    """The sample character with its inner pieces (eyes, teeth, tongue) split off as one part
+    object: each object receives the keys the character in one piece receives, on its own
+    vertices (the head every key, the part the keys that move it)."""
+    wrap, shape_keys = module(shapesmith, "wrap"), module(shapesmith, "shape_keys")
+    character = bpy.data.objects["Character_YoungWoman"]
+    template = bpy.data.objects["Template"]
+    template_points, character_points = wrap.stored_pairs(character, template)
+    rest = positions(character)
+    faces = [list(p.vertices) for p in character.data.polygons]
+    triangles = np.array([[f[0], f[i], f[i + 1]] for f in faces for i in range(1, len(f) - 1)], dtype=np.int32)
+    labels = np.asarray(shapesmith.native.module().mesh_parts(len(rest), triangles)[0])
+    head_vertices = np.flatnonzero(labels == np.bincount(labels).argmax())
+    inner_vertices = np.flatnonzero(labels != np.bincount(labels).argmax())
+    objects = []
+    for name, vertices in (("Character_Head", head_vertices), ("Character_Inner", inner_vertices)):
+        new_index = np.full(len(rest), -1)
+        new_index[vertices] = np.arange(len(vertices))
+        obj = mesh_object(name, rest[vertices], [[int(new_index[v]) for v in f] for f in faces if new_index[f[0]] >= 0])
+        obj.matrix_world = character.matrix_world
+        objects.append(obj)
+    module(shapesmith, "face_parts").store_parts(objects[0], objects[1:])
+    bpy.context.view_layer.update()
+
+    carried = {}
+    for label, obj in (("one", character), ("parts", objects[0])):
+        wrapped = wrap.wrap_object(template, obj, template_points, character_points)
+        wrapped_object = wrap.show_wrapped(wrapped)
+        result = wrap.carry_onto_character(template, obj, wrapped_object)
+        shape_keys.write_transferred_keys(result)
+        wrap.remove_object(wrapped_object)
+        carried[label] = result
+    one = character.data.shape_keys.key_blocks
+    tolerance = 1e-6 * diagonal(rest)
+    head, inner = objects
+    assert [kb.name for kb in head.data.shape_keys.key_blocks] == [kb.name for kb in one]
+    inner_keys = [kb.name for kb in inner.data.shape_keys.key_blocks[1:]]
+    assert "tongueOut" in inner_keys and "jawOpen" in inner_keys and len(inner_keys) < 52
+    for obj, vertices in ((head, head_vertices), (inner, inner_vertices)):
+        for block in obj.data.shape_keys.key_blocks[1:]:
+            expected = positions(character, block.name)[vertices]
+            error = np.abs(positions(obj, block.name) - expected).max()
+            assert error <= tolerance, f"{obj.name} {block.name}: {error / diagonal(rest):.2e} of the diagonal"
+        missing = [kb.name for kb in one[1:] if kb.name not in obj.data.shape_keys.key_blocks]
+        for name in missing:  # a key left off a part moves nothing there
+            assert np.array_equal(positions(character, name)[vertices], rest[vertices]), name
