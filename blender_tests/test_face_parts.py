@@ -163,6 +163,47 @@ def transfer(source, target, **options):
     return bpy.ops.shapesmith.transfer_shape_keys()
 
 
+# --- the list on the head ----------------------------------------------------------------
+
+
+def test_the_face_parts_list_is_edited_by_its_buttons_each_one_undo_step(face):
+    head = face["target"]
+    head.shapesmith.face_parts.clear()
+    make_active(head)
+    for name in ("Old_Teeth", "Old_EyeLeft"):
+        bpy.data.objects[name].select_set(True)
+    bpy.ops.ed.undo_push(message="before")
+    assert bpy.ops.shapesmith.add_face_parts() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="added")
+    assert [o.name for o in parts(bpy.data.objects["Old_Head"])] == ["Old_EyeLeft", "Old_Teeth"]
+    assert bpy.ops.shapesmith.add_face_parts() == {"FINISHED"}  # listed once
+    head = bpy.data.objects["Old_Head"]
+    head.shapesmith.active_face_part = 1
+    assert bpy.ops.shapesmith.move_face_part(direction="UP") == {"FINISHED"}
+    assert [o.name for o in parts(head)] == ["Old_Teeth", "Old_EyeLeft"] and head.shapesmith.active_face_part == 0
+    bpy.ops.ed.undo_push(message="moved")
+    assert bpy.ops.shapesmith.remove_face_part() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="removed")
+    assert [o.name for o in parts(bpy.data.objects["Old_Head"])] == ["Old_EyeLeft"]
+    bpy.ops.ed.undo()
+    assert [o.name for o in parts(bpy.data.objects["Old_Head"])] == ["Old_Teeth", "Old_EyeLeft"]
+    bpy.ops.ed.undo()
+    bpy.ops.ed.undo()
+    assert parts(bpy.data.objects["Old_Head"]) == []
+
+
+def test_a_part_listed_twice_or_sharing_a_mesh_is_refused(face, shapesmith):
+    face_parts = module(shapesmith, "face_parts")
+    head = face["template"]
+    teeth = parts(head)[0]
+    with pytest.raises(ValueError, match="'Tpl_Teeth' is listed twice"):
+        face_parts.face_objects(head, [teeth, teeth])
+    with pytest.raises(ValueError, match="uses the mesh of 'Tpl_Head'"):
+        twin = head.copy()
+        bpy.context.scene.collection.objects.link(twin)
+        face_parts.face_objects(head, [twin])
+
+
 # --- every tool reads the parts with the head ---------------------------------------------
 
 
