@@ -84,12 +84,16 @@ def split(shapesmith, prefix, rest, faces, keys, groups, location):
     it, when `keys`), the parts listed on the head; and `<prefix>Joined`, the same vertices and
     faces in one object in the parts' order, with the union of their keys in the order the
     tools read them. Returns (head, joined)."""
+    owner = np.empty(len(rest), dtype=np.int64)
+    for index, name in enumerate(OBJECTS):
+        owner[groups[name]] = index
+    face_owner = owner[[f[0] for f in faces]]
     objects, order, names = [], [], []
-    for name in OBJECTS:
+    for index, name in enumerate(OBJECTS):
         vertices = groups[name]
         new_index = np.full(len(rest), -1)
         new_index[vertices] = np.arange(len(vertices))
-        own = [[int(new_index[v]) for v in f] for f in faces if new_index[f[0]] >= 0]
+        own = [new_index[f].tolist() for f, o in zip(faces, face_owner) if o == index]
         moving = [(k, co[vertices]) for k, co in keys.items() if np.any(co[vertices] != rest[vertices])]
         objects.append(mesh_object(prefix + name, rest[vertices], own, moving, location))
         order.append(vertices)
@@ -99,17 +103,11 @@ def split(shapesmith, prefix, rest, faces, keys, groups, location):
     order = np.concatenate(order)
     new_index = np.empty(len(rest), dtype=np.int64)
     new_index[order] = np.arange(len(order))
-    by_object = [f for name in OBJECTS for f in faces if new_index[f[0]] in range(*_span(groups, name))]
-    joined_faces = [[int(new_index[v]) for v in f] for f in by_object]
+    joined_faces = [new_index[faces[f]].tolist() for f in np.argsort(face_owner, kind="stable")]
     joined = mesh_object(prefix + "Joined", rest[order], joined_faces, [(k, keys[k][order]) for k in names] if keys else (),
                          location + 0.12)
     bpy.context.view_layer.update()
     return head, joined
-
-
-def _span(groups, name):
-    start = sum(len(groups[n]) for n in OBJECTS[: OBJECTS.index(name)])
-    return start, start + len(groups[name])
 
 
 def split_sample(shapesmith, triangulated=False):
