@@ -585,8 +585,11 @@ def run_crossings(args):
 
 def add_wrap_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--template", required=True, help="the template: mesh with shape keys")
-    parser.add_argument("--character", required=True, help="the character: a head of any topology")
+    parser.add_argument("--template", required=True, help="the template: " + FACE_HELP)
+    parser.add_argument(
+        "--character", required=True,
+        help="the character: a head of any topology; with face parts, the head then its parts, comma separated",
+    )
     parser.add_argument(
         "--pairs",
         help="point pairs JSON: [[template_vertex, character_vertex], ...] or [[[x,y,z],[x,y,z]], ...] in each "
@@ -613,7 +616,7 @@ def run_wrap(args):
     wrap = import_module(shapesmith.__name__ + ".blender.wrap")
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
-    template, character = find_object(args.template), find_object(args.character)
+    template, character = find_face(args.template, shapesmith), find_face(args.character, shapesmith)
     for obj in (template, character):
         if obj.type != "MESH":
             raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
