@@ -9,6 +9,7 @@ _MODULE_NAMES = (
     "preferences",
     "properties",
     "wrap_properties",
+    "operators.face_parts",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
     "operators.pack_expressions",

@@ -366,6 +366,23 @@ class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
     shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_transfer_shape)
 
 
+def _is_mesh(item, obj):
+    return obj.type == "MESH"
+
+
+class SHAPESMITH_PG_face_part(bpy.types.PropertyGroup):
+    """One face part of a head: a separate mesh (teeth, tongue, eyes, lashes, brows) whose
+    shape keys match the head's by name; every tool reads it together with the head."""
+
+    object: bpy.props.PointerProperty(name="Part", type=bpy.types.Object, poll=_is_mesh)
+    landmarks: bpy.props.BoolProperty(
+        name="Landmarks",
+        description="Place Landmarks may put landmarks on this part (the head always may; parts are only traced "
+        "for visibility otherwise)",
+        default=False,
+    )
+
+
 class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
     analysis: bpy.props.PointerProperty(type=SHAPESMITH_PG_analysis)
     landmarks: bpy.props.PointerProperty(type=SHAPESMITH_PG_landmark_layout)
@@ -375,6 +392,10 @@ class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
     antagonists: bpy.props.CollectionProperty(type=SHAPESMITH_PG_shape_pair)
     pack: bpy.props.PointerProperty(type=SHAPESMITH_PG_pack)
     transfer: bpy.props.PointerProperty(type=SHAPESMITH_PG_transfer_result)
+    face_parts: bpy.props.CollectionProperty(
+        type=SHAPESMITH_PG_face_part, description="Separate meshes every tool reads together with this head"
+    )
+    active_face_part: bpy.props.IntProperty(name="Active Face Part")
 
 
 class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
@@ -462,6 +483,7 @@ _CLASSES = (
     SHAPESMITH_PG_transfer_settings,
     SHAPESMITH_PG_transfer_shape,
     SHAPESMITH_PG_transfer_result,
+    SHAPESMITH_PG_face_part,
     SHAPESMITH_PG_object,
     SHAPESMITH_PG_landmark_settings,
     SHAPESMITH_PG_scene,

@@ -52,6 +52,21 @@ def find_object(name):
     return obj
 
 
+def find_face(value, shapesmith):
+    """The head named first in a comma list `Head,Teeth,EyeLeft,EyeRight`, with the parts
+    after it stored as its Face Parts list (every tool then reads them with it, and a saved
+    copy keeps them); a head named alone keeps the list stored on it."""
+    from importlib import import_module
+
+    names = [name.strip() for name in value.split(",")]
+    if not all(names):
+        raise BatchError(f"'{value}' has an empty name: give the head, then its parts, separated by commas")
+    objects = [find_object(name) for name in names]
+    if len(objects) > 1:
+        import_module(shapesmith.__name__ + ".blender.face_parts").store_parts(objects[0], objects[1:])
+    return objects[0]
+
+
 def write_json(path, data):
     if path:
         with open(path, "w") as f:
@@ -167,9 +182,15 @@ def add_character(name, spec, head, identity, location_x):
     return obj
 
 
+FACE_HELP = (
+    "mesh object with shape keys; a face in several objects as the head, then its parts, comma separated "
+    "(Head,Teeth,EyeLeft,EyeRight); the head alone uses the Face Parts list stored on it"
+)
+
+
 def add_analyze_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--object", required=True, help=FACE_HELP)
     parser.add_argument("--axis", choices="XYZ", default="X", help="symmetry axis (default X)")
     parser.add_argument("--no-name-pairs", action="store_true", help="do not pair shapes by Left/Right names")
     parser.add_argument("--json", help="write the report here")
@@ -181,21 +202,23 @@ def run_analyze(args):
     from importlib import import_module
 
     analysis = import_module(shapesmith.__name__ + ".blender.analysis")
-    report = analysis.analyze_object(find_object(args.object), axis="XYZ".index(args.axis), pair_by_name=not args.no_name_pairs)
+    obj = find_face(args.object, shapesmith)
+    report = analysis.analyze_object(obj, axis="XYZ".index(args.axis), pair_by_name=not args.no_name_pairs)
     for line in analysis.summary_lines(report):
         print(line)
     report["pair_details"] = report["symmetric_pairs"]
     report["symmetric_pairs"] = [[p["first"], p["second"]] for p in report["symmetric_pairs"]]
     report["antagonist_details"] = report["antagonists"]
     report["antagonists"] = [[p["first"], p["second"]] for p in report["antagonists"]]
-    report.update(input=os.path.abspath(args.input), object=args.object)
+    report.update(input=os.path.abspath(args.input), object=obj.name)
     write_json(args.json, report)
 
 
 def add_pack_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--object", required=True, help="mesh object with shape keys")
-    parser.add_argument("--target", help="target head of the same topology (importance by its distortion)")
+    parser.add_argument("--object", required=True, help=FACE_HELP)
+    parser.add_argument("--target", help="target head of the same topology (importance by its distortion); with "
+                        "face parts, the head then its parts, comma separated")
     parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
     parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
     parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
@@ -236,7 +259,7 @@ def run_pack(args):
     shapesmith = load_shapesmith()
     open_blend(args.input)
     packing = import_module(shapesmith.__name__ + ".blender.packing")
-    obj = find_object(args.object)
+    obj = find_face(args.object, shapesmith)
     options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
     overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions,
                  "collision_tolerance": args.collision_tolerance, "occlusion_keep": args.occlusion_keep}
@@ -246,7 +269,7 @@ def run_pack(args):
     options["collision_conflicts"] = not args.no_collision_conflicts and options["collision_conflicts"]
     options["occlusion_conflicts"] = not args.no_occlusion_conflicts and options["occlusion_conflicts"]
     if args.target:
-        options["target"] = find_object(args.target)
+        options["target"] = find_face(args.target, shapesmith)
     if args.camera:
         options["camera"] = find_object(args.camera)
         if options["camera"].type != "CAMERA":
@@ -266,7 +289,7 @@ def run_pack(args):
         packing.write_shot_list_csv(args.csv, report, explain=args.explain)
     if args.output:
         save_copy(args.output)
-    report.update(input=os.path.abspath(args.input), object=args.object)
+    report.update(input=os.path.abspath(args.input), object=obj.name)
     report.pop("conflicts_cache")  # stored on the object (and in --output); opaque to readers
     report["seconds"]["write"] = time.perf_counter() - started
     write_json(args.json, report)
@@ -274,7 +297,11 @@ def run_pack(args):
 
 def add_landmarks_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--object", required=True, help="mesh object with shape keys")
+    parser.add_argument("--object", required=True, help=FACE_HELP)
+    parser.add_argument(
+        "--landmark-parts",
+        help="face parts landmarks may go on, comma separated (default: the parts ticked in the stored list; none: the head only)",
+    )
     parser.add_argument("--epsilon", type=float, default=0.5, help="candidate threshold in (0, 1] (default 0.5)")
     parser.add_argument("--alpha", type=float, default=0.5, help="visibility against displacement (default 0.5)")
     parser.add_argument("--gamma", type=float, default=0.5, help="quality against count; 0 = fewest (default 0.5)")
@@ -306,7 +333,10 @@ def run_landmarks(args):
     from importlib import import_module
 
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
-    obj = find_object(args.object)
+    obj = find_face(args.object, shapesmith)
+    allowed_parts = None
+    if args.landmark_parts is not None:
+        allowed_parts = [find_object(name.strip()) for name in args.landmark_parts.split(",") if name.strip()]
     scene = bpy.context.scene
     source = "SCENE" if args.scene_cameras else "COLLECTION" if args.camera_collection else "HEMISPHERE"
     collection = None
@@ -325,7 +355,9 @@ def run_landmarks(args):
                   max_per_shape=args.max_per_shape, radius=args.radius, landmarks=args.landmarks,
                   target_error=args.target_error, criterion=args.criterion)
     score = landmarks.score_group(obj, args.score_group) if args.score_group else None
-    document = landmarks.place_landmarks(obj, cameras=cameras, axis="XYZ".index(args.axis), **params)
+    document = landmarks.place_landmarks(
+        obj, cameras=cameras, axis="XYZ".index(args.axis), allowed_parts=allowed_parts, **params
+    )
     if score is not None:
         document["comparison"] = score
     landmarks.build_layout(obj, document, scene)
@@ -350,8 +382,12 @@ def run_landmarks(args):
 
 def add_transfer_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--source", required=True, help="the template: mesh with shape keys")
-    parser.add_argument("--target", action="append", default=[], help="mesh to receive the keys (repeatable)")
+    parser.add_argument("--source", required=True, help="the template: " + FACE_HELP)
+    parser.add_argument(
+        "--target", action="append", default=[],
+        help="mesh to receive the keys (repeatable); a face in several objects as the head, then its parts, comma "
+        "separated, paired with the template's parts by name after each face's common prefix, else in order",
+    )
     parser.add_argument("--targets", help="glob over object names, e.g. 'Target_*'")
     parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer")
     parser.add_argument("--tau-d", type=float, default=0.015, help="virtual-edge distance, fraction of the bbox diagonal")
@@ -389,11 +425,12 @@ def add_transfer_args(parser):
     parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
 
 
-def transfer_targets(args):
-    """The target objects named by --target and --targets, in order, without repeats."""
+def transfer_targets(args, shapesmith):
+    """The target heads named by --target (each a head and its parts, comma separated) and
+    --targets (heads with their stored lists), in order, without repeats."""
     import fnmatch
 
-    names = list(args.target)
+    names = [find_face(value, shapesmith).name for value in args.target]
     if args.targets:
         matched = sorted(o.name for o in bpy.data.objects if fnmatch.fnmatchcase(o.name, args.targets))
         if not matched:
@@ -414,8 +451,8 @@ def run_transfer(args):
     open_blend(args.input)
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
-    source = find_object(args.source)
-    targets = transfer_targets(args)
+    source = find_face(args.source, shapesmith)
+    targets = transfer_targets(args, shapesmith)
     pack_report = None
     if args.pack_json:
         if not os.path.isfile(args.pack_json):
@@ -462,6 +499,7 @@ def run_transfer(args):
         reports.append(
             {
                 "target": result.target.name,
+                "objects": result.report["objects"],
                 "shapes": written,
                 "skipped": skipped,
                 "virtual_edges": result.report["virtual_edges"],
@@ -553,8 +591,11 @@ def run_crossings(args):
 
 def add_wrap_args(parser):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--template", required=True, help="the template: mesh with shape keys")
-    parser.add_argument("--character", required=True, help="the character: a head of any topology")
+    parser.add_argument("--template", required=True, help="the template: " + FACE_HELP)
+    parser.add_argument(
+        "--character", required=True,
+        help="the character: a head of any topology; with face parts, the head then its parts, comma separated",
+    )
     parser.add_argument(
         "--pairs",
         help="point pairs JSON: [[template_vertex, character_vertex], ...] or [[[x,y,z],[x,y,z]], ...] in each "
@@ -581,7 +622,7 @@ def run_wrap(args):
     wrap = import_module(shapesmith.__name__ + ".blender.wrap")
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
-    template, character = find_object(args.template), find_object(args.character)
+    template, character = find_face(args.template, shapesmith), find_face(args.character, shapesmith)
     for obj in (template, character):
         if obj.type != "MESH":
             raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")

@@ -3,19 +3,21 @@
 import time
 
 from .. import native
-from .mesh_arrays import read_rig
+from .face_parts import face_objects, face_summary, read_face_rig
 
 
-def analyze_object(obj, axis=0, pair_by_name=True):
-    """Reads the rig, runs the native analysis, returns its report (a dict) with the
-    shape-key warnings and timings added. Writes nothing."""
+def analyze_object(obj, axis=0, pair_by_name=True, parts=None):
+    """Reads the rig (with its face parts: `parts`, else the list stored on `obj`), runs the
+    native analysis, returns its report (a dict) with the face's objects, the shape-key
+    warnings and timings added. Writes nothing."""
     started = time.perf_counter()
-    rig = read_rig(obj)
+    rig, face = read_face_rig(face_objects(obj, parts))
     read = time.perf_counter()
     report = native.module().analyze_rig(
         rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis, use_names=pair_by_name
     )
     report["warnings"] = rig.warnings
+    report["objects"] = face_summary(face)
     report["seconds"] = {"read": read - started, "native": time.perf_counter() - read}
     return report
 
@@ -49,8 +51,10 @@ def store_analysis(obj, report):
 
 def summary_lines(report):
     """A short human-readable summary (for the batch log and the demo)."""
+    objects = report.get("objects") or []
     lines = [
         f"{report['vertices']} vertices, {report['triangles']} triangles, {report['shapes']} shape keys",
+        *([f"face parts: {', '.join(o['object'] for o in objects[1:])}"] if len(objects) > 1 else []),
         f"inert shapes: {', '.join(report['inert']) or 'none'}",
         f"unmatched mirror vertices: {len(report['unmatched_vertices'])}",
         f"degenerate triangles: {len(report['degenerate_triangles'])}",

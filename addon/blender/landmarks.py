@@ -15,7 +15,8 @@ import numpy as np
 from mathutils import Matrix
 
 from .. import native
-from .mesh_arrays import MeshDataError, read_rig, read_triangles
+from .face_parts import face_objects, face_summary, landmark_parts, read_face_rig, stored_parts
+from .mesh_arrays import MeshDataError, read_triangles
 from .packing import stored_weights
 
 COLLECTION_NAME = "Landmarks"
@@ -59,13 +60,15 @@ def camera_positions(obj, source, scene=None, collection=None):
     return np.array([(to_local @ cam.matrix_world.translation)[:] for cam in cameras], dtype=np.float32)
 
 
-def mesh_parts(obj, triangles=None):
+def mesh_parts(obj, triangles=None, vertices=None):
     """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
     teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
-    not refused. `triangles`: the mesh's, when already read (`read_rig`)."""
+    not refused. `triangles`, `vertices`: the mesh's triangles and vertex count when already
+    read (`read_rig`; a face in several objects counts all of them)."""
     if triangles is None:
         triangles = read_triangles(obj)
-    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), triangles)
+    count_of_vertices = len(obj.data.vertices) if vertices is None else vertices
+    labels, count, boundary = native.module().mesh_parts(count_of_vertices, triangles)
     return {"loose_parts": count, "boundary_edges": boundary, "part_of_vertex": labels}
 
 
@@ -114,22 +117,42 @@ def check_design(landmarks=None, target_error=None, **_):
         raise MeshDataError(f"the target error must be a positive fraction of the diagonal, got {target_error}")
 
 
-def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None, **params):
+def allowed_vertices(face, allowed_parts):
+    """The vertices of `face` a landmark may go on, as a list of bools: the head's and those
+    of the parts in `allowed_parts`; None when the face is the head alone."""
+    if len(face.objects) == 1:
+        return None
+    allowed = np.zeros(int(face.offsets[-1]), dtype=bool)
+    for index, obj in enumerate(face.objects):
+        if index == 0 or obj in allowed_parts:
+            allowed[face.vertices(index)] = True
+    return allowed.tolist()
+
+
+def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None, parts=None, allowed_parts=None, **params):
     """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
     nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
     max_per_shape, radius, landmarks, target_error, criterion); `progress(fraction)`, when
     given, is called as the work advances and stops it by returning False (CancelledError).
     With `compare_group`, that vertex group's layout (e.g. a conventional one the user
-    tracks) is scored too, as `comparison`. Raises MeshDataError or the core's errors on bad
-    input."""
+    tracks) is scored too, as `comparison`. `parts`: the head's face parts (default: its
+    stored list), all traced for visibility and moving in every pose; landmarks go on the
+    head and on `allowed_parts` only (default: the parts ticked in the list). Raises
+    MeshDataError or the core's errors on bad input."""
     check_design(**params)
     started = time.perf_counter()
-    rig = read_rig(obj)
-    parts = mesh_parts(obj, rig.triangles)
+    rig, face = read_face_rig(face_objects(obj, parts))
+    if allowed_parts is None:
+        allowed_parts = landmark_parts(obj)
+    stray = [o.name for o in allowed_parts if o not in face.parts]
+    if stray:
+        raise MeshDataError(f"landmarks may go only on face parts of '{obj.name}', and {', '.join(stray)} is not one")
+    parts_of_mesh = mesh_parts(obj, rig.triangles, len(rig.neutral))
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, progress=progress, **params
+        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, progress=progress,
+        allowed=allowed_vertices(face, allowed_parts), **params
     )
     vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
     if not vertices:
@@ -144,11 +167,15 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None
         layout["comparison"] = comparison
     layout["mesh"] = {
         "vertices": len(rig.neutral),
-        "loose_parts": parts["loose_parts"],
-        "boundary_edges": parts["boundary_edges"],
-        "note": mesh_note(parts, vertices),
+        "loose_parts": parts_of_mesh["loose_parts"],
+        "boundary_edges": parts_of_mesh["boundary_edges"],
+        "note": mesh_note(parts_of_mesh, vertices),
     }
+    for landmark in layout["landmarks"]:
+        index, own = face.locate(landmark["vertex"])
+        landmark["object"], landmark["object_vertex"] = face.objects[index].name, own
     layout["object"] = obj.name
+    layout["objects"] = face_summary(face)
     layout["warnings"] = rig.warnings
     layout["seconds"] = {
         "io": read - started,
@@ -168,9 +195,10 @@ def remove_layout(obj):
         for empty in list(collection.objects):
             bpy.data.objects.remove(empty, do_unlink=True)
         bpy.data.collections.remove(collection)
-    group = obj.vertex_groups.get(VERTEX_GROUP_NAME)
-    if group is not None:
-        obj.vertex_groups.remove(group)
+    for owner in [obj, *stored_parts(obj)]:
+        group = owner.vertex_groups.get(VERTEX_GROUP_NAME)
+        if group is not None:
+            owner.vertex_groups.remove(group)
     obj.shapesmith.landmarks.done = False
 
 
@@ -183,19 +211,24 @@ def build_layout(obj, document, scene):
     """Replaces the object's layout with the document's: one empty per landmark, parented to
     its vertex (so it follows shape keys), named after the strongest shape it serves, with the
     covered shapes as the custom property `shapes`; a `Landmarks` collection in `scene`; a
-    `Landmarks` vertex group. Returns the collection."""
+    `Landmarks` vertex group. A landmark on a face part is parented to, and grouped on, that
+    part (the document names it: `object`, `object_vertex`). Returns the collection."""
     remove_layout(obj)
     collection = bpy.data.collections.new(COLLECTION_NAME)
     scene.collection.children.link(collection)
     size = EMPTY_SIZE * bbox_diagonal(obj)
+    on = {}
     for landmark in document["landmarks"]:
         vertex = landmark["vertex"]
+        owner = bpy.data.objects.get(landmark.get("object", obj.name)) or obj
+        own = landmark.get("object_vertex", vertex)
+        on.setdefault(owner, []).append(own)
         empty = bpy.data.objects.new(f"LM_{landmark['strongest']}_{vertex}", None)
         empty.empty_display_type = "SPHERE"
         empty.empty_display_size = size
-        empty.parent = obj
+        empty.parent = owner
         empty.parent_type = "VERTEX"
-        empty.parent_vertices = (vertex, vertex, vertex)
+        empty.parent_vertices = (own, own, own)
         # The vertex itself is the origin: no offset, whatever the parent's transform.
         empty.matrix_parent_inverse = Matrix.Identity(4)
         empty.location = (0.0, 0.0, 0.0)
@@ -204,8 +237,8 @@ def build_layout(obj, document, scene):
         empty["visibility"] = landmark["visibility"]
         empty["round"] = landmark["round"]
         collection.objects.link(empty)
-    group = obj.vertex_groups.new(name=VERTEX_GROUP_NAME)
-    group.add([landmark["vertex"] for landmark in document["landmarks"]], 1.0, "REPLACE")
+    for owner in [obj, *(o for o in on if o != obj)]:
+        owner.vertex_groups.new(name=VERTEX_GROUP_NAME).add(on.get(owner, []), 1.0, "REPLACE")
     store_layout(obj, document, collection)
     return collection
 
@@ -253,7 +286,7 @@ def score_group(obj, name):
     """Reconstruction error of the layout a vertex group describes (same poses and noise as
     Place Landmarks' own score), relative to the bbox diagonal. Writes nothing."""
     vertices = group_vertices(obj, name)
-    return dict(score_vertices(obj, read_rig(obj), vertices), group=name)
+    return dict(score_vertices(obj, read_face_rig(face_objects(obj))[0], vertices), group=name)
 
 
 def store_score(obj, score):

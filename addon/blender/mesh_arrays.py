@@ -102,6 +102,18 @@ def read_positions(obj):
     return co.reshape(-1, 3)
 
 
+def rest_positions(obj):
+    """The mesh's rest shape, float32 (N, 3): its reference key when it has shape keys (the
+    vertex array can lag behind a reference key written by script), else its vertices."""
+    mesh = obj.data
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    if mesh.shape_keys is not None:
+        mesh.shape_keys.reference_key.data.foreach_get("co", co)
+    else:
+        mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
 def read_triangles(obj):
     mesh = obj.data
     mesh.calc_loop_triangles()

@@ -10,8 +10,9 @@ import time
 import numpy as np
 
 from .. import native
+from .face_parts import face_objects, face_of, face_summary, pair_parts, read_face_rest, read_face_rig
 from .front import front_summary, rig_front
-from .mesh_arrays import MeshDataError, check_mesh, read_positions, read_rig
+from .mesh_arrays import MeshDataError
 
 # The collision and occlusion results of the last packing, on the object (saved with the file,
 # undone with it; the leading underscore keeps it out of the Custom Properties panel).
@@ -91,6 +92,8 @@ def pack_object(
     progress=None,
     reuse_conflicts=True,
     camera=None,
+    parts=None,
+    target_parts=None,
     **params,
 ):
     """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
@@ -105,23 +108,26 @@ def pack_object(
     antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
     collision_tolerance, occlusion_conflicts, occlusion_keep). The occlusion test looks from the
     rig's front (`rig_front`: `camera` when given, else found from the rig), which the report
-    gives as `front`, `up` and `front_source`. `progress(fraction)`,
-    when given, is called on this thread as the work advances (False cancels). Raises MeshDataError
-    (or the core's InvalidInputError) for anything the user has to fix."""
+    gives as `front`, `up` and `front_source`. `progress(fraction)`, when given, is called on
+    this thread as the work advances (False cancels). `parts`, `target_parts`: the face parts
+    of `obj` and `target` (default: the lists stored on them), packed as one rig with the head,
+    so that a key moving only a part (tongueOut in the teeth) is tested against the head's.
+    Raises MeshDataError (or the core's InvalidInputError) for anything the user has to fix."""
     started = time.perf_counter()
     if max_expressions is not None and max_expressions < 1:
         raise MeshDataError(f"the maximum number of expressions must be at least 1 (got {max_expressions})")
-    rig = read_rig(obj)
+    rig, face = read_face_rig(face_objects(obj, parts))
     names, deltas = rig.names, rig.deltas
     target_neutral = None
     if target is not None:
-        check_mesh(target, need_shape_keys=False)
-        target_neutral = read_positions(target)
-        if len(target_neutral) != len(rig.neutral):
-            raise MeshDataError(
-                f"target '{target.name}' has {len(target_neutral)} vertices but '{obj.name}' has {len(rig.neutral)}: "
-                "the target must share the rig's topology"
-            )
+        targets = pair_parts(face.objects, face_objects(target, target_parts))
+        for other, own in zip(targets, face.objects):
+            if len(other.data.vertices) != len(own.data.vertices):
+                raise MeshDataError(
+                    f"target '{other.name}' has {len(other.data.vertices)} vertices but '{own.name}' has "
+                    f"{len(own.data.vertices)}: the target must share the rig's topology"
+                )
+        target_neutral = read_face_rest(face_of(targets))
     for what in ("pin_together", "keep_apart"):
         _check_named_pairs(params.get(what, ()), what.replace("_", " "))
     if symmetric and pairs is not None:
@@ -154,6 +160,7 @@ def pack_object(
             f"(inert: {', '.join(report['inert']) or 'none'}; excluded: {', '.join(report['excluded']) or 'none'})"
         )
     report["names"] = names
+    report["objects"] = face_summary(face)
     report["target"] = target.name if target is not None else None
     report["warnings"] = rig.warnings + front["warnings"]
     report.update({key: front[key] for key in ("front", "up", "front_source", "front_camera")})
@@ -296,39 +303,48 @@ def _shape_keys(obj):
     return [kb for kb in keys.key_blocks if kb != keys.reference_key]
 
 
+def _posed_objects(obj):
+    """The head and those of its face parts that have shape keys: what an expression poses."""
+    return [o for o in face_objects(obj) if o == obj or o.data.shape_keys is not None]
+
+
 def _expression_members(obj, index):
     result = obj.shapesmith.pack.result
     if not result.done or not 0 <= index < len(result.expressions):
         raise MeshDataError(f"'{obj.name}' has no packed expression {index + 1}: run Pack Expressions first")
     members = {m.name for m in result.expressions[index].members}
-    missing = members - {kb.name for kb in _shape_keys(obj)}
+    missing = members - {kb.name for o in _posed_objects(obj) for kb in _shape_keys(o)}
     if missing:
         raise MeshDataError(f"shape key(s) {', '.join(sorted(missing))} no longer exist: pack again")
     return members
 
 
 def preview_expression(obj, index):
-    """Poses expression `index`: its member keys at 1, every other key at 0."""
+    """Poses expression `index` on the head and its face parts: its member keys at 1, every
+    other key at 0."""
     members = _expression_members(obj, index)
-    for block in _shape_keys(obj):
-        block.value = 1.0 if block.name in members else 0.0
+    for posed in _posed_objects(obj):
+        for block in _shape_keys(posed):
+            block.value = 1.0 if block.name in members else 0.0
 
 
 def animate_expressions(obj, scene):
-    """Keyframes one expression per frame from frame 1 (constant interpolation, so every frame
-    is exactly one expression) and sets the scene's frame range to them; returns J."""
+    """Keyframes one expression per frame from frame 1 on the head and its face parts
+    (constant interpolation, so every frame is exactly one expression) and sets the scene's
+    frame range to them; returns J."""
     result = obj.shapesmith.pack.result
     posed = [_expression_members(obj, j) for j in range(len(result.expressions))]
-    blocks = _shape_keys(obj)
-    for frame, members in enumerate(posed, start=1):
-        for block in blocks:
-            block.value = 1.0 if block.name in members else 0.0
-            block.keyframe_insert("value", frame=frame)
-    action = obj.data.shape_keys.animation_data.action
-    for fcurve in _fcurves(action):
-        for point in fcurve.keyframe_points:
-            if 1 <= point.co.x <= len(posed):
-                point.interpolation = "CONSTANT"
+    for animated in _posed_objects(obj):
+        blocks = _shape_keys(animated)
+        for frame, members in enumerate(posed, start=1):
+            for block in blocks:
+                block.value = 1.0 if block.name in members else 0.0
+                block.keyframe_insert("value", frame=frame)
+        action = animated.data.shape_keys.animation_data.action
+        for fcurve in _fcurves(action):
+            for point in fcurve.keyframe_points:
+                if 1 <= point.co.x <= len(posed):
+                    point.interpolation = "CONSTANT"
     scene.frame_start, scene.frame_end = 1, max(len(posed), 1)
     scene.frame_set(1)
     return len(posed)
@@ -341,42 +357,54 @@ def _fcurves(action):
     return [fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves]
 
 
-def bake_expressions(obj):
-    """Writes one `REF_01`-style shape key per expression (Basis plus its members' deltas, value
-    0); keys of an earlier bake are replaced and leftovers removed. Returns the key names."""
-    result = obj.shapesmith.pack.result
-    posed = [_expression_members(obj, j) for j in range(len(result.expressions))]
+def _baked_shapes(obj, posed):
+    """(label, positions) of each expression on one object: its Basis plus its own members'
+    deltas (keys of an earlier bake left out)."""
     keys = obj.data.shape_keys
     n = len(obj.data.vertices)
     neutral = np.empty(n * 3, dtype=np.float32)
     keys.reference_key.data.foreach_get("co", neutral)
-    baked = obj.shapesmith.pack.baked
-    previous = {b.name for b in baked}
+    previous = {b.name for b in obj.shapesmith.pack.baked}
     sources = {kb.name: kb for kb in _shape_keys(obj) if kb.name not in previous}
     buffer = np.empty(n * 3, dtype=np.float32)
     shapes = []
     for j, members in enumerate(posed):
         mixed = neutral.copy()
-        for name in members:
+        for name in members & sources.keys():
             sources[name].data.foreach_get("co", buffer)
             mixed += buffer - neutral
         shapes.append((expression_label(j), mixed))
-    labels = {label for label, _ in shapes}
-    taken = sorted(name for name in labels - previous if name in keys.key_blocks)
+    taken = sorted(label for label, _ in shapes if label not in previous and label in keys.key_blocks)
     if taken:
-        raise MeshDataError(f"shape key(s) {', '.join(taken)} exist and were not made by Bake: rename them first")
-    for name in previous - labels:
-        block = keys.key_blocks.get(name)
-        if block is not None:
-            obj.shape_key_remove(block)
-    baked.clear()
-    for label, mixed in shapes:
-        block = keys.key_blocks.get(label) or obj.shape_key_add(name=label, from_mix=False)
-        block.data.foreach_set("co", mixed)
-        block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
-        baked.add().name = label
-    obj.data.update()
-    return [label for label, _ in shapes]
+        raise MeshDataError(f"shape key(s) {', '.join(taken)} of '{obj.name}' exist and were not made by Bake: rename them first")
+    return shapes
+
+
+def bake_expressions(obj):
+    """Writes one `REF_01`-style shape key per expression (Basis plus its members' deltas, value
+    0) on the head and on each of its face parts that has shape keys; keys of an earlier bake
+    are replaced and leftovers removed. Everything is checked before the first write. Returns
+    the key names."""
+    result = obj.shapesmith.pack.result
+    posed = [_expression_members(obj, j) for j in range(len(result.expressions))]
+    planned = [(baked_on, _baked_shapes(baked_on, posed)) for baked_on in _posed_objects(obj)]
+    for baked_on, shapes in planned:
+        keys = baked_on.data.shape_keys
+        baked = baked_on.shapesmith.pack.baked
+        previous = {b.name for b in baked}
+        labels = {label for label, _ in shapes}
+        for name in previous - labels:
+            block = keys.key_blocks.get(name)
+            if block is not None:
+                baked_on.shape_key_remove(block)
+        baked.clear()
+        for label, mixed in shapes:
+            block = keys.key_blocks.get(label) or baked_on.shape_key_add(name=label, from_mix=False)
+            block.data.foreach_set("co", mixed)
+            block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
+            baked.add().name = label
+        baked_on.data.update()
+    return [label for label, _ in planned[0][1]]
 
 
 def summary_lines(report):

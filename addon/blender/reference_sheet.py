@@ -21,6 +21,7 @@ import numpy as np
 import bpy
 from mathutils import Matrix
 
+from .face_parts import face_objects
 from .front import to_front_view, view_front
 from .mesh_arrays import MeshDataError, read_positions
 
@@ -49,9 +50,11 @@ def render_reference_sheet(obj, path, tile_width=320, tile_height=400, columns=N
     result = obj.shapesmith.pack.result
     if not result.done or not result.expressions:
         raise MeshDataError(f"'{obj.name}' has no packed expressions: run Pack Expressions first")
-    key_blocks = obj.data.shape_keys.key_blocks if obj.data.shape_keys else {}
+    # A face in several objects is drawn by its head: a key only a part has (tongueOut in the
+    # teeth) is named in the legend, and the regions keep the head's vertices (they come first).
+    known = {kb.name for o in face_objects(obj) if o.data.shape_keys for kb in o.data.shape_keys.key_blocks}
     expressions = [[m.name for m in e.members] for e in result.expressions]
-    missing = sorted({name for names in expressions for name in names if name not in key_blocks})
+    missing = sorted({name for names in expressions for name in names if name not in known})
     if missing:
         raise MeshDataError(f"shape key(s) {', '.join(missing)} no longer exist: pack again")
     regions = json.loads(result.regions_json or "{}")
@@ -184,7 +187,8 @@ class _Stage:
         for index, region in enumerate(regions):
             mesh.materials.append(self._material(member_colour(index)))
             inside = np.zeros(len(mesh.vertices), bool)
-            inside[np.asarray(region, dtype=np.int64)] = True
+            region = np.asarray(region, dtype=np.int64)
+            inside[region[region < len(inside)]] = True
             corners_inside = np.bincount(polygon_of_loop, weights=inside[self.loop_vertex], minlength=len(face))
             face[(face == 0) & (corners_inside == self.loop_total)] = index + 1
         mesh.polygons.foreach_set("material_index", face)

@@ -124,18 +124,42 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
     the target has no shape keys; then each template key with the template's name, slider
     range, vertex group, mute, interpolation and relative key (mapped by name, else the
     reference key); new keys at value 0. Vertex groups the transfer carries (a wrap's) are
-    written first. Existing keys and groups are kept unless `overwrite`. Returns (written,
-    skipped, warnings)."""
-    source, target = transfer.source, transfer.target
-    written, skipped = plan_keys(target, transfer.names, overwrite)
-    drivers = key_drivers(source, written) if copy_drivers else {}
-    source_keys = source.data.shape_keys
+    written first. Existing keys and groups are kept unless `overwrite`. A face in several
+    objects is written piece by piece (`Transfer.pieces`), each object its own keys, once
+    every piece has been checked. Returns (written, skipped, warnings), names over all
+    objects in the transfer's order."""
+    pieces = transfer.pieces or [transfer]
+    plans = [plan_keys(piece.target, piece.names, overwrite) for piece in pieces]
+    # Drivers re-targeted from every template object (and its mesh and keys) to its counterpart.
+    mapping = {}
+    for piece in pieces:
+        mapping.update({piece.source: piece.target, piece.source.data: piece.target.data})
+    written, skipped, warnings = set(), set(), []
+    for piece, plan in zip(pieces, plans):
+        warnings += _write_piece(piece, *plan, copy_drivers, mapping, overwrite)
+        written.update(plan[0])
+        skipped.update(plan[1])
+    return [n for n in transfer.names if n in written], [n for n in transfer.names if n in skipped], warnings
+
+
+def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
+    target = transfer.target
+    # Each key takes its settings from the template object that has it (a character's part
+    # may take keys of several template objects).
+    origin = {name: transfer.key_sources.get(name, transfer.source) for name in written}
+    drivers = {}
+    if copy_drivers:
+        for source in dict.fromkeys(origin.values()):
+            drivers.update(key_drivers(source, [n for n in written if origin[n] == source]))
+    source_blocks = {name: origin[name].data.shape_keys.key_blocks[name] for name in written}
     warnings = write_vertex_groups(target, transfer.vertex_groups, overwrite)
     warnings += [
-        f"vertex group '{source_keys.key_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
+        f"vertex group '{source_blocks[n].vertex_group}' of shape key '{n}' is not on '{target.name}'"
         for n in written
-        if source_keys.key_blocks[n].vertex_group and source_keys.key_blocks[n].vertex_group not in target.vertex_groups
+        if source_blocks[n].vertex_group and source_blocks[n].vertex_group not in target.vertex_groups
     ]
+    if not written and not skipped:
+        return warnings  # a part without keys of its own (an eye that never moves)
     if target.data.shape_keys is None:
         target.shape_key_add(name="Basis", from_mix=False).value = 0.0
     keys = target.data.shape_keys
@@ -148,11 +172,11 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
     for name in written:
         block = keys.key_blocks[name]
         block.data.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
-        _copy_key_settings(block, source_keys.key_blocks[name], keys, source_keys)
+        _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
-    mapping = {source: target, source.data: target.data, source_keys: keys}
+    mapping = {**mapping, **{o.data.shape_keys: keys for o in set(origin.values())}}
     for fcurve in drivers.values():
         warnings += copy_driver(fcurve, keys, mapping)
     target.data.update()
-    return written, skipped, warnings
+    return warnings

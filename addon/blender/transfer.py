@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import native
-from .mesh_arrays import MeshDataError, check_mesh, read_rig, read_triangles, show_mesh
+from .face_parts import face_objects, face_of, pair_parts, read_face_rest, read_face_rig
+from .mesh_arrays import MeshDataError, check_mesh, read_triangles, rest_positions, show_mesh
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
 _EXPRESSION_NAME = re.compile(r"(?:^|[_.\- ])REF_(\d+)$")
@@ -21,7 +22,9 @@ _DUPLICATE_SUFFIX = re.compile(r"\.\d{3}$")
 class Transfer:
     """A solved transfer, not yet written: the target deltas (K, N, 3) in the template's key
     order, the native report, the training expressions used (object name -> weight row) and,
-    for a wrap, the template's vertex groups carried onto the target (name -> weights (N,))."""
+    for a wrap, the template's vertex groups carried onto the target (name -> weights (N,)).
+    With face parts, `names` and `deltas` span every object (head first, in the head's
+    space)."""
 
     source: object
     target: object
@@ -32,18 +35,11 @@ class Transfer:
     training: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     vertex_groups: dict = field(default_factory=dict)
-
-
-def rest_positions(obj):
-    """The mesh's rest shape, float32 (N, 3): its reference key when it has shape keys (the
-    vertex array can lag behind a reference key written by script), else its vertices."""
-    mesh = obj.data
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    if mesh.shape_keys is not None:
-        mesh.shape_keys.reference_key.data.foreach_get("co", co)
-    else:
-        mesh.vertices.foreach_get("co", co)
-    return co.reshape(-1, 3)
+    # A face in several objects: one `Transfer` per object (head first), each with its own
+    # keys and vertices, written in place of this one (`split_transfer`).
+    pieces: list = field(default_factory=list)
+    # Template object of each key whose settings a piece takes, when not `source` alone.
+    key_sources: dict = field(default_factory=dict)
 
 
 def face_corners(obj):
@@ -85,16 +81,76 @@ def check_same_topology(obj, template, what="target"):
         )
 
 
-def _read_pair(source, target):
+def joined_face_corners(objects):
+    """`face_corners` of several meshes as one mesh: their faces in order, each object's
+    vertex indices after those of the objects before it."""
+    sizes, corners, offset = [], [], 0
+    for obj in objects:
+        own_sizes, own_corners = face_corners(obj)
+        sizes.append(own_sizes)
+        corners.append(own_corners + offset)
+        offset += len(obj.data.vertices)
+    return np.concatenate(sizes), np.concatenate(corners)
+
+
+def check_joined_topology(obj, objects):
+    """Raises MeshDataError unless `obj` has the faces of `objects` joined into one mesh (a
+    wrapped template made from a face in several objects)."""
+    check_mesh(obj, need_shape_keys=False)
+    (sizes, corners), (joined_sizes, joined_corners) = face_corners(obj), joined_face_corners(objects)
+    if not (np.array_equal(sizes, joined_sizes) and np.array_equal(corners, joined_corners)):
+        raise MeshDataError(
+            f"'{obj.name}' does not have the faces of '{objects[0].name}' and its face parts "
+            f"({', '.join(o.name for o in objects[1:])}) joined in that order: wrap the template again"
+        )
+
+
+def _read_pair(source, target, source_parts=None, target_parts=None, joined_target=False):
+    """(rig, template face, target face, target rest positions): the template's face and the
+    target's, object i of one paired with object i of the other (`face_parts.pair_parts`) and
+    each pair checked for the same topology. With `joined_target`, the target is one mesh
+    with the faces of the template's objects joined (`check_joined_topology`)."""
     if source is None:
         raise MeshDataError("no template chosen: pick the mesh whose shape keys are transferred")
     if target is None:
         raise MeshDataError("no target: make the new head the active object")
-    if target == source or target.data == source.data:
-        raise MeshDataError(f"the target '{target.name}' is the template itself: pick another mesh as target")
-    rig = read_rig(source)
-    check_same_topology(target, source)
-    return rig, rest_positions(target)
+    sources = face_objects(source, source_parts)
+    if joined_target and len(sources) > 1:
+        check_joined_topology(target, sources)
+        rig, face = read_face_rig(sources)
+        target_face = face_of([target])
+        return rig, face, target_face, read_face_rest(target_face)
+    targets = pair_parts(sources, face_objects(target, target_parts))
+    for obj in targets:
+        template = next((s for s in sources if obj == s or obj.data == s.data), None)
+        if template is not None:
+            if obj == target:
+                raise MeshDataError(f"the target '{obj.name}' is the template itself: pick another mesh as target")
+            raise MeshDataError(f"the target part '{obj.name}' is the template's '{template.name}' itself: pick another mesh")
+    rig, face = read_face_rig(sources)
+    for index, (obj, template) in enumerate(zip(targets, sources)):
+        check_same_topology(obj, template, what="target" if index == 0 else "target part")
+    target_face = face_of(targets)
+    return rig, face, target_face, read_face_rest(target_face)
+
+
+def split_transfer(transfer, face, target_face):
+    """The transfer's pieces for writing, one per object of a face in several objects: the
+    template object's own keys (in the transfer's order) with their deltas, in the target
+    object's own space, onto its own rest shape; none for a head without parts or a joined
+    target."""
+    if len(face.objects) == 1 or len(target_face.objects) == 1:
+        return []
+    pieces = []
+    for index, (source, target) in enumerate(zip(face.objects, target_face.objects)):
+        keys = source.data.shape_keys
+        own = set(keys.key_blocks.keys()) if keys is not None else set()
+        rows = [k for k, name in enumerate(transfer.names) if name in own]
+        deltas = target_face.to_local_deltas(index, transfer.deltas[rows][:, target_face.vertices(index)])
+        pieces.append(
+            Transfer(source, target, [transfer.names[k] for k in rows], rest_positions(target), np.ascontiguousarray(deltas), {})
+        )
+    return pieces
 
 
 def packed_expressions(source, pack_report=None):
@@ -176,6 +232,9 @@ def transfer_object(
     collisions=True,
     collision_margin=0.25,
     template_penetration=None,
+    source_parts=None,
+    target_parts=None,
+    joined_target=False,
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
@@ -183,11 +242,18 @@ def transfer_object(
     InvalidInputError) for anything the user has to fix. `progress(fraction)`, when given, is
     called as the work advances and stops it by returning False (CancelledError).
     `template_penetration` is `measure_template_penetration(source)` when the caller already
-    has it (a batch over many targets measures it once)."""
+    has it (a batch over many targets measures it once). `source_parts`, `target_parts`: the
+    face parts of each (`face_parts.face_objects`; default: the lists stored on the heads);
+    `joined_target`: the target is one mesh of the template's objects joined (a wrap's)."""
     started = time.perf_counter()
-    rig, target_neutral = _read_pair(source, target)
+    rig, face, target_face, target_neutral = _read_pair(source, target, source_parts, target_parts, joined_target)
     examples = example_weights = None
     training = {}
+    if training_objects and len(face.objects) > 1:
+        raise MeshDataError(
+            f"personalisation reads training expressions of one mesh, but '{source.name}' has face parts "
+            f"({', '.join(o.name for o in face.parts)}): transfer without training expressions"
+        )
     if training_objects:
         expressions = packed_expressions(source, pack_report)
         examples, example_weights, training = read_training(
@@ -217,13 +283,19 @@ def transfer_object(
     )
     report["diagonal"] = float(np.linalg.norm(target_neutral.max(0) - target_neutral.min(0)))
     report["seconds"]["read"] = read - started
-    return Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
+    # Which template object went onto which target object (all onto one for a joined target).
+    counterparts = target_face.objects if len(target_face.objects) > 1 else [target] * len(face.objects)
+    report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, counterparts)]
+    result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
+    result.pieces = split_transfer(result, face, target_face)
+    return result
 
 
-def measure_template_penetration(source):
-    """The template's own intersection curve, at rest and per shape at weight 1: the same for
-    every target, so a batch measures it once and passes it to each `transfer_object`."""
-    rig = read_rig(source)
+def measure_template_penetration(source, parts=None):
+    """The template's own intersection curve (its face parts included), at rest and per shape
+    at weight 1: the same for every target, so a batch measures it once and passes it to each
+    `transfer_object`."""
+    rig, _ = read_face_rig(face_objects(source, parts))
     return native.module().measure_penetration(rig.neutral, rig.deltas, rig.triangles)
 
 

@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import native
-from .mesh_arrays import MeshDataError, check_mesh, read_triangles, show_mesh
-from .transfer import Transfer, face_corners, rest_positions, transfer_object
+from .face_parts import face_objects, face_of, read_face_rest, read_face_triangles
+from .mesh_arrays import MeshDataError, read_triangles, show_mesh
+from .transfer import Transfer, joined_face_corners, rest_positions, transfer_object
 
 # A custom property holding point pairs in the JSON form of `batch.py wrap --pairs`.
 PAIRS_PROPERTY = "shapesmith_wrap_pairs"
@@ -35,13 +36,15 @@ class Wrapped:
 
 
 def read_surface(obj, what):
-    """(rest positions (N, 3), triangles (T, 3)) of a mesh, or MeshDataError naming `what`."""
+    """(rest positions (N, 3), triangles (T, 3)) of a mesh and its face parts (one mesh in the
+    head's space, head first: the wrap fits each part as a piece), or MeshDataError naming
+    `what`."""
     if obj is None:
         raise MeshDataError(f"no {what} chosen")
     # The character is only a surface to fit (closest points): loose vertices or extra faces
     # on an edge of a scan change nothing there, so only the template's topology is checked.
-    check_mesh(obj, need_shape_keys=False, topology=what != "character")
-    return rest_positions(obj), read_triangles(obj)
+    face = face_of(face_objects(obj, topology=what != "character"))
+    return read_face_rest(face), read_face_triangles(face)
 
 
 def _as_points(obj, positions, values, what, index):
@@ -208,9 +211,10 @@ def show_wrapped(wrapped):
 
     template, character = wrapped.template, wrapped.character
     name = wrapped_name(template, character)
-    # A new mesh with the template's faces (same corners, so the transfer sees the same
-    # topology), not a copy: a copied mesh would drag along a shape-key block without owner.
-    sizes, corners = face_corners(template)
+    # A new mesh with the template's faces, its face parts' after the head's (same corners,
+    # so the transfer sees the same topology), not a copy: a copied mesh would drag along a
+    # shape-key block without owner.
+    sizes, corners = joined_face_corners(face_objects(template))
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(wrapped.positions.tolist(), [], [corners[a:a + n].tolist() for a, n in zip(starts, sizes)])
@@ -303,7 +307,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     vertices. Returns a `transfer.Transfer` whose target is the character, ready for
     `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
     started = time.perf_counter()
-    onto_wrapped = transfer_object(template, wrapped_object, progress=progress, **(transfer_options or {}))
+    onto_wrapped = transfer_object(template, wrapped_object, joined_target=True, progress=progress, **(transfer_options or {}))
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
@@ -340,9 +344,37 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     stage_seconds["penetration"] = time.perf_counter() - carried
     report["stage_seconds"] = stage_seconds
     groups = carried_vertex_groups(template, onto_wrapped.names, (wrapped_neutral, wrapped_triangles), character_neutral)
-    return Transfer(
+    result = Transfer(
         template, character, onto_wrapped.names, character_neutral, deltas, report, {}, list(onto_wrapped.warnings), groups
     )
+    result.pieces = character_pieces(result)
+    return result
+
+
+def character_pieces(result):
+    """The carried keys for writing, one piece per object of a character with face parts: the
+    head takes every key, each part the keys that move it; each key its settings from the
+    template object that has it (the head's first). None for a character alone."""
+    character_face = face_of(face_objects(result.target))
+    if len(character_face.objects) == 1:
+        return []
+    origin = {}
+    for source in face_objects(result.source):
+        keys = source.data.shape_keys
+        for name in keys.key_blocks.keys() if keys is not None else ():
+            origin.setdefault(name, source)
+    pieces = []
+    for index, obj in enumerate(character_face.objects):
+        own = result.deltas[:, character_face.vertices(index)]
+        rows = [k for k in range(len(result.names)) if index == 0 or np.any(own[k] != 0.0)]
+        names = [result.names[k] for k in rows]
+        piece = Transfer(
+            result.source, obj, names, rest_positions(obj), np.ascontiguousarray(character_face.to_local_deltas(index, own[rows])), {},
+            vertex_groups={name: weights[character_face.vertices(index)] for name, weights in result.vertex_groups.items()},
+        )
+        piece.key_sources = {name: origin[name] for name in names}
+        pieces.append(piece)
+    return pieces
 
 
 def carried_vertex_groups(template, names, wrapped_surface, character_neutral):
@@ -350,16 +382,27 @@ def carried_vertex_groups(template, names, wrapped_surface, character_neutral):
     character (name -> float32 weights (Nc,)): each character vertex (`character_neutral`)
     takes the weights at its closest point on the wrapped template (`wrapped_surface`:
     positions, triangles), mixed barycentrically (the binding of `bind_to_surface`)."""
-    blocks = template.data.shape_keys.key_blocks
-    wanted = sorted({blocks[n].vertex_group for n in names if blocks[n].vertex_group in template.vertex_groups})
+    objects = face_objects(template)
+    face = face_of(objects)
+    wanted = sorted(
+        {
+            block.vertex_group
+            for obj in objects
+            if obj.data.shape_keys is not None
+            for block in obj.data.shape_keys.key_blocks
+            if block.name in names and block.vertex_group in obj.vertex_groups
+        }
+    )
     if not wanted:
         return {}
-    row = {template.vertex_groups[name].index: k for k, name in enumerate(wanted)}
-    weights = np.zeros((len(wanted), len(template.data.vertices)), dtype=np.float32)
-    for vertex in template.data.vertices:
-        for membership in vertex.groups:
-            if membership.group in row:
-                weights[row[membership.group], vertex.index] = membership.weight
+    weights = np.zeros((len(wanted), int(face.offsets[-1])), dtype=np.float32)
+    for index, obj in enumerate(objects):
+        row = {obj.vertex_groups[name].index: k for k, name in enumerate(wanted) if name in obj.vertex_groups}
+        start = int(face.offsets[index])
+        for vertex in obj.data.vertices:
+            for membership in vertex.groups:
+                if membership.group in row:
+                    weights[row[membership.group], start + vertex.index] = membership.weight
     positions, triangles = wrapped_surface
     triangle, barycentric, _ = native.module().bind_to_surface(character_neutral, positions, triangles)
     carried = np.einsum("vc,gvc->gv", barycentric, weights[:, triangles[triangle]])

@@ -22,6 +22,15 @@ class SHAPESMITH_UL_pairs(bpy.types.UIList):
         row.label(text=item.source.title())
 
 
+class SHAPESMITH_UL_face_parts(bpy.types.UIList):
+    """A head's face parts: each picked from the file's meshes, ticked when landmarks may go on it."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        row = layout.row(align=True)
+        row.prop(item, "object", text="", icon="MESH_DATA")
+        row.prop(item, "landmarks", text="", icon="EMPTY_DATA")
+
+
 class ShapesmithPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -39,8 +48,10 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(settings, "symmetry_axis", expand=True)
         layout.prop(settings, "pair_by_name")
-        layout.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
         obj = context.active_object
+        if obj is not None and obj.type == "MESH":
+            self.draw_face_parts(layout, obj)
+        layout.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
         if obj is None or obj.type != "MESH":
             return
         summary = obj.shapesmith.analysis
@@ -65,6 +76,20 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
             box.label(text="Antagonists (never posed together)")
             for pair in obj.shapesmith.antagonists:
                 box.label(text=f"{pair.first} / {pair.second}")
+
+    @staticmethod
+    def draw_face_parts(layout, obj):
+        """The head's Face Parts list: separate meshes every tool reads with it."""
+        props = obj.shapesmith
+        layout.label(text=f"Face Parts ({len(props.face_parts)})")
+        row = layout.row()
+        row.template_list("SHAPESMITH_UL_face_parts", "face_parts", props, "face_parts", props, "active_face_part", rows=3)
+        col = row.column(align=True)
+        col.operator("shapesmith.add_face_parts", icon="ADD", text="")
+        col.operator("shapesmith.remove_face_part", icon="REMOVE", text="")
+        col.separator()
+        col.operator("shapesmith.move_face_part", icon="TRIA_UP", text="").direction = "UP"
+        col.operator("shapesmith.move_face_part", icon="TRIA_DOWN", text="").direction = "DOWN"
 
 
 class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
@@ -138,6 +163,7 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
 register, unregister = bpy.utils.register_classes_factory(
     (
         SHAPESMITH_UL_pairs,
+        SHAPESMITH_UL_face_parts,
         SHAPESMITH_PT_rig,
         SHAPESMITH_PT_landmarks,
     )

@@ -111,6 +111,11 @@ pub struct LandmarkParams {
     /// after the design if added). Off (every vertex traced through every pose) only to
     /// measure the saving.
     pub reuse_visibility: bool,
+    /// Vertices a landmark may go on (`true`), one per vertex; `None` allows every vertex.
+    /// A face whose teeth and eyes are pieces of the mesh keeps them as occluders and moving
+    /// geometry while landmarks stay on the skin; a shape that moves only forbidden vertices
+    /// is reported in `uncovered`.
+    pub allowed: Option<Vec<bool>>,
 }
 
 impl Default for LandmarkParams {
@@ -138,6 +143,7 @@ impl Default for LandmarkParams {
             noise: 0.002,
             curve_to: 68,
             reuse_visibility: true,
+            allowed: None,
         }
     }
 }
@@ -191,6 +197,9 @@ impl LandmarkParams {
         }
         if self.time_limit.is_some_and(|t| t.is_nan() || t <= 0.0) {
             return Err(invalid!("time_limit must be positive seconds or None"));
+        }
+        if self.allowed.as_ref().is_some_and(|allowed| !allowed.contains(&true)) {
+            return Err(invalid!("allowed forbids every vertex: allow at least the head's"));
         }
         match &self.cameras {
             None if self.rays == 0 => Err(invalid!("rays must be at least 1 (or give camera positions)")),
@@ -261,6 +270,9 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     if rig.n_shapes() == 0 {
         return Err(invalid!("the rig has no shape keys: landmarks go where shapes move"));
     }
+    if let Some(allowed) = params.allowed.as_ref().filter(|a| a.len() != rig.n_vertices()) {
+        return Err(invalid!("allowed has {} entries but the mesh has {} vertices", allowed.len(), rig.n_vertices()));
+    }
     if let Some(m) = params.landmarks.filter(|&m| m > rig.n_vertices()) {
         return Err(invalid!("landmarks = {m} is more than the mesh's {} vertices", rig.n_vertices()));
     }
@@ -293,12 +305,18 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     let designing = params.landmarks.is_some() || params.target_error.is_some();
     // The design's pool (folded like the cover's candidates, so a pick brings its partner).
     let pool_epsilon = params.pool_epsilon.min(params.epsilon);
-    let pool: Vec<bool> = if designing {
+    let mut pool: Vec<bool> = if designing {
         let wide = candidate_relation(rig, &live, pool_epsilon, partners.as_deref(), params.axis);
         wide.iter().map(|shapes| !shapes.is_empty()).collect()
     } else {
         vec![false; rig.n_vertices()]
     };
+    if let Some(allowed) = &params.allowed {
+        for n in (0..rig.n_vertices()).filter(|&n| !allowed[n]) {
+            relation[n].clear();
+            pool[n] = false;
+        }
+    }
 
     // Visibility: exact for every candidate and its mirror partner (the cost uses it); for
     // the rest of the pool and its partners only whether it reaches `pool_visibility`.
@@ -357,6 +375,15 @@ pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Pr
     relation.iter().flatten().for_each(|&(k, _)| has_candidate[k] = true);
     layout.uncovered = live.iter().copied().filter(|&k| !has_candidate[k]).collect();
     if layout.uncovered.len() == live.len() {
+        if params.allowed.is_some() {
+            return Err(invalid!(
+                "no allowed vertex is a landmark candidate for any shape: the shapes move only where landmarks \
+                 may not go, or their candidates are seen less than min_visibility = {}; allow more parts or \
+                 lower epsilon (now {})",
+                params.min_visibility,
+                params.epsilon
+            ));
+        }
         return Err(invalid!(
             "no vertex is a landmark candidate for any shape: every candidate is seen less than \
              min_visibility = {} of the time in some pose; lower min_visibility or epsilon (now {})",

@@ -177,6 +177,28 @@ fn occluded_candidates_leave_shapes_uncovered() {
 }
 
 #[test]
+fn landmarks_stay_on_the_allowed_vertices() {
+    // The right half of the face is a "part" (teeth, eyes) that may not carry landmarks: every
+    // landmark lands on the left half or the midline, the right-only shapes are uncovered, and
+    // the shapes both halves move are still covered from the allowed side.
+    let allowed: Vec<bool> = face(&BUMPS).0.iter().map(|p| p[0] <= 0.0).collect();
+    let params = LandmarkParams { rays: 16, allowed: Some(allowed.clone()), ..LandmarkParams::default() };
+    let layout = run(&BUMPS, &params).unwrap();
+    assert!(layout.landmarks.iter().all(|l| allowed[l.vertex as usize]), "{:?}", layout.landmarks);
+    assert_eq!(layout.uncovered, vec![1, 3]);
+    for k in [0, 2, 4, 5] {
+        assert!(layout.landmarks.iter().any(|l| l.shapes.contains(&k)), "shape {k} uncovered");
+    }
+    let design = LandmarkParams { landmarks: Some(20), ..params.clone() };
+    assert!(run(&BUMPS, &design).unwrap().landmarks.iter().all(|l| allowed[l.vertex as usize]));
+    let message = |allowed: Vec<bool>| {
+        run(&BUMPS, &LandmarkParams { allowed: Some(allowed), ..LandmarkParams::default() }).unwrap_err().to_string()
+    };
+    assert!(message(vec![true; 3]).contains("allowed has 3 entries"));
+    assert!(message(vec![false; allowed.len()]).contains("forbids every vertex"));
+}
+
+#[test]
 fn invalid_input_is_named() {
     let message = |params: LandmarkParams| run(&BUMPS, &params).unwrap_err().to_string();
     assert_eq!(message(LandmarkParams { epsilon: 0.0, ..LandmarkParams::default() }), "epsilon must be in (0, 1], got 0");

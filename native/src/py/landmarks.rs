@@ -141,9 +141,11 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
 ///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0,
 ///                 landmarks=None, target_error=None, criterion="a", pool_epsilon=0.3,
 ///                 pool_visibility=0.25, noise=0.002, curve_to=68, reuse_visibility=True,
-///                 progress=None) -> dict
+///                 allowed=None, progress=None) -> dict
 ///
 /// `cameras`: optional (C, 3) float32 camera positions in the mesh's local space.
+/// `allowed`: optional list of N bools, the vertices a landmark may go on (a face's skin,
+/// not its teeth and eyes); every vertex still moves and hides others.
 /// `landmarks` / `target_error`: add landmarks after the cover by the design `criterion`
 /// ("a": the predicted error, "d": the log-determinant) up to this count in all, or until the
 /// predicted error (fraction of the diagonal) reaches the target.
@@ -154,7 +156,7 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
                     rays=64, symmetric=false, max_per_shape=2, radius=0.03, cameras=None,
                     axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0, landmarks=None,
                     target_error=None, criterion="a", pool_epsilon=0.3, pool_visibility=0.25, noise=0.002,
-                    curve_to=68, reuse_visibility=true, progress=None))]
+                    curve_to=68, reuse_visibility=true, allowed=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn place_landmarks<'py>(
     py: Python<'py>,
@@ -183,6 +185,7 @@ fn place_landmarks<'py>(
     noise: f64,
     curve_to: usize,
     reuse_visibility: bool,
+    allowed: Option<Vec<bool>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let criterion = match criterion.to_ascii_lowercase().as_str() {
@@ -223,6 +226,7 @@ fn place_landmarks<'py>(
         noise,
         curve_to,
         reuse_visibility,
+        allowed,
         ..LandmarkParams::default()
     };
     let layout = detached_with_progress(py, progress.as_ref(), |progress| {
