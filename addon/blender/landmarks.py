@@ -15,7 +15,7 @@ import numpy as np
 from mathutils import Matrix
 
 from .. import native
-from .mesh_arrays import MeshDataError, read_rig, read_triangles
+from .mesh_arrays import MeshDataError, read_positions, read_rig, read_triangles
 from .packing import stored_weights
 
 COLLECTION_NAME = "Landmarks"
@@ -59,13 +59,17 @@ def camera_positions(obj, source, scene=None, collection=None):
     return np.array([(to_local @ cam.matrix_world.translation)[:] for cam in cameras], dtype=np.float32)
 
 
-def mesh_parts(obj, triangles=None):
-    """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
-    teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
-    not refused. `triangles`: the mesh's, when already read (`read_rig`)."""
+def mesh_parts(obj, triangles=None, neutral=None):
+    """Loose parts and open boundary edges of the welded surface (vertices split along UV
+    seams are one point: a seam is neither a cut nor a hole). Both are normal on a head
+    (eyeballs, teeth and lashes are loose parts; eye sockets and the neck are open), so they
+    are reported, not refused. `triangles`, `neutral`: the mesh's, when already read
+    (`read_rig`)."""
     if triangles is None:
         triangles = read_triangles(obj)
-    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), triangles)
+    if neutral is None:
+        neutral = read_positions(obj)
+    labels, count, boundary = native.module().mesh_parts(len(obj.data.vertices), triangles, neutral)
     return {"loose_parts": count, "boundary_edges": boundary, "part_of_vertex": labels}
 
 
@@ -125,7 +129,7 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None
     check_design(**params)
     started = time.perf_counter()
     rig = read_rig(obj)
-    parts = mesh_parts(obj, rig.triangles)
+    parts = mesh_parts(obj, rig.triangles, rig.neutral)
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(
