@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use crate::error::ShapesmithResult;
 use crate::geometry::mirror::{find_symmetry, MirrorMap, PairSource, SymmetryParams};
-use crate::geometry::weld::Weld;
+use crate::geometry::weld::WeldedRig;
 use crate::rig::{degenerate_triangles, validate_points, RigView};
 
 #[derive(Clone, Debug)]
@@ -74,9 +74,8 @@ pub fn analyze_rig(rig: &RigView, params: &AnalysisParams) -> ShapesmithResult<R
         return Err(crate::invalid!("the symmetry axis must be 0, 1 or 2, got {}", params.axis));
     }
     // The mirror map and the pairs on the welded surface: a seam's copies are one point.
-    let weld = Weld::of_rig(rig.neutral, rig.deltas, rig.triangles);
-    let (neutral, deltas) = (weld.gather(rig.neutral), weld.gather(rig.deltas));
-    let welded = RigView { neutral: &neutral, deltas: &deltas, triangles: &weld.triangles, names: rig.names };
+    let welded_rig = WeldedRig::new(rig);
+    let (weld, welded) = (&welded_rig.weld, welded_rig.view());
     let map = MirrorMap::new(welded.neutral, params.axis, params.mirror_tolerance);
     let sym = find_symmetry(&welded, &map, &params.symmetry);
     let name = |k: usize| rig.names[k].clone();

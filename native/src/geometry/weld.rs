@@ -138,7 +138,10 @@ impl Weld {
         for (t, tri) in triangles.iter().enumerate() {
             // Out-of-range indices (an unwelded mesh only) pass through for validation to name.
             let w = tri.map(|v| welded_of.get(v as usize).copied().unwrap_or(v));
-            if w[0] != w[1] && w[1] != w[2] && w[0] != w[2] {
+            // Only a triangle the weld collapses goes; one that repeats a corner in the input
+            // stays, for validation to name.
+            let collapsed = |t: [u32; 3]| t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+            if !collapsed(w) || collapsed(*tri) {
                 welded_triangles.push(w);
                 triangle_of.push(t as u32);
             }
@@ -185,9 +188,10 @@ impl Weld {
         self.representatives.len()
     }
 
-    /// Whether every vertex is its own point (nothing to gather or scatter).
+    /// Whether every vertex is its own point (nothing to gather or scatter; the triangles are
+    /// the input's).
     pub fn is_identity(&self) -> bool {
-        self.n_welded() == self.n_vertices() && self.triangles.len() == self.triangle_of.len()
+        self.n_welded() == self.n_vertices()
     }
 
     /// Vertices that share their point with another one (every copy counted).
