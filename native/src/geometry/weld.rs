@@ -80,7 +80,7 @@ impl Weld {
             // the tolerance, against rounding); those cells' points are compared with this one from here only when
             // their key is greater, so that each pair is seen once.
             let p = points[v as usize];
-            let mut shifts: Vec<[i64; 3]> = vec![[0; 3]];
+            let (mut shifts, mut count) = ([[0i64; 3]; 8], 1);
             for a in 0..3 {
                 let offset = f64::from(p[a]) / cell - (f64::from(p[a]) / cell).floor();
                 let step = if offset * cell <= 2.0 * tolerance {
@@ -90,10 +90,13 @@ impl Weld {
                 } else {
                     continue;
                 };
-                let more: Vec<[i64; 3]> = shifts.iter().map(|s| { let mut s = *s; s[a] = step; s }).collect();
-                shifts.extend(more);
+                for i in 0..count {
+                    shifts[count + i] = shifts[i];
+                    shifts[count + i][a] = step;
+                }
+                count *= 2;
             }
-            for shift in &shifts[1..] {
+            for shift in &shifts[1..count] {
                 let neighbour = key(&p, *shift);
                 if neighbour < own {
                     continue;
