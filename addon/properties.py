@@ -26,6 +26,8 @@ class SHAPESMITH_PG_analysis(bpy.types.PropertyGroup):
     shapes: bpy.props.IntProperty()
     unmatched_vertices: bpy.props.IntProperty()
     degenerate_triangles: bpy.props.IntProperty()
+    seam_vertices: bpy.props.IntProperty(description="Vertices split along UV seams or hard edges, welded for the computation")
+    seam_groups: bpy.props.IntProperty(description="Welded points the seam vertices make")
     inert: bpy.props.StringProperty(description="Inert shape keys, comma separated")
     self_symmetric: bpy.props.StringProperty(description="Shapes that are their own mirror image")
 

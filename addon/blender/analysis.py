@@ -33,6 +33,8 @@ def store_analysis(obj, report):
     summary.shapes = report["shapes"]
     summary.unmatched_vertices = len(report["unmatched_vertices"])
     summary.degenerate_triangles = len(report["degenerate_triangles"])
+    summary.seam_vertices = report["seam_vertices"]
+    summary.seam_groups = report["seam_groups"]
     summary.inert = ", ".join(report["inert"])
     summary.self_symmetric = ", ".join(report["self_symmetric"])
     props.pairs.clear()
@@ -49,6 +51,16 @@ def store_analysis(obj, report):
         item.source = "GEOMETRY"
 
 
+def seam_note(report):
+    """What the weld did, in one line: split vertices are one surface point for every tool."""
+    if not report["seam_vertices"]:
+        return "seams: none (no vertices split along UV seams)"
+    return (
+        f"seams: {report['seam_vertices']} vertices split along UV seams welded into "
+        f"{report['seam_groups']} points for the computation (the mesh keeps its vertices)"
+    )
+
+
 def summary_lines(report):
     """A short human-readable summary (for the batch log and the demo)."""
     objects = report.get("objects") or []
@@ -58,6 +70,7 @@ def summary_lines(report):
         f"inert shapes: {', '.join(report['inert']) or 'none'}",
         f"unmatched mirror vertices: {len(report['unmatched_vertices'])}",
         f"degenerate triangles: {len(report['degenerate_triangles'])}",
+        seam_note(report),
         f"symmetric pairs ({len(report['symmetric_pairs'])}): "
         + ", ".join(f"{p['first']}/{p['second']}" for p in report["symmetric_pairs"]),
         "antagonists: " + (", ".join(f"{p['first']}/{p['second']}" for p in report["antagonists"]) or "none"),

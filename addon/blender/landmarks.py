@@ -16,7 +16,7 @@ from mathutils import Matrix
 
 from .. import native
 from .face_parts import face_objects, face_summary, landmark_parts, read_face_rig, stored_parts
-from .mesh_arrays import MeshDataError, read_triangles
+from .mesh_arrays import MeshDataError, read_positions, read_triangles
 from .packing import stored_weights
 
 COLLECTION_NAME = "Landmarks"
@@ -60,15 +60,17 @@ def camera_positions(obj, source, scene=None, collection=None):
     return np.array([(to_local @ cam.matrix_world.translation)[:] for cam in cameras], dtype=np.float32)
 
 
-def mesh_parts(obj, triangles=None, vertices=None):
-    """Loose parts and open boundary edges of the mesh. Both are normal on a head (eyeballs,
-    teeth and lashes are loose parts; eye sockets and the neck are open), so they are reported,
-    not refused. `triangles`, `vertices`: the mesh's triangles and vertex count when already
-    read (`read_rig`; a face in several objects counts all of them)."""
+def mesh_parts(obj, triangles=None, neutral=None):
+    """Loose parts and open boundary edges of the welded surface (vertices split along UV
+    seams are one point: a seam is neither a cut nor a hole). Both are normal on a head
+    (eyeballs, teeth and lashes are loose parts; eye sockets and the neck are open), so they
+    are reported, not refused. `triangles`, `neutral`: the mesh's, when already read
+    (`read_rig`; a face in several objects counts all of them)."""
     if triangles is None:
         triangles = read_triangles(obj)
-    count_of_vertices = len(obj.data.vertices) if vertices is None else vertices
-    labels, count, boundary = native.module().mesh_parts(count_of_vertices, triangles)
+    if neutral is None:
+        neutral = read_positions(obj)
+    labels, count, boundary = native.module().mesh_parts(len(neutral), triangles, neutral)
     return {"loose_parts": count, "boundary_edges": boundary, "part_of_vertex": labels}
 
 
@@ -147,7 +149,7 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None
     stray = [o.name for o in allowed_parts if o not in face.parts]
     if stray:
         raise MeshDataError(f"landmarks may go only on face parts of '{obj.name}', and {', '.join(stray)} is not one")
-    parts_of_mesh = mesh_parts(obj, rig.triangles, len(rig.neutral))
+    parts_of_mesh = mesh_parts(obj, rig.triangles, rig.neutral)
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(

@@ -31,7 +31,8 @@ class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
         self.report(
             {"INFO"},
             f"{report['shapes']} shapes: {len(report['symmetric_pairs'])} pairs, "
-            f"{len(report['antagonists'])} antagonists, {len(report['inert'])} inert",
+            f"{len(report['antagonists'])} antagonists, {len(report['inert'])} inert, "
+            f"{report['seam_vertices']} seam vertices welded into {report['seam_groups']} points",
         )
         return {"FINISHED"}
 

@@ -63,6 +63,8 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"{summary.shapes} shape keys")
         col.label(text=f"Inert: {summary.inert or 'none'}")
         col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}")
+        if summary.seam_vertices:
+            col.label(text=f"Seams welded: {summary.seam_vertices} vertices into {summary.seam_groups} points")
         if summary.degenerate_triangles:
             col.label(text=f"Degenerate triangles: {summary.degenerate_triangles}", icon="ERROR")
         layout.label(text=f"Symmetric Pairs ({len(obj.shapesmith.pairs)})")

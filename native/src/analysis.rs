@@ -1,11 +1,13 @@
 //! Analyze Rig: what a rigger checks before running any tool. Counts, inert shapes,
 //! degenerate triangles, the mirror map's unmatched vertices, and the symmetric pairs and
-//! mirror antagonists found geometrically (with the name fallback). SPEC section 0.
+//! mirror antagonists found geometrically (with the name fallback), and the seams welded.
+//! SPEC section 0.
 
 use serde::Serialize;
 
 use crate::error::ShapesmithResult;
 use crate::geometry::mirror::{find_symmetry, MirrorMap, PairSource, SymmetryParams};
+use crate::geometry::weld::WeldedRig;
 use crate::rig::{degenerate_triangles, validate_points, RigView};
 
 #[derive(Clone, Debug)]
@@ -47,7 +49,12 @@ pub struct RigAnalysis {
     pub bbox_diagonal: f64,
     pub inert: Vec<String>,
     pub degenerate_triangles: Vec<u32>,
+    /// Mirror-unmatched welded points, each as its representative vertex.
     pub unmatched_vertices: Vec<u32>,
+    /// Vertices that share their point with a copy (split along a UV seam or hard edge) and
+    /// the welded points they make: every tool reads them as one.
+    pub seam_vertices: usize,
+    pub seam_groups: usize,
     pub symmetric_pairs: Vec<NamedPair>,
     pub antagonists: Vec<NamedAntagonist>,
     pub self_symmetric: Vec<String>,
@@ -66,8 +73,11 @@ pub fn analyze_rig(rig: &RigView, params: &AnalysisParams) -> ShapesmithResult<R
     if params.axis > 2 {
         return Err(crate::invalid!("the symmetry axis must be 0, 1 or 2, got {}", params.axis));
     }
-    let map = MirrorMap::new(rig.neutral, params.axis, params.mirror_tolerance);
-    let sym = find_symmetry(rig, &map, &params.symmetry);
+    // The mirror map and the pairs on the welded surface: a seam's copies are one point.
+    let welded_rig = WeldedRig::new(rig);
+    let (weld, welded) = (&welded_rig.weld, welded_rig.view());
+    let map = MirrorMap::new(welded.neutral, params.axis, params.mirror_tolerance);
+    let sym = find_symmetry(&welded, &map, &params.symmetry);
     let name = |k: usize| rig.names[k].clone();
     Ok(RigAnalysis {
         vertices: rig.n_vertices(),
@@ -76,7 +86,9 @@ pub fn analyze_rig(rig: &RigView, params: &AnalysisParams) -> ShapesmithResult<R
         bbox_diagonal: rig.bbox_diagonal(),
         inert: rig.inert_shapes().into_iter().map(name).collect(),
         degenerate_triangles: degenerate_triangles(rig.neutral, rig.triangles),
-        unmatched_vertices: map.unmatched.clone(),
+        unmatched_vertices: map.unmatched.iter().map(|&w| weld.vertex(w)).collect(),
+        seam_vertices: weld.seam_vertices(),
+        seam_groups: weld.seam_groups(),
         symmetric_pairs: sym
             .pairs
             .iter()

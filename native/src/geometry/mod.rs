@@ -10,3 +10,4 @@ pub mod mirror;
 pub mod neighbours;
 pub mod penetration;
 pub mod topology;
+pub mod weld;

@@ -43,6 +43,7 @@ use serde::Serialize;
 
 use crate::error::ShapesmithResult;
 use crate::geometry::mirror::MirrorMap;
+use crate::geometry::weld::WeldedRig;
 use crate::ilp::{IlpOptions, SolveStatus};
 use crate::invalid;
 use crate::progress::Progress;
@@ -264,7 +265,20 @@ pub struct LandmarkLayout {
 /// Places landmarks (SPEC section 2): candidates (Eq. 3), worst-case visibility over the
 /// neutral and every shape (Eq. 4), then the adaptive multi-cover of Eq. (5), symmetric on
 /// request. Progress: visibility is the first 80%, the covers the rest.
+///
+/// On the welded surface ([`WeldedRig`]): candidates, the mirror map and visibility see a
+/// seam's copies as one point (rays do not slip through a seam), and a landmark is a welded
+/// point, reported as its representative vertex (the lowest index among its copies).
 pub fn place_landmarks(rig: &RigView, params: &LandmarkParams, progress: &dyn Progress) -> ShapesmithResult<LandmarkLayout> {
+    let welded = WeldedRig::new(rig);
+    let mut layout = place_welded(&welded.view(), params, progress)?;
+    for landmark in &mut layout.landmarks {
+        landmark.vertex = welded.weld.vertex(landmark.vertex);
+    }
+    Ok(layout)
+}
+
+fn place_welded(rig: &RigView, params: &LandmarkParams, progress: &dyn Progress) -> ShapesmithResult<LandmarkLayout> {
     rig.validate()?;
     params.validate()?;
     if rig.n_shapes() == 0 {

@@ -11,6 +11,7 @@ use serde::Serialize;
 use super::bvls::{solve_bounded, Gram};
 use super::design::{error_weight, predicted_error};
 use crate::error::ShapesmithResult;
+use crate::geometry::weld::WeldedRig;
 use crate::invalid;
 use crate::rig::RigView;
 
@@ -51,7 +52,19 @@ pub struct LayoutScore {
 /// Gaussian noise (`noise x` diagonal per coordinate; pose p draws from ChaCha stream p of
 /// `seed`), the weights solved by `min ||D_F w - (x_F - V0_F)||^2, 0 <= w <= 1`, and the
 /// dense mesh `V0 + D w` compared with the pose's truth.
+///
+/// Scored on the welded surface ([`WeldedRig`]), each landmark at its vertex's welded point:
+/// a seam's copies are one point of the mesh compared.
 pub fn score_layout(rig: &RigView, vertices: &[u32], params: &ScoreParams) -> ShapesmithResult<LayoutScore> {
+    if vertices.iter().any(|&v| v as usize >= rig.n_vertices()) {
+        return score_welded(rig, vertices, params);
+    }
+    let welded = WeldedRig::new(rig);
+    let points: Vec<u32> = vertices.iter().map(|&v| welded.weld.welded_of[v as usize]).collect();
+    score_welded(&welded.view(), &points, params)
+}
+
+fn score_welded(rig: &RigView, vertices: &[u32], params: &ScoreParams) -> ShapesmithResult<LayoutScore> {
     rig.validate()?;
     if vertices.is_empty() {
         return Err(invalid!("the layout has no landmark vertices: give at least one vertex index"));

@@ -375,6 +375,8 @@ fn expression(prep: &Prepared, shapes: Vec<usize>, lambda: &[f64], status: Optio
 }
 
 fn finish(prep: Prepared, expressions: Vec<Expression>, unplaced: Vec<usize>, fewest: Option<FewestReport>) -> Packing {
+    // The sheet tints the user's vertices: every copy of a welded point.
+    let active = prep.active.iter().map(|a| prep.weld.expand(a)).collect();
     Packing {
         expressions,
         importance: prep.base_importance,
@@ -384,7 +386,7 @@ fn finish(prep: Prepared, expressions: Vec<Expression>, unplaced: Vec<usize>, fe
         pairs: prep.graph.pairs,
         antagonists: prep.antagonists,
         conflicts: prep.graph.conflicts,
-        active: prep.active,
+        active,
         poseability: prep.poseability,
         fewest,
     }

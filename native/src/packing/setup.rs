@@ -15,6 +15,7 @@ use super::occlusion::Occlusion;
 use super::{KnownPoseability, PackingParams, PoseabilityReport, INTERACTION_MARGIN};
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::mirror::{find_symmetry_given, MirrorMap, SymmetryParams};
+use crate::geometry::weld::{Weld, WeldedRig};
 use crate::invalid;
 use crate::progress::Progress;
 use rayon::prelude::*;
@@ -34,11 +35,29 @@ pub struct Prepared {
     /// Mirror and cosine antagonists among moving shapes, `(i, j)` with i < j, sorted.
     pub antagonists: Vec<(usize, usize)>,
     pub poseability: PoseabilityReport,
+    /// The welded surface the rig was read on (`active` holds welded points).
+    pub weld: Weld,
 }
 
 /// `progress` sees the poseability tests, the only long part (regions, then collisions, then
 /// occlusions, each a share of the whole in proportion to its usual cost).
+///
+/// Everything is read on the welded surface ([`WeldedRig`]): regions, the mirror map,
+/// collisions and occlusion see a seam's copies as one point; the target neutral is read at
+/// the same points.
 pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams, progress: &dyn Progress) -> ShapesmithResult<Prepared> {
+    let welded = WeldedRig::new(rig);
+    let weld = &welded.weld;
+    let target = match target_neutral {
+        Some(target) if target.len() == rig.n_vertices() => Some(weld.gather(target)),
+        Some(_) => return prepare_welded(rig, target_neutral, params, progress),
+        None => None,
+    };
+    let prepared = prepare_welded(&welded.view(), target.as_deref(), params, progress)?;
+    Ok(Prepared { weld: welded.weld, ..prepared })
+}
+
+fn prepare_welded(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &PackingParams, progress: &dyn Progress) -> ShapesmithResult<Prepared> {
     rig.validate()?;
     let k_count = rig.n_shapes();
     if k_count == 0 {
@@ -135,7 +154,8 @@ pub fn prepare(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &Pack
         names: rig.names,
     })?;
     let cosines = (params.beta > 0.0).then_some(cosines);
-    Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists, poseability })
+    let weld = Weld::identity(rig.n_vertices(), rig.triangles);
+    Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists, poseability, weld })
 }
 
 /// Collision and occlusion conflicts (SPEC section 1, poseable and observable), tested only

@@ -12,6 +12,7 @@ use crate::geometry::front::find_front as front_of;
 use crate::geometry::mesh_faults::find_mesh_faults;
 use crate::geometry::mirror::SymmetryParams;
 use crate::geometry::topology::{boundary_edges, connected_components};
+use crate::geometry::weld::Weld;
 use crate::rig::RigView;
 
 /// analyze_rig(neutral, deltas, triangles, names, *, axis=0, mirror_tolerance=1e-3,
@@ -86,17 +87,31 @@ fn mesh_faults<'py>(py: Python<'py>, neutral: PyReadonlyArray2<'py, f32>, triang
     arrays::to_python(py, &faults)
 }
 
-/// mesh_parts(vertex_count, triangles) -> (part int32 (N,), parts, boundary_edges)
+/// mesh_parts(vertex_count, triangles, neutral=None) -> (part int32 (N,), parts, boundary_edges)
 ///
 /// The connected part of each vertex (0..parts; a vertex in no triangle is a part of its
 /// own), the number of parts, and the number of open boundary edges (edges of one triangle).
+/// With `neutral` (N x 3), of the welded surface: a head split along UV seams is one part,
+/// and a seam is no boundary.
 #[pyfunction]
-fn mesh_parts<'py>(py: Python<'py>, vertex_count: usize, triangles: PyReadonlyArray2<'py, i32>) -> PyResult<(Bound<'py, PyArray1<i32>>, usize, usize)> {
+#[pyo3(signature = (vertex_count, triangles, neutral=None))]
+fn mesh_parts<'py>(
+    py: Python<'py>,
+    vertex_count: usize,
+    triangles: PyReadonlyArray2<'py, i32>,
+    neutral: Option<PyReadonlyArray2<'py, f32>>,
+) -> PyResult<(Bound<'py, PyArray1<i32>>, usize, usize)> {
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
+    let points = neutral.as_ref().map(|n| arrays::points(n, "neutral")).transpose().map_err(py_err(py))?;
     let (labels, count, boundary) = detached(py, || {
         crate::rig::validate_triangle_indices(vertex_count, &tris)?;
-        let (labels, count) = connected_components(vertex_count, &tris);
-        Ok((labels, count, boundary_edges(&tris).len()))
+        let weld = match points {
+            Some(points) if points.len() == vertex_count => Weld::new(points, &tris),
+            Some(points) => return Err(crate::invalid!("neutral has {} vertices, vertex_count is {vertex_count}", points.len())),
+            None => Weld::identity(vertex_count, &tris),
+        };
+        let (labels, count) = connected_components(weld.n_welded(), &weld.triangles);
+        Ok((weld.scatter(labels), count, boundary_edges(&weld.triangles).len()))
     })?;
     Ok((PyArray1::from_vec(py, labels.into_iter().map(|l| l as i32).collect()), count, boundary))
 }

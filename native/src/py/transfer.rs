@@ -8,6 +8,7 @@ use super::arrays;
 use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use crate::geometry::penetration::intersecting_triangles as find_intersecting_triangles;
+use crate::geometry::weld::{Weld, WELD_FRACTION};
 use crate::invalid;
 use crate::transfer::{
     find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, CollisionParams, PersonaliseParams,
@@ -136,7 +137,11 @@ fn find_virtual_edges<'py>(
         if !(tau_d > 0.0 && tau_r > 0.0) {
             return Err(invalid!("tau_d and tau_r must be positive, got tau_d = {tau_d}, tau_r = {tau_r}"));
         }
-        Ok(find_edges(points, &tris, &params))
+        // On the welded surface, as the transfer finds them; each end is its point's
+        // representative vertex.
+        let weld = Weld::new(points, &tris);
+        let edges = find_edges(&weld.gather(points), &weld.triangles, &params);
+        Ok(edges.into_iter().map(|(i, j)| (weld.vertex(i), weld.vertex(j))).collect::<Vec<_>>())
     })?;
     let flat: Vec<i32> = edges.iter().flat_map(|&(i, j)| [i as i32, j as i32]).collect();
     Ok(PyArray1::from_vec(py, flat).reshape([edges.len(), 2])?.into_any())
@@ -183,7 +188,12 @@ fn intersecting_triangles<'py>(
             }
             crate::rig::validate_points(rest_points, "rest")?;
         }
-        Ok(find_intersecting_triangles(points, rest_points, &tris))
+        // On the welded surface: triangles that meet across a seam are neighbours.
+        let weld = Weld::new(rest_points.unwrap_or(points), &tris);
+        let weld = weld.split_where_apart(points, WELD_FRACTION * crate::rig::bbox_diagonal(points), &tris);
+        let rest_points = rest_points.map(|r| weld.gather(r));
+        let crossed = find_intersecting_triangles(&weld.gather(points), rest_points.as_deref(), &weld.triangles);
+        Ok(weld.scatter_triangles(&crossed, tris.len(), false))
     })?;
     Ok(PyArray1::from_vec(py, crossed))
 }

@@ -70,7 +70,7 @@ pub use deformation::{DeformationTransfer, MAX_MARGIN};
 pub use crate::geometry::penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};
 pub use report::{
-    measure_rig_penetration, transfer_shapes, RigPenetration, ShapePenetration, StageSeconds, TrainingExpressions, TransferReport,
+    measure_rig_penetration, transfer_shapes, transfer_weld, RigPenetration, ShapePenetration, StageSeconds, TrainingExpressions, TransferReport,
     TransferShapesParams,
 };
 pub use virtual_edges::{find_virtual_edges, VirtualEdgeParams};

@@ -10,7 +10,9 @@ use rayon::prelude::*;
 use crate::geometry::penetration::PenetrationBaseline;
 use super::{AddedCurve, CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
 use crate::error::ShapesmithResult;
+use crate::geometry::weld::{Weld, WELD_FRACTION};
 use crate::invalid;
+use crate::rig::bbox_diagonal;
 use crate::progress::{NoProgress, Progress, Stage};
 
 /// Everything [`transfer_shapes`] can be asked to do.
@@ -127,8 +129,60 @@ pub struct TransferReport {
 /// `template_penetration`, when given, is the template's own (from
 /// [`measure_rig_penetration`] on the template: the same for every target, so a batch over
 /// many targets measures it once); otherwise it is measured here.
+///
+/// Everything is solved on the welded surface ([`transfer_weld`]) and each copy of a seam
+/// vertex gets its welded point's delta, bit for bit: the seams stay closed.
 #[allow(clippy::too_many_arguments)]
 pub fn transfer_shapes(
+    source_neutral: &[[f32; 3]],
+    source_deltas: &[[f32; 3]],
+    target_neutral: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    names: &[String],
+    examples: Option<TrainingExpressions<'_>>,
+    template_penetration: Option<&RigPenetration>,
+    params: &TransferShapesParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<(Vec<[f32; 3]>, TransferReport)> {
+    let n = source_neutral.len();
+    let fits = |rows: usize| n > 0 && rows.is_multiple_of(n);
+    let weld = transfer_weld(source_neutral, source_deltas, target_neutral, triangles);
+    // Inputs whose sizes disagree go through unwelded, for the solve's own checks to name.
+    if weld.is_identity() || target_neutral.len() != n || !fits(source_deltas.len()) || !examples.is_none_or(|e| fits(e.positions.len())) {
+        return transfer_welded(source_neutral, source_deltas, target_neutral, triangles, names, examples, template_penetration, params, progress);
+    }
+    let positions = examples.map(|e| weld.gather(e.positions));
+    let examples = examples.zip(positions.as_deref()).map(|(e, positions)| TrainingExpressions { positions, ..e });
+    let (deltas, report) = transfer_welded(
+        &weld.gather(source_neutral),
+        &weld.gather(source_deltas),
+        &weld.gather(target_neutral),
+        &weld.triangles,
+        names,
+        examples,
+        template_penetration,
+        params,
+        progress,
+    )?;
+    Ok((weld.scatter(deltas), report))
+}
+
+/// The welded surface template and target share (they have one topology, so one weld): the
+/// template's coincident vertices ([`Weld::of_rig`]: copies its shapes move apart stay two
+/// points), kept apart where the target neutral holds two copies apart (there the target's
+/// surface is cut, and joining them would move one). A seam the importer left on both heads
+/// is one point on both; every template shape moves its copies alike, so the template's
+/// delta there is the representative's exactly.
+pub fn transfer_weld(source_neutral: &[[f32; 3]], source_deltas: &[[f32; 3]], target_neutral: &[[f32; 3]], triangles: &[[u32; 3]]) -> Weld {
+    let weld = Weld::of_rig(source_neutral, source_deltas, triangles);
+    if target_neutral.len() != source_neutral.len() {
+        return weld;
+    }
+    weld.split_where_apart(target_neutral, WELD_FRACTION * bbox_diagonal(target_neutral), triangles)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn transfer_welded(
     source_neutral: &[[f32; 3]],
     source_deltas: &[[f32; 3]],
     target_neutral: &[[f32; 3]],
@@ -284,6 +338,9 @@ pub struct RigPenetration {
 
 /// [`super::measure_penetration`] of `neutral` and of `neutral + D_k` for each of the K shapes in
 /// `deltas` (K x N); triangle indices are checked.
+///
+/// Measured on the welded surface ([`Weld::of_rig`]), as the transfer measures it: triangles
+/// that meet across a seam are neighbours, not a crossing.
 pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triangles: &[[u32; 3]]) -> ShapesmithResult<RigPenetration> {
     let n = neutral.len();
     crate::rig::validate_triangle_indices(n, triangles)?;
@@ -291,7 +348,10 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
     if n == 0 || !deltas.len().is_multiple_of(n) {
         return Err(invalid!("deltas hold {} vertex rows, not a multiple of the {n} vertices of the neutral", deltas.len()));
     }
-    let baseline = PenetrationBaseline::new(neutral, triangles);
+    let weld = Weld::of_rig(neutral, deltas, triangles);
+    let (neutral, deltas) = (weld.gather(neutral), weld.gather(deltas));
+    let n = weld.n_welded();
+    let baseline = PenetrationBaseline::new(&neutral, &weld.triangles);
     let shapes = deltas.par_chunks(n).map(|d| baseline.shape(d)).collect();
     Ok(RigPenetration { neutral: baseline.neutral(), shapes })
 }

@@ -74,6 +74,7 @@ use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, length, sub, to_f64, Vec3};
 use crate::geometry::topology::connected_components;
+use crate::geometry::weld::Weld;
 use crate::invalid;
 use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
@@ -177,7 +178,33 @@ pub struct Wrap {
 /// Aligns and fits the template (`template`, `template_triangles`) onto the character.
 /// Errors name what to fix: too few or degenerate pairs, a pair point off its mesh (placed on
 /// the wrong object), a mesh without faces, non-finite coordinates.
+///
+/// Both meshes are fitted on their welded surfaces ([`Weld`]): a character split along its
+/// UV seams is one skin (its seams are no holes, its islands no pieces), and every copy of a
+/// template seam vertex lands at its welded point's place.
 pub fn wrap_template(
+    template: &[[f32; 3]],
+    template_triangles: &[[u32; 3]],
+    character: &[[f32; 3]],
+    character_triangles: &[[u32; 3]],
+    pairs: PointPairs,
+    params: &WrapParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<Wrap> {
+    let (template_weld, character_weld) = (Weld::new(template, template_triangles), Weld::new(character, character_triangles));
+    let wrap = wrap_welded(
+        &template_weld.gather(template),
+        &template_weld.triangles,
+        &character_weld.gather(character),
+        &character_weld.triangles,
+        pairs,
+        params,
+        progress,
+    )?;
+    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), ..wrap })
+}
+
+fn wrap_welded(
     template: &[[f32; 3]],
     template_triangles: &[[u32; 3]],
     character: &[[f32; 3]],
@@ -321,8 +348,42 @@ pub fn wrap_template(
 /// rows: the curve each template shape adds to the template's neutral, in the character's
 /// units), every carried shape is judged by it on the character (`penetration`), and with
 /// [`CarryParams::collision_pass`] the pass holds those worse than that (`collisions`).
+///
+/// Carried between the welded surfaces: the wrapped template's ([`Weld::of_rig`], as the
+/// transfer welds it) and the character's own (its UV seams), so that every copy of a
+/// character seam vertex gets the same delta, bit for bit.
 #[allow(clippy::too_many_arguments)]
 pub fn carry_shapes(
+    wrapped: &[[f32; 3]],
+    template_triangles: &[[u32; 3]],
+    template_deltas: &[[f32; 3]],
+    character: &[[f32; 3]],
+    character_triangles: &[[u32; 3]],
+    template_added: Option<&[AddedCurve]>,
+    params: &CarryParams,
+    progress: &dyn Progress,
+) -> ShapesmithResult<CarryResult> {
+    if wrapped.is_empty() || !template_deltas.len().is_multiple_of(wrapped.len()) {
+        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_added, params, progress);
+    }
+    let template_weld = Weld::of_rig(wrapped, template_deltas, template_triangles);
+    let character_weld = Weld::new(character, character_triangles);
+    let mut result = carry_welded(
+        &template_weld.gather(wrapped),
+        &template_weld.triangles,
+        &template_weld.gather(template_deltas),
+        &character_weld.gather(character),
+        &character_weld.triangles,
+        template_added,
+        params,
+        progress,
+    )?;
+    result.deltas = character_weld.scatter(std::mem::take(&mut result.deltas));
+    Ok(result)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn carry_welded(
     wrapped: &[[f32; 3]],
     template_triangles: &[[u32; 3]],
     template_deltas: &[[f32; 3]],
