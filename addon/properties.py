@@ -326,12 +326,19 @@ class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
     template_length: bpy.props.FloatProperty(name="Template Curve Length", subtype="DISTANCE")
     template_pairs: bpy.props.IntProperty(name="Template Pairs")
     worse: bpy.props.BoolProperty(
-        name="Worse", description="Adds more intersection to the target's neutral than to the template's"
+        name="Worse", description="Adds more intersection to the target's neutral than the template's shape allows"
     )
     added: bpy.props.FloatProperty(
         name="Added Beyond Template",
         subtype="DISTANCE",
-        description="Intersection curve the shape adds to the target's neutral beyond what it adds to the template's",
+        description="Intersection curve the shape adds to the target's neutral beyond what the template's shape allows",
+    )
+    allowed: bpy.props.FloatProperty(
+        name="Allowed",
+        subtype="DISTANCE",
+        description="Intersection curve the shape may add to the target's neutral: per part (inside one piece, "
+        "between pieces) what the template's shape adds to its neutral, or as much as the template's shape "
+        "crosses, whichever is more",
     )
     before_length: bpy.props.FloatProperty(
         name="Curve Length Before the Collision Pass", subtype="DISTANCE"

@@ -357,6 +357,7 @@ def store_transfer(transfer, written, skipped):
         item.template_length, item.template_pairs = row["template_length"], row["template_pairs"]
         item.worse = row["name"] in worse
         item.added = sum(added_beyond_template(report, row))
+        item.allowed = row["allowed"]["inside"] + row["allowed"]["between"]
         item.where = where_added(report, row)
         item.before_length = row.get("before_collisions_length", row["length"])
         item.collision_solves = (row.get("collisions") or {}).get("solves", 0)
@@ -372,11 +373,12 @@ def collision_traced(report):
 
 def added_beyond_template(report, row, key="length"):
     """How much more intersection curve the shape adds to the target's neutral than the
-    template's shape adds to the template's, split into (inside one piece: lips or lids
-    through each other, between pieces: skin through a separate eyeball, lashes or teeth),
-    each part zero or more: the worse-than-template criterion, as the native report computes it (`excess`:
-    a part where the template's shape removes curve allows none, and removing in one part does
-    not pay for adding in the other). `key="plain_length"` reads plain transfer's,
+    template's shape allows, split into (inside one piece: lips or lids through each other,
+    between pieces: skin through a separate eyeball, lashes or teeth), each part zero or more:
+    SPEC 3's criterion, as the native report computes it (`excess`: per part, the shape may
+    add what the template's adds to its neutral, a removal allowing none, or cross as much as
+    the template's shape does, `template_added` and `template_crossing`; removing in one part
+    does not pay for adding in the other). `key="plain_length"` reads plain transfer's,
     `key="before_collisions_length"` the result's before the collision pass."""
     excess = row[key.replace("length", "excess")]
     return excess["inside"], excess["between"]

@@ -264,24 +264,34 @@ def store_wrap(wrapped, stage):
     result.seconds = sum(wrapped.seconds.values())
 
 
-def template_added_curve(report):
+def template_curve(report):
     """Per shape of the transfer report, the curve the template's own shape adds to the
-    template's neutral (inside, between) in the character's units, as the native report gives
-    it (`template_added`): float64 (K, 2), the criterion the carried keys are judged by."""
-    rows = [[row["template_added"]["inside"], row["template_added"]["between"]] for row in report["penetration"]]
-    return np.asarray(rows, dtype=np.float64).reshape(-1, 2)
+    template's neutral and its whole curve (inside, between) in the character's units, as the
+    native report gives them (`template_added`, `template_crossing`): the criterion's two
+    allowances the carried keys are judged by, as `carry_shapes`' keyword arguments (float64
+    (K, 2) each)."""
+    def parts(key):
+        rows = [[row[key]["inside"], row[key]["between"]] for row in report["penetration"]]
+        return np.asarray(rows, dtype=np.float64).reshape(-1, 2)
+
+    return {"template_added": parts("template_added"), "template_crossing": parts("template_crossing")}
 
 
 def character_rows(report, character_penetration):
     """The transfer report's per-shape penetration rows, for the keys carried onto the
-    character: its own curve lengths, the template's beside them, and the worse-than-template criterion as
+    character: its own curve lengths, the template's beside them, and SPEC 3's criterion as
     the native carry judged it on the character's mesh (`excess`, per part). What the
     collision pass did on the wrapped template stays with each row (`collisions`), what the
     carry's did on the character beside it (`carry_collisions`, when it ran)."""
     carry_collisions = report.get("carry", {}).get("collisions") or []
     rows = []
-    for k, (wrapped_row, measured, excess) in enumerate(
-        zip(report["penetration"], character_penetration["shapes"], character_penetration["excess"])
+    for k, (wrapped_row, measured, excess, allowed) in enumerate(
+        zip(
+            report["penetration"],
+            character_penetration["shapes"],
+            character_penetration["excess"],
+            character_penetration["allowed"],
+        )
     ):
         rows.append(
             {
@@ -293,8 +303,10 @@ def character_rows(report, character_penetration):
                 "template_pairs": wrapped_row["template_pairs"],
                 "template_between_pieces": wrapped_row["template_between_pieces"],
                 "template_added": wrapped_row["template_added"],
+                "template_crossing": wrapped_row["template_crossing"],
                 "collisions": wrapped_row.get("collisions"),
                 "carry_collisions": carry_collisions[k] if k < len(carry_collisions) else None,
+                "allowed": allowed,
                 "excess": excess,
             }
         )
@@ -315,7 +327,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     # used; with the transfer's collision pass on, the carry's holds them to it, with the same
     # margin.
     collisions = onto_wrapped.report["params"]["transfer"]["collisions"]
-    collision_options = {"template_added": template_added_curve(onto_wrapped.report), "collisions": collisions is not None}
+    collision_options = {**template_curve(onto_wrapped.report), "collisions": collisions is not None}
     if collisions is not None:
         collision_options["collision_margin"] = float(collisions["margin"])
     deltas, carry_report = native.module().carry_shapes(

@@ -73,7 +73,7 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"Adding more intersection than on the template: {len(worse)}", icon="ERROR" if worse else "CHECKMARK")
         for shape in sorted(worse, key=lambda s: -s.added)[:12]:
             row = col.row(align=True)
-            row.label(text=f"  {shape.name}: +{shape.added:.4f} beyond the template's own, {shape.where}")
+            row.label(text=f"  {shape.name}: +{shape.added:.4f} beyond the {shape.allowed:.4f} the template's allows, {shape.where}")
             row.operator("shapesmith.show_crossings", text="", icon="RESTRICT_SELECT_OFF").shape = shape.name
         if len(worse) > 12:
             col.label(text=f"  ... and {len(worse) - 12} more (batch --json lists all)")

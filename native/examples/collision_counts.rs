@@ -1,15 +1,17 @@
-//! Counts the shapes worse than the template by the worse-than-template criterion (SPEC 3), plain, with
-//! virtual edges before the collision pass and after it, on the arrays
+//! Counts the shapes worse than the template by SPEC 3's criterion, plain, with virtual
+//! edges before the collision pass and after it, on the arrays
 //! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
-//! --save-arrays DIR`):
+//! --save-arrays DIR`, or `scripts/production_heads.py DIR` from those):
 //!
 //!     cargo run --release --example collision_counts -- DIR/<head> [DIR/names.txt]
 //!
 //! The criterion as the native report computes it (`excess`, read by the add-on): per
 //! part (inside one piece, between pieces), the curve the shape adds to the target's neutral
-//! beyond the template shape's own (a template removal counting as zero), each clamped at
+//! beyond what the template's shape allows (the more of what it adds to its own neutral, a
+//! removal counting as zero, and its own curve beyond the target neutral's), each clamped at
 //! zero, summed; worse when beyond 1e-3 of the target's bounding-box diagonal. NAMES, a file
-//! of one shape name per line, names the shapes still worse after the pass. When DIR holds
+//! of one shape name per line, names the shapes still worse after the pass. It also prints
+//! the pairs crossing at rest on both neutrals and the pieces. When DIR holds
 //! `truth.f32` (the true target shapes' deltas, as `scripts/bench_personalise.py`'s warp
 //! ground truth makes them), it also prints the warp error, mean over shapes of the mean
 //! error on each shape's active vertices / diagonal, with virtual edges and with the pass.
@@ -62,6 +64,13 @@ fn main() {
         line.push(format!("{label} {worse} ({added:.3} m)"));
     }
     println!("{}: {}; wall {wall:.2} s, pass {:.2} s", dir.rsplit('/').next().unwrap_or(&dir), line.join(", "), report.seconds.collisions);
+    let rest = |p: Option<shapesmith_native::transfer::Penetration>| p.map_or(0, |p| p.pairs);
+    let pieces = shapesmith_native::geometry::topology::connected_components(source.len(), &triangles).1;
+    println!(
+        "  pairs crossing at rest: template {}, target {}; {pieces} pieces",
+        rest(report.template_neutral_penetration),
+        rest(report.neutral_penetration)
+    );
     println!("  still worse: {}", worse_after.join(", "));
     let truth_path = format!("{dir}/truth.f32");
     if !std::path::Path::new(&truth_path).exists() {

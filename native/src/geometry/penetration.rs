@@ -59,9 +59,9 @@ pub fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
 }
 
 /// The intersection curve a shape adds to its neutral (its length in the shape minus at
-/// rest; the transfer's collision pass and the wrap's carry judge by it), split as SPEC 3's
-/// criterion judges it: inside one connected piece (lip through lip)
-/// and between two pieces (skin through teeth, an eyeball, lashes).
+/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
+/// and between two pieces (skin through teeth, an eyeball, lashes). Over a neutral that
+/// crosses nowhere ([`AddedCurve::crossing`]) it is a shape's whole curve, per part.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct AddedCurve {
     pub inside: f64,
@@ -73,6 +73,11 @@ impl AddedCurve {
     pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
         let inside = |p: &Penetration| p.length - p.between_pieces;
         AddedCurve { inside: inside(shape) - inside(rest), between: shape.between_pieces - rest.between_pieces }
+    }
+
+    /// The whole curve of `p`, per part.
+    pub fn crossing(p: &Penetration) -> Self {
+        Self::from_penetrations(p, &Penetration::default())
     }
 
     /// The curve added by the crossing pairs `(a, b, length)` of a shape beyond the rest
@@ -89,12 +94,11 @@ impl AddedCurve {
         added
     }
 
-    /// How much more this adds than the template's shape `template` adds, per part, a part
-    /// where the template removes some of its neutral's curve counting as adding none (issue
-    /// 9's criterion: where the template adds none, the transfer adds none), and removing in
-    /// one part not paying for adding in the other. Zero when the shape meets the criterion.
-    pub fn excess(&self, template: &AddedCurve) -> f64 {
-        self.excess_parts(template).total()
+    /// How much more this adds than `allowed` ([`TemplateCurve::allowed`]), both parts
+    /// together, removing in one part not paying for adding in the other. Zero when the shape
+    /// meets the criterion.
+    pub fn excess(&self, allowed: &AddedCurve) -> f64 {
+        self.excess_parts(allowed).total()
     }
 
     /// Both parts together.
@@ -110,10 +114,43 @@ impl AddedCurve {
 
     /// [`Self::excess`] part by part (each zero or more): what the report gives per shape, so
     /// the add-on reads the criterion instead of computing it again.
-    pub fn excess_parts(&self, template: &AddedCurve) -> AddedCurve {
+    pub fn excess_parts(&self, allowed: &AddedCurve) -> AddedCurve {
+        AddedCurve { inside: (self.inside - allowed.inside).max(0.0), between: (self.between - allowed.between).max(0.0) }
+    }
+}
+
+/// What the template's shape allows a target shape (SPEC 3's criterion), per part, at the
+/// target's size and units: the curve it adds to the template's neutral (`added`) and its
+/// own whole curve (`crossing`). Part by part, a target shape is worse than the template's
+/// when its curve exceeds both its own neutral's plus `added` (a removal counting as none:
+/// where the template adds none, the transfer adds none) and `crossing` (a template whose
+/// neutral crosses where the target's does not, copied faithfully, crosses no more than the
+/// template's shape). The transfer's pass and report and the wrap's carry all judge by it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct TemplateCurve {
+    pub added: AddedCurve,
+    pub crossing: AddedCurve,
+}
+
+impl TemplateCurve {
+    /// The template shape whose penetration is `shape`, over its neutral's `rest`.
+    pub fn from_penetrations(shape: &Penetration, rest: &Penetration) -> Self {
+        TemplateCurve { added: AddedCurve::from_penetrations(shape, rest), crossing: AddedCurve::crossing(shape) }
+    }
+
+    /// Both curves at `factor` times the size ([`AddedCurve::scaled`]).
+    pub fn scaled(&self, factor: f64) -> Self {
+        TemplateCurve { added: self.added.scaled(factor), crossing: self.crossing.scaled(factor) }
+    }
+
+    /// The curve a target shape may add to a neutral whose own curve is `rest` (per part,
+    /// [`AddedCurve::crossing`] of the target's neutral): per part the more of `added` (zero
+    /// where the template removes) and what `crossing` leaves beyond `rest`. Zero or more.
+    pub fn allowed(&self, rest: &AddedCurve) -> AddedCurve {
+        let part = |added: f64, crossing: f64, rest: f64| added.max(0.0).max(crossing - rest);
         AddedCurve {
-            inside: (self.inside - template.inside.max(0.0)).max(0.0),
-            between: (self.between - template.between.max(0.0)).max(0.0),
+            inside: part(self.added.inside, self.crossing.inside, rest.inside),
+            between: part(self.added.between, self.crossing.between, rest.between),
         }
     }
 }

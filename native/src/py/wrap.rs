@@ -8,7 +8,7 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::to_f64;
-use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, FitParams, PointPairs, WrapParams};
+use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, FitParams, PointPairs, TemplateCurve, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, *, align_only=False, stiffness=None,
@@ -71,22 +71,24 @@ fn wrap_template<'py>(
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
-///              template_added=None, collisions=True, collision_margin=0.25, progress=None)
+///              template_added=None, template_crossing=None, collisions=True, collision_margin=0.25,
+///              progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
-/// `template_added` (float64 (K, 2): per shape, the intersection curve the template's own
-/// shape adds to the template's neutral inside one piece and between pieces, in the
-/// character's units: the transfer report rows' `template_added`) has every carried shape
-/// judged on the character (the report's `penetration`: the neutral's and each shape's, and
-/// per shape the `excess` over the template's), and with `collisions` turns on the collision
+/// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
+/// the intersection curve the template's own shape adds to the template's neutral and its
+/// whole curve, inside one piece and between pieces, in the character's units: the transfer
+/// report rows' `template_added` and `template_crossing`) have every carried shape judged on
+/// the character (the report's `penetration`: the neutral's and each shape's, and per shape
+/// the `excess` over what the template's allows), and with `collisions` turn on the collision
 /// pass: a carried shape adding more to the character's neutral is held off the surfaces it
 /// goes through (`collision_margin` x the local edge length) and re-solved; the report's
 /// `collisions` has one row per shape.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None, collisions=true,
-                    collision_margin=0.25, progress=None))]
+                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None,
+                    template_crossing=None, collisions=true, collision_margin=0.25, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -98,19 +100,28 @@ fn carry_shapes<'py>(
     anchor_length: f64,
     max_angle: f64,
     template_added: Option<PyReadonlyArray2<'py, f64>>,
+    template_crossing: Option<PyReadonlyArray2<'py, f64>>,
     collisions: bool,
     collision_margin: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let template_added: Option<Vec<AddedCurve>> = match &template_added {
-        None => None,
-        Some(array) => {
-            let view = array.as_array();
-            if view.ncols() != 2 {
-                return Err(py_err(py)(crate::invalid!("template_added must have 2 columns (inside, between), got {}", view.ncols())));
-            }
-            Some(view.rows().into_iter().map(|row| AddedCurve { inside: row[0], between: row[1] }).collect())
+    let parts = |array: &PyReadonlyArray2<'py, f64>, name: &str| -> PyResult<Vec<AddedCurve>> {
+        let view = array.as_array();
+        if view.ncols() != 2 {
+            return Err(py_err(py)(crate::invalid!("{name} must have 2 columns (inside, between), got {}", view.ncols())));
         }
+        Ok(view.rows().into_iter().map(|row| AddedCurve { inside: row[0], between: row[1] }).collect())
+    };
+    let template_curve: Option<Vec<TemplateCurve>> = match (&template_added, &template_crossing) {
+        (None, None) => None,
+        (Some(added), Some(crossing)) => {
+            let (added, crossing) = (parts(added, "template_added")?, parts(crossing, "template_crossing")?);
+            if added.len() != crossing.len() {
+                return Err(py_err(py)(crate::invalid!("template_added has {} rows but template_crossing {}", added.len(), crossing.len())));
+            }
+            Some(added.into_iter().zip(crossing).map(|(added, crossing)| TemplateCurve { added, crossing }).collect())
+        }
+        _ => return Err(py_err(py)(crate::invalid!("give template_added and template_crossing together (the transfer report rows' own)"))),
     };
     let wrapped = arrays::points(&wrapped_neutral, "wrapped_neutral").map_err(py_err(py))?;
     let (deltas, k) = arrays::deltas(&template_deltas, wrapped.len()).map_err(py_err(py))?;
@@ -126,7 +137,7 @@ fn carry_shapes<'py>(
         ..CarryParams::default()
     };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
-        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_added.as_deref(), &params, progress)
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), &params, progress)
     })?;
     let nc = character.len();
     let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();

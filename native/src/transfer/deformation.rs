@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
-use super::collisions::{AddedCurve, CollisionGuard, CollisionOutcome, ShapeSystem};
+use super::collisions::{AddedCurve, CollisionGuard, CollisionOutcome, ShapeSystem, TemplateCurve};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     HatGradients, Vec3, IDENTITY, ZERO,
@@ -201,20 +201,19 @@ impl DeformationTransfer {
         self.transfer_judged(source_deltas, names, None, progress)
     }
 
-    /// [`Self::transfer`], told how much intersection curve each template shape adds to the
-    /// template's neutral (`template_added`, K entries, from the template's own penetration):
-    /// the collision pass then leaves a shape alone without sweeping the template's shape when
-    /// the result adds no more than that.
+    /// [`Self::transfer`], told each template shape's curve (`template_curve`, K entries, from
+    /// the template's own penetration, in the template's units): the collision pass then leaves
+    /// a shape alone without sweeping the template's shape when the result meets the criterion.
     pub fn transfer_judged(
         &self,
         source_deltas: &[[f32; 3]],
         names: &[String],
-        template_added: Option<&[AddedCurve]>,
+        template_curve: Option<&[TemplateCurve]>,
         progress: &dyn Progress,
     ) -> ShapesmithResult<TransferResult> {
         let start = Instant::now();
         self.validate_deltas(source_deltas, names)?;
-        if let Some(given) = template_added {
+        if let Some(given) = template_curve {
             if given.len() != names.len() {
                 return Err(invalid!("the template's penetration has {} shapes but {} shape names were given", given.len(), names.len()));
             }
@@ -228,7 +227,7 @@ impl DeformationTransfer {
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
                 } else {
-                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), Some(template_added.map(|a| a[k])))?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), Some(template_curve.map(|a| a[k])))?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -347,13 +346,13 @@ impl DeformationTransfer {
     }
 
     /// [`Self::solve_shape`], followed by the collision pass when `collisions` is given and the
-    /// pass is configured (with the curve the template's shape adds to its neutral, when
-    /// known), with the deltas before the pass and what it did.
+    /// pass is configured (with the template shape's curve, when known), with the deltas before
+    /// the pass and what it did.
     pub(super) fn solve_shape_traced(
         &self,
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
-        collisions: Option<Option<AddedCurve>>,
+        collisions: Option<Option<TemplateCurve>>,
     ) -> ShapesmithResult<SolvedShape> {
         self.solve_shape_aiming(delta, gradient, None, collisions)
     }
@@ -364,7 +363,7 @@ impl DeformationTransfer {
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: Option<&[Vec3]>,
-        collisions: Option<Option<AddedCurve>>,
+        collisions: Option<Option<TemplateCurve>>,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();
@@ -399,12 +398,13 @@ impl DeformationTransfer {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
         let solve_seconds = start.elapsed().as_secs_f64();
-        let (Some(guard), Some(template_added)) = (self.collisions.as_ref(), collisions) else {
+        let (Some(guard), Some(template_curve)) = (self.collisions.as_ref(), collisions) else {
             return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
         };
         let plain = out.clone();
-        let template_added = template_added.map(|a| a.scaled(self.template_to_target));
-        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, template_added };
+        let rest = AddedCurve::crossing(&guard.rest_penetration);
+        let allowed = template_curve.map(|t| t.scaled(self.template_to_target).allowed(&rest));
+        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, allowed };
         let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
         Ok(SolvedShape {
             before_collisions: outcome.applied.then_some(plain),

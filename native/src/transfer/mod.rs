@@ -65,7 +65,7 @@ mod report;
 mod system;
 mod virtual_edges;
 
-pub use collisions::{AddedCurve, CollisionOutcome, CollisionParams};
+pub use collisions::{AddedCurve, CollisionOutcome, CollisionParams, TemplateCurve};
 pub use deformation::{DeformationTransfer, MAX_MARGIN};
 pub use crate::geometry::penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};

@@ -8,7 +8,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::geometry::penetration::PenetrationBaseline;
-use super::{AddedCurve, CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TransferParams};
+use super::{AddedCurve, CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TemplateCurve, TransferParams};
 use crate::error::ShapesmithResult;
 use crate::geometry::weld::{Weld, WELD_FRACTION};
 use crate::invalid;
@@ -49,9 +49,15 @@ pub struct ShapePenetration {
     pub template_pairs: usize,
     pub template_between_pieces: f64,
     /// The curve the template's own shape adds to the template's neutral, per part, at the
-    /// target's size and units (`template_to_target`): what the criterion allows. The wrap
-    /// holds the keys it carries onto a character to it.
+    /// target's size and units (`template_to_target`), and the template shape's whole curve,
+    /// per part, at that size: the two allowances of the criterion ([`TemplateCurve`]). The
+    /// wrap holds the keys it carries onto a character to them.
     pub template_added: AddedCurve,
+    pub template_crossing: AddedCurve,
+    /// What the criterion allows the shape to add to the target's neutral, per part: the
+    /// more of `template_added` (zero where it removes) and what `template_crossing` leaves
+    /// beyond the target neutral's own curve ([`TemplateCurve::allowed`]).
+    pub allowed: AddedCurve,
     /// The result before the collision pass (equal to the result when the pass left the shape
     /// alone); `None` when the pass is off.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -69,10 +75,10 @@ pub struct ShapePenetration {
     pub plain_pairs: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_between_pieces: Option<f64>,
-    /// The worse-than-template criterion, per part: how much more curve the result adds to the target's
-    /// neutral than the template's shape adds to the template's ([`AddedCurve::excess_parts`];
-    /// zero in both parts when the shape is no worse than the template's). The add-on reads
-    /// these instead of judging again.
+    /// SPEC 3's criterion, per part: how much more curve the result adds to the target's
+    /// neutral than the template's shape allows ([`TemplateCurve::allowed`],
+    /// [`AddedCurve::excess_parts`]; zero in both parts when the shape is no worse than the
+    /// template's). The add-on reads these instead of judging again.
     pub excess: AddedCurve,
     /// The same before the collision pass, and for plain transfer.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -240,9 +246,9 @@ fn transfer_welded(
         _ => {
             // The template's own numbers, when given, spare the collision pass a sweep of each
             // template shape it has to judge.
-            let template_added: Option<Vec<AddedCurve>> =
-                template_penetration.map(|t| t.shapes.iter().map(|s| AddedCurve::from_penetrations(s, &t.neutral)).collect());
-            let out = dt.transfer_judged(source_deltas, names, template_added.as_deref(), &solving)?;
+            let template_curve: Option<Vec<TemplateCurve>> =
+                template_penetration.map(|t| t.shapes.iter().map(|s| TemplateCurve::from_penetrations(s, &t.neutral)).collect());
+            let out = dt.transfer_judged(source_deltas, names, template_curve.as_deref(), &solving)?;
             seconds.solves = out.seconds;
             seconds.collisions = out.collision_seconds;
             (out.deltas, out.inert, Vec::new(), out.collisions, out.before_collisions)
@@ -281,8 +287,9 @@ fn transfer_welded(
                     });
                     let plain = plain.as_ref().map(|d| measure(&d[rows]));
                     // The template shape's curve at the target's size (its units and proportions).
-                    let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral).scaled(dt.template_to_target);
-                    let excess = |p: &Penetration| AddedCurve::from_penetrations(p, &neutral).excess_parts(&template_added);
+                    let template_curve = TemplateCurve::from_penetrations(&template_shape, &template.neutral).scaled(dt.template_to_target);
+                    let allowed = template_curve.allowed(&AddedCurve::crossing(&neutral));
+                    let excess = |p: &Penetration| AddedCurve::from_penetrations(p, &neutral).excess_parts(&allowed);
                     let row = ShapePenetration {
                         name: names[k].clone(),
                         length: result.length,
@@ -291,7 +298,9 @@ fn transfer_welded(
                         template_length: template_shape.length,
                         template_pairs: template_shape.pairs,
                         template_between_pieces: template_shape.between_pieces,
-                        template_added,
+                        template_added: template_curve.added,
+                        template_crossing: template_curve.crossing,
+                        allowed,
                         before_collisions_length: before.map(|p| p.length),
                         before_collisions_pairs: before.map(|p| p.pairs),
                         before_collisions_between_pieces: before.map(|p| p.between_pieces),
@@ -418,9 +427,23 @@ mod tests {
             let ratio = rms_radius(target) / rms_radius(source);
             let units = if ratio.ln().abs() > crate::transfer::deformation::OTHER_UNITS.ln() { ratio } else { 1.0 };
             let template_added = AddedCurve::from_penetrations(&template_shape, &template.neutral).scaled(units);
-            assert_eq!(row.template_added, template_added);
-            assert_eq!(row.excess, AddedCurve::from_penetrations(&result, &neutral).excess_parts(&template_added));
-            assert_eq!(row.before_collisions_excess, Some(AddedCurve::from_penetrations(&plain_solve, &neutral).excess_parts(&template_added)));
+            let template_crossing = AddedCurve::crossing(&template_shape).scaled(units);
+            assert_eq!((row.template_added, row.template_crossing), (template_added, template_crossing));
+            // Per part, the more of the template's added curve and its own crossing beyond the
+            // target's rest.
+            let inside = |p: &Penetration| p.length - p.between_pieces;
+            let allowed = AddedCurve {
+                inside: template_added.inside.max(0.0).max(template_crossing.inside - inside(&neutral)),
+                between: template_added.between.max(0.0).max(template_crossing.between - neutral.between_pieces),
+            };
+            assert!((row.allowed.inside - allowed.inside).abs() < 1e-12 && (row.allowed.between - allowed.between).abs() < 1e-12);
+            let excess = |p: &Penetration| AddedCurve {
+                inside: (inside(p) - inside(&neutral) - allowed.inside).max(0.0),
+                between: (p.between_pieces - neutral.between_pieces - allowed.between).max(0.0),
+            };
+            let close = |a: AddedCurve, b: AddedCurve| (a.inside - b.inside).abs() < 1e-12 && (a.between - b.between).abs() < 1e-12;
+            assert!(close(row.excess, excess(&result)), "{k}: {:?} against {:?}", row.excess, excess(&result));
+            assert!(row.before_collisions_excess.is_some_and(|e| close(e, excess(&plain_solve))), "{k}");
             assert!(row.plain_excess.is_some_and(|e| e.inside >= 0.0 && e.between >= 0.0));
             changed += usize::from(row.collisions.is_some_and(|c| c.applied));
         }
@@ -472,5 +495,47 @@ mod tests {
             let largest = out.iter().zip(&target).zip(&expected).map(|((d, t), e)| (0..3).map(|a| (t[a] + d[a] - e[a]).abs()).fold(0.0f32, f32::max)).fold(0.0, f32::max);
             assert!(largest <= 1e-4 * scale, "scale {scale}: the shape moved off the template's by {largest}");
         }
+    }
+
+    #[test]
+    fn a_faithful_copy_of_a_template_whose_neutral_crosses_is_not_worse_and_more_crossing_is() {
+        // The template's neutral lips press past each other (0.06 each way across the 0.1
+        // gap) and its shape presses 0.09 further: its shape crosses over a wider contour than
+        // its neutral. The target's neutral lips are clean, 0.1 apart; the shape copied onto
+        // them crosses (0.09 each way) over a contour narrower than the template shape's.
+        let (clean, tris) = lips(0.1);
+        let source = posed(&clean, &lip_closing(&clean, 0.1, 0.06));
+        let pressing = lip_closing(&clean, 0.1, 0.09);
+        let template = measure_rig_penetration(&source, &pressing, &tris).unwrap();
+        let names = vec!["mouthRollUpper".to_owned()];
+        let judged = |target: &[[f32; 3]], collisions: Option<CollisionParams>| {
+            let transfer = TransferParams { virtual_edges: None, collisions, ..Default::default() };
+            let params = TransferShapesParams { transfer, measure_penetration: true, ..Default::default() };
+            transfer_shapes(&source, &pressing, target, &tris, &names, None, Some(&template), &params, &NoProgress).unwrap()
+        };
+        let (template_rest, template_shape) = (template.neutral, template.shapes[0]);
+        assert!(template_rest.length > 0.0 && template_shape.length > template_rest.length, "{template:?}");
+        let (out, report) = judged(&clean, Some(CollisionParams::default()));
+        let (without, _) = judged(&clean, None);
+        let row = &report.penetration[0];
+        assert_eq!(report.neutral_penetration.map(|p| p.pairs), Some(0));
+        // The copy crosses less than the template's shape, but adds more than the template's
+        // shape adds to its own neutral: the criterion of added curve alone would call it worse.
+        let added = row.length;
+        assert!(added > 0.0 && added < template_shape.length, "{added} against the template's {template_shape:?}");
+        assert!(added > row.template_added.inside + 1e-3, "{added} against {:?}", row.template_added);
+        assert_eq!(row.template_crossing, AddedCurve::crossing(&template_shape));
+        // Not worse, and the pass leaves it alone, bit for bit.
+        assert_eq!(row.excess, AddedCurve::default());
+        assert!(row.collisions.is_some_and(|c| !c.applied), "{:?}", row.collisions);
+        assert_eq!(out, without);
+        // Thinner lips (0.02 apart) given the same press cross more than the template's shape
+        // does (and more than its neutral plus what the shape adds): worse, inside one piece.
+        let thin = lips(0.02).0;
+        let (_, report) = judged(&thin, None);
+        let row = &report.penetration[0];
+        assert!(row.length > template_shape.length, "{row:?} against the template's {template_shape:?}");
+        assert!((row.excess.inside - (row.length - row.allowed.inside)).abs() < 1e-12 && row.excess.inside > 0.0, "{row:?}");
+        assert_eq!(row.excess.between, 0.0);
     }
 }

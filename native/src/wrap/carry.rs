@@ -30,7 +30,7 @@ use crate::geometry::topology::connected_components;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
-use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard};
+use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard, TemplateCurve};
 use crate::geometry::penetration::{Penetration, PenetrationBaseline};
 use super::pieces::ANY_PART;
 
@@ -56,7 +56,7 @@ pub struct CarryParams {
     /// `w_u / A_uu`, the weight of a held vertex's target against its row of the system.
     pub collision_stiffness: f64,
     /// A shape is worse than the template when its excess is over this fraction of the
-    /// character's bbox diagonal (the worse-than-template criterion as the add-on reads it).
+    /// character's bbox diagonal (SPEC 3's criterion as the add-on reads it).
     pub collision_tolerance: f64,
 }
 
@@ -89,8 +89,8 @@ pub struct CarryResult {
     pub max_binding_distance: f64,
     /// Per shape, what the collision pass did (empty when it was off).
     pub collisions: Vec<CarryCollision>,
-    /// The carried keys' penetration on the character and the worse-than-template criterion on it (when
-    /// the template's added curve is given).
+    /// The carried keys' penetration on the character and SPEC 3's criterion on it (when
+    /// the template's curve is given).
     pub penetration: Option<CarryPenetration>,
 }
 
@@ -143,9 +143,9 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 }
 
 /// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
-/// (`wrapped`, `template_triangles`) onto the character. With `template_added` (per shape,
-/// the curve the template's own shape adds to the template's neutral, in the character's
-/// units), every carried shape is judged by the worse-than-template criterion on the character's own mesh,
+/// (`wrapped`, `template_triangles`) onto the character. With `template_curve` (per shape,
+/// the template's own shape's curve, in the character's units), every carried shape is
+/// judged by SPEC 3's criterion ([`TemplateCurve::allowed`]) on the character's own mesh,
 /// and with [`CarryParams::collision_pass`] each one worse than the template is re-solved by
 /// the collision pass ([`super::collisions`]; screened carry only). Inputs are validated by
 /// the caller (`wrap::carry_shapes`).
@@ -156,7 +156,7 @@ pub fn carry_shapes(
     template_deltas: &[[f32; 3]],
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
-    template_added: Option<&[AddedCurve]>,
+    template_curve: Option<&[TemplateCurve]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -213,7 +213,7 @@ pub fn carry_shapes(
     let (piece, n_pieces) = connected_components(nc, character_triangles);
     let diagonal = crate::rig::bbox_diagonal(character).max(f64::MIN_POSITIVE);
     let max_binding_distance = vertex_binding.iter().map(|hit| hit.distance_squared.sqrt()).fold(0.0, f64::max) / diagonal;
-    let guard = match (template_added, whole.is_some() && params.collision_pass) {
+    let guard = match (template_curve, whole.is_some() && params.collision_pass) {
         (Some(_), true) => Some(Guard::new(
             &points,
             character,
@@ -249,9 +249,10 @@ pub fn carry_shapes(
                 (&piece, n_pieces),
                 params.static_fraction,
             )?;
-            let result = match (&guard, template_added) {
-                (Some(guard), Some(added)) => {
-                    let (deltas, outcome, penetration) = guard.resolve(&solved, &rhs, &static_vertex, &added[k], &laplacian)?;
+            let result = match (&guard, template_curve) {
+                (Some(guard), Some(curve)) => {
+                    let allowed = curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
+                    let (deltas, outcome, penetration) = guard.resolve(&solved, &rhs, &static_vertex, &allowed, &laplacian)?;
                     (deltas, Some((outcome, penetration)))
                 }
                 _ => (solved.iter().map(|d| d.map(|x| x as f32)).collect(), None),
@@ -264,7 +265,7 @@ pub fn carry_shapes(
     let collisions = shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.0)).collect();
     // The pass measured the shapes it kept; without it they are swept here, so that the
     // criterion is always read on the character's own mesh.
-    let penetration = template_added.map(|added| {
+    let penetration = template_curve.map(|curve| {
         let (neutral, shapes) = match &guard {
             Some(guard) => (guard.rest(), shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.1)).collect()),
             None => {
@@ -272,7 +273,7 @@ pub fn carry_shapes(
                 (baseline.neutral(), shapes.par_iter().map(|(deltas, _)| baseline.shape(deltas)).collect())
             }
         };
-        CarryPenetration::judged(neutral, shapes, added)
+        CarryPenetration::judged(neutral, shapes, curve)
     });
     Ok(CarryResult {
         deltas: shapes.into_iter().flat_map(|(deltas, _)| deltas).collect(),

@@ -1,10 +1,10 @@
 //! Collision-aware carry (SPEC section 3's collision-aware solve, on the character's own mesh):
 //! a carried shape that adds more intersection curve to the character's neutral than the
-//! template's own shape adds to the template's (per part: inside one piece, between pieces;
-//! the template's curve given in the character's units) has the vertices that went through
-//! another surface held on their rest side of it, with a margin, and is re-solved around them;
-//! a few rounds at most, and the round with least excess is kept. A shape meeting the
-//! criterion is returned untouched, bit for bit.
+//! template's own shape allows (SPEC 3's criterion, [`TemplateCurve::allowed`], per part:
+//! inside one piece, between pieces; the template's curve given in the character's units) has the
+//! vertices that went through another surface held on their rest side of it, with a margin,
+//! and is re-solved around them; a few rounds at most, and the round with least excess is
+//! kept. A shape meeting the criterion is returned untouched, bit for bit.
 //!
 //! Why on the character and not only on the wrapped template: the character's own lips are
 //! closer (and coarser) than the wrapped template's, so the wrapped template's motion, copied
@@ -12,7 +12,7 @@
 //!
 //! **Judge.** The shape is swept on its moved triangles (two unmoved triangles cross exactly
 //! as at rest, `geometry::penetration`), and its added curve per part compared with the
-//! template's ([`AddedCurve::excess_parts`]); worse means an excess over
+//! criterion's allowance ([`AddedCurve::excess_parts`]); worse means an excess over
 //! [`CarryParams::collision_tolerance`] x the character's bbox diagonal.
 //!
 //! **Holds.** For each pair of the part in excess that crosses in the result and not at rest,
@@ -54,7 +54,7 @@ use std::collections::BTreeMap;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, cross, dot, length, scale, sub, Vec3};
-pub use crate::geometry::penetration::AddedCurve;
+pub use crate::geometry::penetration::{AddedCurve, TemplateCurve};
 use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
 use crate::geometry::topology::Adjacency;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
@@ -75,23 +75,27 @@ pub struct CarryCollision {
 
 /// The character's penetration (SPEC section 3's metric) at rest and in each kept shape, as
 /// `measure_penetration` gives it (the pass sweeps every shape anyway, so the add-on need
-/// not), and per shape the worse-than-template criterion on it: the curve the shape adds to the character's
-/// neutral beyond what the template's shape adds to the template's, per part
-/// ([`AddedCurve::excess_parts`]), as the transfer's report gives it for a same-topology
+/// not), and per shape SPEC 3's criterion on it: the curve the shape adds to the character's
+/// neutral beyond what the template's shape allows, per part ([`TemplateCurve::allowed`],
+/// [`AddedCurve::excess_parts`]), as the transfer's report gives it for a same-topology
 /// target.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct CarryPenetration {
     pub neutral: Penetration,
     pub shapes: Vec<Penetration>,
     pub excess: Vec<AddedCurve>,
+    /// Per shape, what the criterion allowed it to add to the character's neutral.
+    pub allowed: Vec<AddedCurve>,
 }
 
 impl CarryPenetration {
-    /// `shapes` judged against the template's added curve, `template_added` (one per shape,
-    /// in the character's units).
-    pub(super) fn judged(neutral: Penetration, shapes: Vec<Penetration>, template_added: &[AddedCurve]) -> Self {
-        let excess = shapes.iter().zip(template_added).map(|(p, t)| AddedCurve::from_penetrations(p, &neutral).excess_parts(t)).collect();
-        Self { neutral, shapes, excess }
+    /// `shapes` judged against the template's curve, `template_curve` (one per shape, in the
+    /// character's units).
+    pub(super) fn judged(neutral: Penetration, shapes: Vec<Penetration>, template_curve: &[TemplateCurve]) -> Self {
+        let rest = AddedCurve::crossing(&neutral);
+        let allowed: Vec<AddedCurve> = template_curve.iter().map(|t| t.allowed(&rest)).collect();
+        let excess = shapes.iter().zip(&allowed).map(|(p, a)| AddedCurve::from_penetrations(p, &neutral).excess_parts(a)).collect();
+        Self { neutral, shapes, excess, allowed }
     }
 }
 
@@ -226,7 +230,8 @@ impl<'a> Guard<'a> {
     }
 
     /// The carried shape `solved` (f64, static vertices zero) held off the surfaces it goes
-    /// through beyond what the template's shape does (`template`), its normal equations'
+    /// through beyond what the template's shape allows (`template`, [`TemplateCurve::allowed`]
+    /// on the character's neutral), its normal equations'
     /// right-hand side being `rhs` (per vertex) and `matrix` the character's screened matrix.
     pub(super) fn resolve(
         &self,
@@ -488,7 +493,7 @@ mod tests {
         let deltas = closing(&template, amount);
         // The template's lips close without touching: it adds no curve.
         assert_eq!(measure_penetration(&posed(&template, &deltas), &template_triangles).pairs, 0);
-        let none = [AddedCurve::default()];
+        let none = [TemplateCurve::default()];
         let result = carry_shapes(
             &template,
             &template_triangles,

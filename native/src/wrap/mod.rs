@@ -67,7 +67,7 @@ use std::time::Instant;
 
 pub use align::{similarity_from_pairs, similarity_from_principal_axes, Similarity, MIN_PAIRS};
 pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult};
-pub use collisions::{AddedCurve, CarryCollision};
+pub use collisions::{AddedCurve, CarryCollision, TemplateCurve};
 pub use nricp::FitStats;
 
 use crate::error::ShapesmithResult;
@@ -344,10 +344,11 @@ fn wrap_welded(
 }
 
 /// Carries the template's shapes (K x Nt deltas of the wrapped template, shape-major) onto
-/// the character's vertices (K x Nc); see the `carry` module. With `template_added` (K
-/// rows: the curve each template shape adds to the template's neutral, in the character's
-/// units), every carried shape is judged by it on the character (`penetration`), and with
-/// [`CarryParams::collision_pass`] the pass holds those worse than that (`collisions`).
+/// the character's vertices (K x Nc); see the `carry` module. With `template_curve` (K
+/// rows: each template shape's curve, added to the template's neutral and whole, in the
+/// character's units), every carried shape is judged by it on the character (`penetration`),
+/// and with [`CarryParams::collision_pass`] the pass holds those worse than that
+/// (`collisions`).
 ///
 /// Carried between the welded surfaces: the wrapped template's ([`Weld::of_rig`], as the
 /// transfer welds it) and the character's own (its UV seams), so that every copy of a
@@ -359,7 +360,7 @@ pub fn carry_shapes(
     template_deltas: &[[f32; 3]],
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
-    template_added: Option<&[AddedCurve]>,
+    template_curve: Option<&[TemplateCurve]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -405,19 +406,20 @@ fn carry_welded(
     if !(params.anchor_length >= 0.0 && params.anchor_length.is_finite() && params.max_angle_degrees > 0.0) {
         return Err(invalid!("anchor_length must be at least 0 and max_angle positive"));
     }
-    if let Some(added) = template_added {
-        if added.len() != template_deltas.len() / wrapped.len() {
-            return Err(invalid!("{} template curve rows for {} shapes", added.len(), template_deltas.len() / wrapped.len()));
+    if let Some(curve) = template_curve {
+        if curve.len() != template_deltas.len() / wrapped.len() {
+            return Err(invalid!("{} template curve rows for {} shapes", curve.len(), template_deltas.len() / wrapped.len()));
         }
-        if added.iter().any(|a| !a.inside.is_finite() || !a.between.is_finite()) {
-            return Err(invalid!("the template's added curve has non-finite values"));
+        let finite = |a: &AddedCurve| a.inside.is_finite() && a.between.is_finite();
+        if !curve.iter().all(|c| finite(&c.added) && finite(&c.crossing)) {
+            return Err(invalid!("the template's curve has non-finite values"));
         }
     }
     let collision = [params.collision_margin, params.collision_stiffness, params.collision_tolerance];
     if !collision.iter().all(|x| x.is_finite() && *x >= 0.0) || params.collision_stiffness <= 0.0 {
         return Err(invalid!("collision margin and tolerance must be at least 0 and the stiffness positive"));
     }
-    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_added, params, progress)
+    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, params, progress)
 }
 
 fn validate_mesh(points: &[[f32; 3]], triangles: &[[u32; 3]], what: &str) -> ShapesmithResult<()> {

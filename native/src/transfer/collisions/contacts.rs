@@ -1,11 +1,11 @@
 //! What a shape adds to its neutral's intersection curve, and what the template's own shape
-//! adds: the worse-than-template criterion ([`AddedCurve::excess`]) and the template's contacts the pass
-//! leaves alone ([`TemplateContacts::near`]).
+//! allows it: SPEC 3's criterion ([`TemplateCurve::allowed`], [`AddedCurve::excess`]) and the
+//! template's contacts the pass leaves alone ([`TemplateContacts::near`]).
 
 use std::collections::{HashMap, HashSet};
 
 use super::CollisionGuard;
-use crate::geometry::penetration::{crossings, AddedCurve};
+use crate::geometry::penetration::{crossings, AddedCurve, TemplateCurve};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, to_f64, Vec3};
 
@@ -33,17 +33,21 @@ impl DeformationTransfer {
         // The template's lengths, at the target's size where they are compared with its.
         let noise = 0.5 * super::JUDGE_TOLERANCE * guard.diagonal / self.template_to_target;
         let adding = pieces_grown(all.iter().copied(), guard.template_rest_pairs.iter().copied(), piece_of, noise);
-        let added = AddedCurve::of(all.into_iter(), piece_of, rest).scaled(self.template_to_target);
-        TemplateContacts { partners, added, positions: points, adding }
+        let template = TemplateCurve {
+            added: AddedCurve::of(all.iter().copied(), piece_of, rest),
+            crossing: AddedCurve::of(all.into_iter(), piece_of, AddedCurve::default()),
+        };
+        let allowed = template.scaled(self.template_to_target).allowed(&AddedCurve::crossing(&guard.rest_penetration));
+        TemplateContacts { partners, allowed, positions: points, adding }
     }
 }
 
-/// The template shape's crossing pairs, per triangle its partners, the curve the shape adds
-/// to the template's neutral, and the shape's positions (what the holds compare the target's
-/// sides with).
+/// The template shape's crossing pairs, per triangle its partners, the curve the criterion
+/// allows the target's shape to add to the target's neutral, and the template shape's
+/// positions (what the holds compare the target's sides with).
 pub(super) struct TemplateContacts {
     partners: HashMap<u32, Vec<u32>>,
-    pub(super) added: AddedCurve,
+    pub(super) allowed: AddedCurve,
     pub(super) positions: Vec<Vec3>,
     /// The pairs of pieces ([`piece_key`]) between which the shape's curve is longer than at
     /// the template's rest (beyond the judging noise).
@@ -93,7 +97,7 @@ pub(super) fn piece_key(p: u32, q: u32) -> (u32, u32) {
 
 #[cfg(test)]
 mod tests {
-    use super::{pieces_grown, AddedCurve};
+    use super::{pieces_grown, AddedCurve, TemplateCurve};
 
     #[test]
     fn pieces_grown_names_the_pairs_of_pieces_whose_own_curve_grew() {
@@ -110,20 +114,28 @@ mod tests {
     }
 
     #[test]
-    fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_gain_only() {
+    fn added_curve_splits_by_piece_and_judges_each_part_against_the_templates_allowance() {
         // Triangles 0, 1 in piece 0; 2 in piece 1. Rest: inside 0.5, between 0.25.
         let piece = |t: u32| u32::from(t == 2);
         let rest = AddedCurve::of([(0, 1, 0.5), (1, 2, 0.25)].into_iter(), piece, AddedCurve::default());
         assert_eq!(rest, AddedCurve { inside: 0.5, between: 0.25 });
         let added = AddedCurve::of([(0, 1, 0.75), (0, 2, 0.125)].into_iter(), piece, rest);
         assert_eq!(added, AddedCurve { inside: 0.25, between: -0.125 });
+        // A template whose own shape crosses nowhere: only its added curve allows.
+        let allowed = |added: AddedCurve| TemplateCurve { added, crossing: AddedCurve::default() }.allowed(&rest);
         // A template adding more inside and anything between: met.
-        assert_eq!(added.excess(&AddedCurve { inside: 0.5, between: -1.0 }), 0.0);
+        assert_eq!(added.excess(&allowed(AddedCurve { inside: 0.5, between: -1.0 })), 0.0);
         // Removing between does not pay for adding inside: the template adds none inside.
-        assert_eq!(added.excess(&AddedCurve { inside: -0.5, between: 1.0 }), 0.25);
+        assert_eq!(added.excess(&allowed(AddedCurve { inside: -0.5, between: 1.0 })), 0.25);
         // Where the template removes, the target need only add none (not remove as much).
-        let removes = AddedCurve { inside: -0.25, between: -0.5 };
+        let removes = allowed(AddedCurve { inside: -0.25, between: -0.5 });
         assert_eq!(AddedCurve { inside: 0.0, between: -0.125 }.excess(&removes), 0.0);
         assert_eq!(AddedCurve { inside: 0.125, between: 0.25 }.excess(&removes), 0.375);
+        // A template shape crossing 1.0 inside (its neutral more, so it removes): the target's
+        // shape may cross as much, 0.5 beyond the target's own rest inside.
+        let crossing = TemplateCurve { added: AddedCurve { inside: -0.25, between: 0.0 }, crossing: AddedCurve { inside: 1.0, between: 0.0 } };
+        assert_eq!(crossing.allowed(&rest), AddedCurve { inside: 0.5, between: 0.0 });
+        assert_eq!(AddedCurve { inside: 0.5, between: 0.0 }.excess(&crossing.allowed(&rest)), 0.0);
+        assert_eq!(AddedCurve { inside: 0.75, between: 0.0 }.excess(&crossing.allowed(&rest)), 0.25);
     }
 }

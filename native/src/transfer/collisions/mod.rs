@@ -4,11 +4,16 @@
 //! the side they were on at rest (plus a margin) and is re-solved around them; the round with
 //! least excess over the template is kept.
 //!
-//! **Judge.** The result is swept on the triangles with a moving corner and its added curve
-//! compared with the template shape's part by part, inside one piece and between pieces
-//! ([`AddedCurve::excess`]; a part where the template removes curve allows none). A shape
-//! adding no more is returned untouched, bit for bit: the artist's own contacts stay and
-//! self-transfer stays exact.
+//! **Judge first.** The result is swept (triangles with a moving corner; two unmoved
+//! triangles cross exactly as at rest) and its added curve compared with what the template's
+//! shape allows (from the report's template numbers when given, else one sweep of the
+//! template shape), part by part: inside one piece and between pieces, the more of the curve
+//! the template's shape adds to its neutral (a removal allowing none) and its own curve beyond
+//! the target neutral's ([`TemplateCurve::allowed`], SPEC 3's criterion). A shape adding no
+//! more is returned untouched, bit for bit: the criterion is "no more than the template", so
+//! the artist's own contacts (lips pressed together in mouthClose) stay, a template whose
+//! neutral crosses where the target's does not is copied as it is, and self-transfer stays
+//! exact.
 //!
 //! **Which pairs.** Pairs of the part in excess that cross in the result, not at the target's
 //! rest (or at rest with over 5% more curve), not near a pair the template's shape adds (found
@@ -66,7 +71,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
-pub use crate::geometry::penetration::AddedCurve;
+pub use crate::geometry::penetration::{AddedCurve, TemplateCurve};
 use contacts::{piece_key, pieces_grown, TemplateContacts};
 pub(super) use guard::CollisionGuard;
 use guard::Neutral;
@@ -136,8 +141,9 @@ pub(super) struct ShapeSystem<'a> {
     /// Per piece: floats (pinned and translated after the solve).
     pub pinned: &'a [bool],
     pub rhs: &'a [Vec3],
-    /// The intersection curve the template's shape adds to its neutral, when known.
-    pub template_added: Option<AddedCurve>,
+    /// The curve the criterion allows the shape to add to the target's neutral
+    /// ([`TemplateCurve::allowed`]), when the template's numbers are known.
+    pub allowed: Option<AddedCurve>,
 }
 
 /// Where a vertex that went through must go: its target position (working frame).
@@ -225,7 +231,7 @@ impl DeformationTransfer {
         let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
         let tolerance = JUDGE_TOLERANCE * guard.diagonal;
         let meets = |added: &AddedCurve, template: &Option<AddedCurve>| template.is_some_and(|t| added.excess(&t) <= tolerance);
-        let mut template_added = shape.template_added;
+        let mut allowed = shape.allowed;
         let mut targets = Targets::new();
         let mut region = vec![false; out.len()];
         // Where the virtual-edge springs are released: around the pairs the springs folded.
@@ -294,7 +300,7 @@ impl DeformationTransfer {
             if first.is_none() {
                 first = Some(added);
             }
-            let score = |a: &AddedCurve| template_added.map_or(a.inside + a.between, |t| a.excess(&t));
+            let score = |a: &AddedCurve| allowed.map_or(a.inside + a.between, |t| a.excess(&t));
             let improved = best.as_ref().is_none_or(|(b, _, _, _)| score(&added) < *b);
             if improved {
                 best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0, crossing.clone()));
@@ -310,27 +316,27 @@ impl DeformationTransfer {
                 .map(|&(a, b, _)| (a, b))
                 .collect();
             // Nothing new crosses, or no more curve than the template's own shape adds.
-            if candidates.is_empty() || meets(&added, &template_added) {
+            if candidates.is_empty() || meets(&added, &allowed) {
                 break;
             }
             if template.is_none() {
                 // The template shape's contacts, swept once per shape.
                 let contacts = shared.template.get_or_init(|| self.template_contacts(guard, shape.delta, moved));
-                if template_added.is_none() {
+                if allowed.is_none() {
                     // Only the plain solve was judged so far (by added curve): judge it by
                     // its excess over the template.
-                    template_added = Some(contacts.added);
-                    best = best.map(|(_, kept, left, pairs)| (first.map_or(0.0, |f| f.excess(&contacts.added)), kept, left, pairs));
+                    allowed = Some(contacts.allowed);
+                    best = best.map(|(_, kept, left, pairs)| (first.map_or(0.0, |f| f.excess(&contacts.allowed)), kept, left, pairs));
                 }
                 template = Some(contacts);
-                if meets(&added, &template_added) {
+                if meets(&added, &allowed) {
                     break;
                 }
             }
-            let in_excess = |&(a, b): &(u32, u32)| match template_added {
+            let in_excess = |&(a, b): &(u32, u32)| match allowed {
                 Some(t) => {
-                    let over_inside = added.inside - t.inside.max(0.0) > 0.5 * tolerance;
-                    let over_between = added.between - t.between.max(0.0) > 0.5 * tolerance;
+                    let over_inside = added.inside - t.inside > 0.5 * tolerance;
+                    let over_between = added.between - t.between > 0.5 * tolerance;
                     if piece_of(a) == piece_of(b) { over_inside } else { over_between }
                 }
                 None => true,
@@ -461,7 +467,7 @@ impl DeformationTransfer {
         outcome.constrained_vertices = targets.len();
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
-        let excess = if held { template_added.and(best.as_ref().map(|b| b.0)) } else { None };
+        let excess = if held { allowed.and(best.as_ref().map(|b| b.0)) } else { None };
         let penetration = |pairs: &[(u32, u32, f64)]| {
             let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
             shape_penetration(pairs, &rest, moved, &guard.triangle_piece)
