@@ -365,7 +365,7 @@ pub fn carry_shapes(
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
     if wrapped.is_empty() || !template_deltas.len().is_multiple_of(wrapped.len()) {
-        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_added, params, progress);
+        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, params, progress);
     }
     let template_weld = Weld::of_rig(wrapped, template_deltas, template_triangles);
     let character_weld = Weld::new(character, character_triangles);
@@ -375,7 +375,7 @@ pub fn carry_shapes(
         &template_weld.gather(template_deltas),
         &character_weld.gather(character),
         &character_weld.triangles,
-        template_added,
+        template_curve,
         params,
         progress,
     )?;
@@ -390,7 +390,7 @@ fn carry_welded(
     template_deltas: &[[f32; 3]],
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
-    template_added: Option<&[AddedCurve]>,
+    template_curve: Option<&[TemplateCurve]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
