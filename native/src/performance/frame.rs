@@ -85,8 +85,6 @@ pub struct FrameSolver<'a> {
 
 pub struct Fit {
     pub state: State,
-    /// The objective `E` at the answer.
-    pub cost: f64,
     /// RMS over the measurements of the distance between measured and solved positions, in
     /// the measurements' units (object units or pixels).
     pub residual: f64,
@@ -194,7 +192,7 @@ impl FrameSolver<'_> {
         let n = p + k;
         let mut state = start;
         let Some(mut current) = self.linearise(measurements, &state, true) else {
-            return self.finish(measurements, state, f64::INFINITY, 0);
+            return self.finish(measurements, state, 0);
         };
         let mut cost = self.cost(&current.residuals, &state.weights, previous);
         let mut damping = 1e-4;
@@ -251,7 +249,7 @@ impl FrameSolver<'_> {
                 break;
             }
         }
-        self.finish(measurements, state, cost, iterations)
+        self.finish(measurements, state, iterations)
     }
 
     /// The damped step's answer: pose step and new weights from
@@ -305,7 +303,7 @@ impl FrameSolver<'_> {
         State { pose: state.pose.stepped([dp[0], dp[1], dp[2]], [dp[3], dp[4], dp[5]], log_scale), weights }
     }
 
-    fn finish(&self, measurements: &[Measurement], state: State, cost: f64, iterations: usize) -> Fit {
+    fn finish(&self, measurements: &[Measurement], state: State, iterations: usize) -> Fit {
         let m = self.projection.rows();
         let residual = match self.linearise(measurements, &state, false) {
             Some(lin) if !measurements.is_empty() => {
@@ -314,6 +312,6 @@ impl FrameSolver<'_> {
             }
             _ => f64::INFINITY,
         };
-        Fit { state, cost, residual, iterations }
+        Fit { state, residual, iterations }
     }
 }
