@@ -9,6 +9,7 @@ _MODULE_NAMES = (
     "preferences",
     "properties",
     "wrap_properties",
+    "performance_properties",
     "operators.face_parts",
     "operators.analyze_rig",
     "operators.symmetry_pairs",
@@ -27,10 +28,14 @@ _MODULE_NAMES = (
     "operators.wrap_pairs",
     "operators.wrap_template",
     "operators.transfer_onto_character",
+    "operators.solve_performance",
+    "operators.import_capture",
+    "operators.save_performance_report",
     "ui.panels",
     "ui.pack_panel",
     "ui.transfer_panel",
     "ui.wrap_panel",
+    "ui.performance_panel",
 )
 
 _modules = []

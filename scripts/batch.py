@@ -3,7 +3,8 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze, pack, landmarks, transfer, wrap, crossings (see `-- COMMAND --help`). Every command
+Commands: sample, analyze, pack, landmarks, transfer, wrap, crossings, solve, import-capture (see
+`-- COMMAND --help`). Every command
 but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
 on stderr; input files are never written (results go to --output/--json).
@@ -687,6 +688,107 @@ def run_wrap(args):
     )
 
 
+def add_solve_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="the head: mesh with shape keys and a landmark layout")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--trajectories", help="3D trajectories: CSV (<landmark>_x,_y,_z columns) or TRC")
+    source.add_argument("--clip", help="a Movie Clip in the file whose tracks are named after the landmarks (2D)")
+    parser.add_argument("--camera", help="with --clip: the camera object placed for the shot (default: the scene's camera)")
+    parser.add_argument("--landmarks", help="collection of landmark empties (default: the head's Place Landmarks layout)")
+    parser.add_argument("--scale", type=float, default=1.0, help="trajectories: scene units per file unit (default 1)")
+    parser.add_argument("--smoothing", type=float, default=1.0, help="temporal smoothing lambda >= 0 (default 1)")
+    parser.add_argument("--solve-scale", action="store_true", help="3D: solve a uniform head scale per frame")
+    parser.add_argument("--target", help="key the pose on this object (an empty) instead of the head")
+    parser.add_argument("--plot", metavar="PNG", help="plot the residual and the most active weights to this PNG")
+    parser.add_argument("--plot-shapes", help="comma-separated shapes to plot (default: the most active)")
+    parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--output", help="save the animated file here (the input is never written)")
+
+
+def run_solve(args):
+    """Per frame: the head's pose and the shape weights from tracked landmarks, keyed."""
+    import time
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    started = time.perf_counter()
+    open_blend(args.input)
+    performance = import_module(shapesmith.__name__ + ".blender.performance")
+    obj = find_object(args.object)
+    if obj.type != "MESH":
+        raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
+    if not (args.smoothing >= 0):
+        raise BatchError(f"--smoothing must be >= 0, got {args.smoothing}")
+    collection = None
+    if args.landmarks:
+        collection = bpy.data.collections.get(args.landmarks)
+        if collection is None:
+            raise BatchError(f"no collection named '{args.landmarks}' in the file")
+    target = find_object(args.target) if args.target else None
+    names, vertices = performance.layout_landmarks(obj, collection)
+    scene = bpy.context.scene
+    if args.trajectories:
+        tracks = performance.read_trajectories(args.trajectories, names, vertices, scene.frame_start, args.scale)
+    else:
+        clip = bpy.data.movieclips.get(args.clip)
+        if clip is None:
+            raise BatchError(f"no movie clip named '{args.clip}' in the file "
+                             f"(clips: {', '.join(c.name for c in bpy.data.movieclips) or 'none'})")
+        camera = find_object(args.camera) if args.camera else scene.camera
+        tracks = performance.clip_tracks(clip, names, vertices, camera)
+    read = time.perf_counter()
+    document = performance.solve(obj, tracks, smoothing=args.smoothing, solve_scale=args.solve_scale)
+    solved = time.perf_counter()
+    performance.write_animation(obj, document, target)
+    for line in performance.summary_lines(document):
+        print(line)
+    if args.plot:
+        plot = import_module(shapesmith.__name__ + ".blender.performance_plot")
+        shapes = args.plot_shapes.split(",") if args.plot_shapes else None
+        plot.write_plot_png(document, os.path.abspath(args.plot), shapes)
+    if args.output:
+        save_copy(args.output)
+    document.update(input=os.path.abspath(args.input), seconds={
+        "read": read - started, "solve": solved - read, "per_frame": (solved - read) / max(len(document["frames"]), 1),
+        "total": time.perf_counter() - started})
+    write_json(args.json, document)
+
+
+def add_import_capture_args(parser):
+    parser.add_argument("--input", required=True, help=".blend file to read")
+    parser.add_argument("--object", required=True, help="the head: mesh with (ARKit-named) shape keys")
+    parser.add_argument("--capture", required=True, help="Live Link Face CSV or Face Cap TXT")
+    parser.add_argument("--mapping", help='JSON file {"column": "shape key" or ["key", ...]} for names that do not match')
+    parser.add_argument("--capture-fps", type=float, help="Live Link Face: the capture's frame rate (default: from the timecodes)")
+    parser.add_argument("--no-head", action="store_true", help="do not key the head rotation onto the object")
+    parser.add_argument("--json", help="write the report here")
+    parser.add_argument("--output", required=True, help="save the animated file here (the input is never written)")
+
+
+def run_import_capture(args):
+    from importlib import import_module
+
+    shapesmith = load_shapesmith()
+    open_blend(args.input)
+    capture = import_module(shapesmith.__name__ + ".blender.capture")
+    obj = find_object(args.object)
+    mapping = None
+    if args.mapping:
+        if not os.path.isfile(args.mapping):
+            raise BatchError(f"mapping file not found: {args.mapping}")
+        with open(args.mapping) as handle:
+            mapping = capture.read_mapping(handle.read())
+    report = capture.import_capture(obj, args.capture, bpy.context.scene, mapping, args.capture_fps, not args.no_head)
+    print(f"{report['frames']} frames of {report['format']} onto '{obj.name}' (frames {report['first_frame']:g} to "
+          f"{report['last_frame']:g}, capture {report['capture_fps']} fps, scene {report['scene_fps']:g} fps); "
+          f"{len(report['columns_used'])} columns used, unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}, "
+          f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}")
+    save_copy(args.output)
+    report.update(input=os.path.abspath(args.input))
+    write_json(args.json, report)
+
+
 COMMANDS = {
     "sample": (add_sample_args, run_sample, "build sample.blend from the MakeHuman assets"),
     "analyze": (add_analyze_args, run_analyze, "analyze a rig's shape keys"),
@@ -695,6 +797,8 @@ COMMANDS = {
     "transfer": (add_transfer_args, run_transfer, "transfer a template's shape keys onto other heads"),
     "wrap": (add_wrap_args, run_wrap, "wrap the template onto a character of any topology and write its keys there"),
     "crossings": (add_crossings_args, run_crossings, "list the faces each shape key pushes through the mesh"),
+    "solve": (add_solve_args, run_solve, "solve shape-key animation and head pose from tracked landmarks"),
+    "import-capture": (add_import_capture_args, run_import_capture, "key an ARKit capture (Live Link Face, Face Cap) onto the rig"),
 }
 
 

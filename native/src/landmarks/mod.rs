@@ -30,7 +30,6 @@
 //! - [`LandmarkParams::min_visibility`] (off by default) removes candidates that some pose
 //!   hides; shapes left without a candidate are reported in `uncovered`.
 
-pub mod bvls;
 pub mod candidates;
 pub mod cover;
 pub mod design;

@@ -8,7 +8,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::bvls::{solve_bounded, Gram};
+use crate::bounded::{solve_bounded, Gram};
 use super::design::{error_weight, predicted_error};
 use crate::error::ShapesmithResult;
 use crate::geometry::weld::WeldedRig;

@@ -6,6 +6,7 @@ mod arrays;
 mod errors;
 mod landmarks;
 mod packing;
+mod performance;
 mod run;
 mod transfer;
 mod wrap;
@@ -19,6 +20,7 @@ fn shapesmith_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     analysis::register(m)?;
     packing::register(m)?;
     landmarks::register(m)?;
+    performance::register(m)?;
     transfer::register(m)?;
     wrap::register(m)?;
     Ok(())

@@ -2,6 +2,8 @@
 //! `lower <= w <= upper`, with `H = A^T A` (K x K, K about 50). A primal active-set method in
 //! the manner of Stark & Parker's BVLS: free one violating bound at a time, solve the free
 //! block by Cholesky, step back to feasibility when the solution leaves the box.
+//! Shared by the landmark score (weights from noisy landmarks) and the performance solve
+//! (each Gauss-Newton step's weights).
 
 /// A dense symmetric K x K matrix, row-major.
 #[derive(Clone, Debug)]
@@ -109,7 +111,7 @@ pub fn solve_bounded(h: &Gram, g: &[f64], lower: &[f64], upper: &[f64]) -> Vec<f
 /// Solves `M x = b` for a symmetric positive (semi)definite `M` (row-major, n x n) by
 /// Cholesky, with pivots floored at `floor` so that a numerically singular block still gives
 /// a finite answer.
-fn cholesky_solve(mut m: Vec<f64>, mut b: Vec<f64>, n: usize, floor: f64) -> Vec<f64> {
+pub fn cholesky_solve(mut m: Vec<f64>, mut b: Vec<f64>, n: usize, floor: f64) -> Vec<f64> {
     for j in 0..n {
         let mut pivot = m[j * n + j] - (0..j).map(|p| m[j * n + p] * m[j * n + p]).sum::<f64>();
         pivot = pivot.max(floor).sqrt();

@@ -1,0 +1,222 @@
+"""Import ARKit capture (SPEC section 6): per-frame ARKit weights from Live Link Face (CSV) or
+Face Cap (TXT) keyed onto the rig's shape keys by name, and the head's rotation onto the
+object. The operator and `scripts/batch.py import-capture` both call `import_capture`.
+
+Formats:
+- Live Link Face CSV: a header `Timecode,BlendShapeCount,EyeBlinkLeft,...,TongueOut,HeadYaw,
+  HeadPitch,HeadRoll,LeftEyeYaw,...`, one row per captured frame, timecode
+  `HH:MM:SS:FF.mmm` (FF the frame at the capture's rate, .mmm a fraction of a frame). The rate
+  is not in the file: the largest FF + 1, rounded up to a standard rate, unless given.
+- Face Cap TXT: `info,...` lines, one `bs,<name>,<name>,...` line naming the shapes, then one
+  `k,<milliseconds>,<head x,y,z>,<head euler x,y,z in degrees>,<left eye x,y>,<right eye x,y>,
+  <weights...>` line per captured frame.
+
+Timing: captured frame i is keyed at `start + (t_i - t_0) x scene fps` (t in seconds): one key
+per captured frame, on whole frames when the capture's rate is the scene's, between frames
+otherwise, so the performance keeps its speed. Values are keyed exactly as captured.
+"""
+
+import csv
+import json
+import math
+import os
+import re
+
+from mathutils import Euler
+
+from .keyframes import key_channel, key_transforms
+from .mesh_arrays import MeshDataError
+
+# Columns of a Live Link Face CSV that are not shapes.
+LIVE_LINK_HEAD = ("HeadYaw", "HeadPitch", "HeadRoll")
+LIVE_LINK_OTHER = ("Timecode", "BlendShapeCount", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll", "RightEyeYaw",
+                   "RightEyePitch", "RightEyeRoll")
+STANDARD_RATES = (24, 25, 30, 48, 50, 60, 100, 120, 240)
+_SIDE = re.compile(r"^(.*?)(?:[_.\s-]?(left|right)|[_.]([lr]))$", re.IGNORECASE)
+
+
+def name_key(name):
+    """(base, side) of a shape name, case-insensitive: `eyeBlinkLeft`, `EyeBlink_L` and
+    `eyeblink.l` are all ('eyeblink', 'L'); `jawOpen` is ('jawopen', None)."""
+    match = _SIDE.match(name.strip())
+    if match and match.group(1):
+        side = (match.group(2) or match.group(3)).upper()[0]
+        return match.group(1).lower().rstrip("_.- "), side
+    return name.strip().lower(), None
+
+
+def match_columns(columns, keys, mapping=None):
+    """{column: [rig keys]} for the capture's shape columns. `mapping` (column -> key or list
+    of keys, names as spelled) comes first; then names match by `name_key`; a column without
+    side that the rig splits in halves (`cheekPuff` -> `cheekPuff_L`, `cheekPuff_R`) drives
+    both. Returns (matched, unmatched columns, unmatched keys)."""
+    mapping = mapping or {}
+    by_key = {}
+    for key in keys:
+        by_key.setdefault(name_key(key), []).append(key)
+    lowered = {k.lower(): k for k in keys}
+    matched, unmatched = {}, []
+    for column in columns:
+        if column in mapping:
+            targets = mapping[column] if isinstance(mapping[column], list) else [mapping[column]]
+            missing = [t for t in targets if t not in keys and t.lower() not in lowered]
+            if missing:
+                raise MeshDataError(f"the mapping sends '{column}' to {', '.join(missing)}, which the rig does not have")
+            matched[column] = [lowered.get(t.lower(), t) for t in targets]
+            continue
+        base, side = name_key(column)
+        targets = by_key.get((base, side), [])
+        if not targets and side is None:
+            targets = by_key.get((base, "L"), []) + by_key.get((base, "R"), [])
+        if targets:
+            matched[column] = targets
+        else:
+            unmatched.append(column)
+    driven = {key for targets in matched.values() for key in targets}
+    return matched, unmatched, [key for key in keys if key not in driven]
+
+
+class Capture:
+    """A parsed capture: shape columns with their values per frame, times in seconds, head
+    rotation per frame (radians: pitch, yaw, roll) or None, the capture's rate, and what else
+    the file held."""
+
+    def __init__(self, columns, values, times, head, fps, format_name, ignored=()):
+        self.columns, self.values, self.times, self.head = columns, values, times, head
+        self.fps, self.format, self.ignored = fps, format_name, list(ignored)
+
+
+def _timecode_seconds(code, fps):
+    hours, minutes, seconds, frame = code.strip().split(":")
+    return int(hours) * 3600 + int(minutes) * 60 + int(seconds) + float(frame) / fps
+
+
+def read_live_link(path, fps=None):
+    with open(path, newline="", encoding="utf-8-sig") as handle:
+        rows = [row for row in csv.reader(handle) if row]
+    if len(rows) < 2 or rows[0][0].strip() != "Timecode":
+        raise MeshDataError(f"'{os.path.basename(path)}' is not a Live Link Face CSV: its header must start with Timecode")
+    header = [cell.strip() for cell in rows[0]]
+    try:
+        codes = [row[0] for row in rows[1:]]
+        if fps is None:
+            largest = max(int(code.split(":")[3].split(".")[0]) for code in codes)
+            fps = next((rate for rate in STANDARD_RATES if rate > largest), largest + 1)
+        times = [_timecode_seconds(code, fps) for code in codes]
+    except (IndexError, ValueError):
+        raise MeshDataError(f"'{os.path.basename(path)}': a timecode is not HH:MM:SS:FF.mmm")
+    shape_columns = [c for c, name in enumerate(header) if name not in LIVE_LINK_HEAD + LIVE_LINK_OTHER]
+    head_columns = [header.index(name) if name in header else None for name in LIVE_LINK_HEAD]
+
+    def number(row, c):
+        try:
+            return float(row[c])
+        except (IndexError, ValueError):
+            raise MeshDataError(f"'{os.path.basename(path)}': column '{header[c]}' has a value that is not a number: {row[c:c + 1]}")
+
+    values = [[number(row, c) for c in shape_columns] for row in rows[1:]]
+    head = None
+    if all(c is not None for c in head_columns):
+        # Yaw, pitch, roll in radians (as Blender's other Live Link importers read them).
+        head = [(number(row, head_columns[1]), number(row, head_columns[0]), number(row, head_columns[2])) for row in rows[1:]]
+    ignored = [name for name in header if name in LIVE_LINK_OTHER]
+    return Capture([header[c] for c in shape_columns], values, times, head, fps, "Live Link Face CSV", ignored)
+
+
+def read_face_cap(path):
+    names, values, times, head = None, [], [], []
+    with open(path, encoding="utf-8-sig") as handle:
+        for number, line in enumerate(handle, 1):
+            words = [w.strip() for w in line.strip().split(",")]
+            if words[0] == "bs":
+                names = words[1:]
+            elif words[0] == "k":
+                if names is None or len(words) != 12 + len(names):
+                    raise MeshDataError(f"'{os.path.basename(path)}' line {number}: a key line needs 12 values and one per 'bs' shape")
+                try:
+                    numbers = [float(w) for w in words[1:]]
+                except ValueError:
+                    raise MeshDataError(f"'{os.path.basename(path)}' line {number}: a value is not a number")
+                times.append(numbers[0] / 1000.0)
+                # Head Euler angles x, y, z in degrees: pitch, yaw, roll.
+                head.append(tuple(math.radians(a) for a in numbers[4:7]))
+                values.append(numbers[11:])
+            elif words[0] not in ("info", ""):
+                raise MeshDataError(f"'{os.path.basename(path)}' line {number} is not a Face Cap line (info, bs or k)")
+    if names is None or not values:
+        raise MeshDataError(f"'{os.path.basename(path)}' is not a Face Cap TXT: no 'bs' line or no 'k' lines")
+    steps = [b - a for a, b in zip(times, times[1:]) if b > a]
+    fps = round(1.0 / sorted(steps)[len(steps) // 2], 3) if steps else None
+    return Capture(names, values, times, head, fps, "Face Cap TXT")
+
+
+def read_capture(path, fps=None):
+    if not os.path.isfile(path):
+        raise MeshDataError(f"capture file not found: {path}")
+    if path.lower().endswith(".txt"):
+        return read_face_cap(path)
+    return read_live_link(path, fps)
+
+
+def read_mapping(text):
+    """A user mapping from JSON text: {"column": "key"} or {"column": ["key", ...]}."""
+    try:
+        mapping = json.loads(text) if text.strip() else {}
+    except json.JSONDecodeError as error:
+        raise MeshDataError(f"the capture mapping is not valid JSON: {error}")
+    if not isinstance(mapping, dict):
+        raise MeshDataError('the capture mapping must be a JSON object: {"column": "shape key"}')
+    return mapping
+
+
+def key_frames(capture, scene_fps, start):
+    """The scene frame of each captured frame (whole frames where they land within 1e-4)."""
+    first = capture.times[0]
+    frames = []
+    for t in capture.times:
+        frame = start + (t - first) * scene_fps
+        frames.append(float(round(frame)) if abs(frame - round(frame)) < 1e-4 else frame)
+    return frames
+
+
+def import_capture(obj, path, scene, mapping=None, fps=None, head=True):
+    """Keys the capture onto `obj`'s shape keys (and its rotation when the capture has the
+    head's and `head`); returns the report. Everything is read and matched before any key."""
+    keys = obj.data.shape_keys
+    if obj.type != "MESH" or keys is None or len(keys.key_blocks) < 2:
+        raise MeshDataError(f"'{obj.name}' has no shape keys to drive")
+    capture = read_capture(path, fps)
+    names = [block.name for block in keys.key_blocks if block != keys.reference_key]
+    matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping)
+    if not matched:
+        raise MeshDataError(
+            f"no column of '{os.path.basename(path)}' matches a shape key of '{obj.name}' (columns such as "
+            f"{', '.join(capture.columns[:3])}): give a mapping"
+        )
+    scene_fps = scene.render.fps / scene.render.fps_base
+    frames = key_frames(capture, scene_fps, scene.frame_start)
+    for column, targets in matched.items():
+        c = capture.columns.index(column)
+        column_values = [row[c] for row in capture.values]
+        for target in targets:
+            key_channel(keys.key_blocks[target], "value", -1, frames, column_values, group="Shapesmith Capture")
+    keyed_head = head and capture.head is not None
+    if keyed_head:
+        rest = obj.matrix_world.copy()
+        key_transforms(obj, frames, [rest @ Euler((pitch, roll, yaw), "XYZ").to_matrix().to_4x4()
+                                     for pitch, yaw, roll in capture.head])
+    return {
+        "object": obj.name,
+        "capture": os.path.abspath(path),
+        "format": capture.format,
+        "frames": len(frames),
+        "first_frame": frames[0],
+        "last_frame": frames[-1],
+        "capture_fps": capture.fps,
+        "scene_fps": scene_fps,
+        "columns_used": matched,
+        "unmatched_columns": unmatched_columns,
+        "unmatched_keys": unmatched_keys,
+        "ignored_columns": capture.ignored,
+        "head_rotation": keyed_head,
+    }

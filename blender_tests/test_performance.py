@@ -1,0 +1,314 @@
+"""Solve Performance and Import Capture on the bundled Template: a known performance (random
+smooth weights, a rigid head motion) sampled at the landmarks as 3D trajectories and as 2D
+tracks in a Movie Clip, solved back; ARKit captures written from known weights, imported."""
+
+import csv
+import importlib
+import json
+import math
+import os
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Euler, Matrix
+
+from conftest import run_batch
+
+FRAMES = 100
+# Tracker noise per coordinate, a fraction of the head's diagonal.
+NOISE = 0.001
+
+
+def module(shapesmith, name):
+    return importlib.import_module(f"{shapesmith.__name__}.blender.{name}")
+
+
+def truth(rig, frames=FRAMES, seed=0):
+    """Random smooth weights in [0, 1] (clamped sines: each shape rests at 0 part of the take)
+    and a rigid head motion (up to ~8 degrees, ~2 cm) per frame."""
+    rng = np.random.default_rng(seed)
+    k = len(rig.names)
+    t = np.arange(frames)[:, None]
+    phase, speed = rng.uniform(0, 2 * np.pi, k), rng.uniform(0.03, 0.12, k)
+    weights = np.clip(0.2 + 0.7 * np.sin(phase + speed * t), 0.0, 1.0)
+    matrices = []
+    for f in range(frames):
+        rotation = Euler((0.14 * math.sin(0.05 * f), 0.08 * math.sin(0.07 * f + 1), 0.1 * math.cos(0.04 * f)), "XYZ")
+        matrix = rotation.to_matrix().to_4x4()
+        matrix.translation = (0.02 * math.sin(0.03 * f), 0.01 * math.cos(0.05 * f), 0.015 * math.sin(0.02 * f))
+        matrices.append(matrix)
+    return weights, matrices
+
+
+def landmark_world(rig, vertices, weights, matrices):
+    """(T, L, 3) world positions of the landmark vertices."""
+    local = rig.neutral[vertices][None] + np.einsum("tk,kln->tln", weights, rig.deltas[:, vertices])
+    out = np.empty_like(local, dtype=np.float64)
+    for f, matrix in enumerate(matrices):
+        m = np.array(matrix)
+        out[f] = local[f] @ m[:3, :3].T + m[:3, 3]
+    return out
+
+
+def make_layout(obj, vertices, name="Landmarks"):
+    """Landmark empties (as Place Landmarks records them) for the given vertices."""
+    collection = bpy.data.collections.new(name)
+    bpy.context.scene.collection.children.link(collection)
+    for vertex in vertices:
+        empty = bpy.data.objects.new(f"LM_{vertex}", None)
+        empty["vertex"] = int(vertex)
+        collection.objects.link(empty)
+    return collection
+
+
+def write_csv(path, names, positions, extra=True):
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        header = ["frame"] + [f"{n}_{a}" for n in names for a in "xyz"] + (["Unknown_x"] if extra else [])
+        writer.writerow(header)
+        for f, row in enumerate(positions):
+            cells = ["" if not np.isfinite(v) else repr(float(v)) for v in row.ravel()]
+            writer.writerow([f] + cells + (["1.0"] if extra else []))
+
+
+def weight_error(document, weights):
+    solved = np.asarray(document["weights"])
+    return float(np.sqrt(np.mean((solved - weights) ** 2))), float(np.abs(solved - weights).max())
+
+
+@pytest.fixture
+def head(sample, shapesmith):
+    obj = bpy.data.objects["Template"]
+    rig = module(shapesmith, "mesh_arrays").read_rig(obj)
+    return obj, rig
+
+
+def layout_vertices(rig, count=40, seed=1):
+    """Vertices that move most across the shapes (a stand-in for a layout), plus a few rigid."""
+    motion = np.linalg.norm(rig.deltas, axis=2).max(axis=0)
+    strongest = [int(v) for v in np.argsort(-motion)[: 4 * count : 4]]
+    rigid = [int(v) for v in np.flatnonzero(motion < 1e-7)[:: 97][:6]]
+    return strongest[:count] + rigid
+
+
+def test_3d_trajectories_give_back_the_weights_and_pose_with_lost_landmarks_and_an_empty_frame(head, shapesmith, tmp_path):
+    performance = module(shapesmith, "performance")
+    obj, rig = head
+    vertices = layout_vertices(rig)
+    collection = make_layout(obj, vertices)
+    names, ordered = performance.layout_landmarks(obj, collection)
+    weights, matrices = truth(rig)
+    positions = landmark_world(rig, ordered, weights, matrices)
+    diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
+    rng = np.random.default_rng(3)
+    positions += rng.normal(0, NOISE * diagonal, positions.shape)
+    lost = rng.random(positions.shape[:2]) < 0.1
+    positions[lost] = np.nan
+    positions[40] = np.nan  # every landmark lost on one frame
+    path = str(tmp_path / "trajectories.csv")
+    write_csv(path, names, positions)
+    tracks = performance.read_trajectories(path, names, ordered, bpy.context.scene.frame_start)
+    assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
+    document = performance.solve(obj, tracks, smoothing=1.0)
+    start = bpy.context.scene.frame_start
+    assert document["kept_frames"] == [start + 40]
+    assert document["weights"][40] == document["weights"][39]
+    assert document["observed"][0] == int((~lost[0]).sum())
+    rms, worst = weight_error(document, weights)
+    # Noise of 0.1% of the diagonal, 10% of the landmarks lost: the weights within a few
+    # hundredths (the frame kept from its neighbour included).
+    print(f"3D weight error: rms {rms:.4f}, max {worst:.3f}")
+    assert rms < 0.05, (rms, worst)
+    rotation_error = max(np.abs(np.array(r) - np.array(m.to_3x3())).max() for r, m in zip(document["rotations"], matrices))
+    assert rotation_error < 0.01
+    residuals = [r for r in document["residuals_of_diagonal"] if r is not None]
+    assert np.median(residuals) < 3 * NOISE
+    # Keyed: one key per frame on each shape key and on the head's transform.
+    performance.write_animation(obj, document)
+    scene = bpy.context.scene
+    key = obj.data.shape_keys.key_blocks[document["shapes"][5]]
+    for f in (0, 17, 63):
+        scene.frame_set(start + f)
+        assert key.value == pytest.approx(document["weights"][f][5], abs=1e-6)
+        assert np.allclose(np.array(obj.matrix_world)[:3, 3], document["translations"][f], atol=1e-5)
+
+
+def test_2d_tracks_in_a_movie_clip_through_a_distorting_camera(head, shapesmith, tmp_path):
+    performance = module(shapesmith, "performance")
+    obj, rig = head
+    frames = 40
+    vertices = layout_vertices(rig)
+    collection = make_layout(obj, vertices)
+    names, ordered = performance.layout_landmarks(obj, collection)
+    weights, matrices = truth(rig, frames, seed=4)
+    positions = landmark_world(rig, ordered, weights, matrices)
+    # A short image sequence gives the clip its frames and size.
+    width, height = 320, 240
+    image = bpy.data.images.new("frame", width, height)
+    for f in range(frames):
+        image.filepath_raw = str(tmp_path / f"frame_{f + 1:04d}.png")
+        image.file_format = "PNG"
+        image.save()
+    clip = bpy.data.movieclips.load(str(tmp_path / "frame_0001.png"))
+    assert clip.frame_duration == frames and tuple(clip.size) == (width, height)
+    intrinsics = clip.tracking.camera
+    intrinsics.distortion_model = "POLYNOMIAL"
+    intrinsics.focal_length_pixels = 700.0
+    intrinsics.k1, intrinsics.k2, intrinsics.k3 = -0.08, 0.02, 0.0
+    centre = rig.neutral.mean(axis=0)
+    camera = bpy.data.objects.new("ShotCamera", bpy.data.cameras.new("ShotCamera"))
+    bpy.context.scene.collection.objects.link(camera)
+    camera.location = (centre[0], centre[1] - 0.6, centre[2])
+    camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    to_camera = np.array(camera.matrix_world.inverted())
+    principal = np.array(intrinsics.principal_point_pixels)
+    diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
+    noise_px = NOISE * diagonal * 700.0 / 0.6
+    rng = np.random.default_rng(5)
+    for l, name in enumerate(names):
+        track = clip.tracking.tracks.new(name=name, frame=1)
+        for f in range(frames):
+            p = to_camera[:3, :3] @ positions[f, l] + to_camera[:3, 3]
+            x, y = p[0] / -p[2], p[1] / -p[2]
+            r2 = x * x + y * y
+            factor = 1 - 0.08 * r2 + 0.02 * r2 * r2
+            u = 700.0 * x * factor + principal[0] + rng.normal(0, noise_px)
+            v = 700.0 * y * factor + principal[1] + rng.normal(0, noise_px)
+            track.markers.insert_frame(f + 1, co=(u / width, v / height))
+    # A clip without a camera is a clear error.
+    with pytest.raises(ValueError, match="scene camera"):
+        performance.clip_tracks(clip, names, ordered, None)
+    tracks = performance.clip_tracks(clip, names, ordered, camera)
+    assert tracks.values.shape == (frames, len(names), 2) and np.isfinite(tracks.values).all()
+    document = performance.solve(obj, tracks, smoothing=1.0)
+    rms, worst = weight_error(document, weights)
+    print(f"2D weight error: rms {rms:.4f}, max {worst:.3f}")
+    assert rms < 0.08, (rms, worst)
+    assert np.median([r for r in document["residuals"] if r is not None]) < 3 * noise_px
+
+
+def test_a_clip_without_matching_tracks_is_a_clear_error(head, shapesmith, tmp_path):
+    performance = module(shapesmith, "performance")
+    obj, rig = head
+    collection = make_layout(obj, layout_vertices(rig, 5))
+    names, ordered = performance.layout_landmarks(obj, collection)
+    image = bpy.data.images.new("still", 64, 64)
+    image.filepath_raw = str(tmp_path / "still.png")
+    image.file_format = "PNG"
+    image.save()
+    clip = bpy.data.movieclips.load(str(tmp_path / "still.png"))
+    clip.tracking.tracks.new(name="SomethingElse", frame=1)
+    camera = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    with pytest.raises(ValueError, match="no track named after a landmark"):
+        performance.clip_tracks(clip, names, ordered, camera)
+
+
+def test_batch_solve_writes_keys_json_and_plot_and_leaves_the_input(head, shapesmith, tmp_path):
+    performance = module(shapesmith, "performance")
+    obj, rig = head
+    vertices = layout_vertices(rig, 30)
+    collection = make_layout(obj, vertices)
+    names, ordered = performance.layout_landmarks(obj, collection)
+    obj.shapesmith.landmarks.collection = collection
+    blend = str(tmp_path / "with_layout.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    weights, matrices = truth(rig, 30, seed=7)
+    path = str(tmp_path / "t.csv")
+    write_csv(path, names, landmark_world(rig, ordered, weights, matrices))
+    out, report, plot = (str(tmp_path / n) for n in ("out.blend", "r.json", "plot.png"))
+    before = os.path.getmtime(blend)
+    run_batch("solve", "--input", blend, "--object", "Template", "--trajectories", path, "--output", out,
+              "--json", report, "--plot", plot, "--smoothing", "0.5", check=True)
+    assert os.path.getmtime(blend) == before
+    document = json.load(open(report))
+    assert document["unknown_columns"] == ["Unknown_x"] and len(document["residuals"]) == 30
+    assert weight_error(document, weights)[1] < 0.02
+    assert os.path.getsize(plot) > 1000
+    bad = run_batch("solve", "--input", blend, "--object", "Template", "--clip", "Nope", "--output", out)
+    assert bad.returncode == 2 and bad.stderr.startswith("shapesmith: error:")
+
+
+ARKIT = (
+    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft", "EyeWideLeft",
+    "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight", "EyeSquintRight",
+    "EyeWideRight", "JawForward", "JawRight", "JawLeft", "JawOpen", "MouthClose", "MouthFunnel", "MouthPucker", "MouthRight",
+    "MouthLeft", "MouthSmileLeft", "MouthSmileRight", "MouthFrownLeft", "MouthFrownRight", "MouthDimpleLeft",
+    "MouthDimpleRight", "MouthStretchLeft", "MouthStretchRight", "MouthRollLower", "MouthRollUpper", "MouthShrugLower",
+    "MouthShrugUpper", "MouthPressLeft", "MouthPressRight", "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
+    "MouthUpperUpRight", "BrowDownLeft", "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight", "CheekPuff",
+    "CheekSquintLeft", "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
+)
+
+
+def test_an_arkit_csv_comes_back_as_the_same_keyframes(head, shapesmith, tmp_path):
+    capture = module(shapesmith, "capture")
+    obj, _ = head
+    scene = bpy.context.scene
+    fps = round(scene.render.fps / scene.render.fps_base)
+    rng = np.random.default_rng(8)
+    values = np.round(rng.random((50, len(ARKIT))), 6)
+    path = str(tmp_path / "take.csv")
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["Timecode", "BlendShapeCount", *ARKIT, "FooBar", "HeadYaw", "HeadPitch", "HeadRoll",
+                         "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll", "RightEyeYaw", "RightEyePitch", "RightEyeRoll"])
+        for f, row in enumerate(values):
+            code = f"00:00:{10 + f // fps:02d}:{f % fps:02d}.000"
+            writer.writerow([code, 61, *row, 0.5, 0.1, -0.05, 0.02, 0, 0, 0, 0, 0, 0])
+    report = capture.import_capture(obj, path, scene, fps=fps)
+    assert report["unmatched_columns"] == ["FooBar"] and report["frames"] == 50
+    assert report["head_rotation"] and report["first_frame"] == scene.frame_start
+    keys = obj.data.shape_keys.key_blocks
+    for column, targets in report["columns_used"].items():
+        c = ARKIT.index(column)
+        for target in targets:
+            for f in (0, 13, 49):
+                scene.frame_set(scene.frame_start + f)
+                assert keys[target].value == pytest.approx(values[f, c], abs=1e-6), (column, target, f)
+    assert len(report["columns_used"]) == len(ARKIT)
+
+
+def test_names_match_case_and_side_spellings_and_split_halves(shapesmith):
+    capture = module(shapesmith, "capture")
+    keys = ["browInnerUp_L", "browInnerUp_R", "eyeBlink_L", "EyeBlinkRight", "jawOpen", "mouthLeft", "extra"]
+    columns = ["BrowInnerUp", "EyeBlinkLeft", "eyeBlink_R", "JAWOPEN", "MouthLeft", "Mystery"]
+    matched, unmatched, undriven = capture.match_columns(columns, keys, {"Mystery": "extra"})
+    assert matched == {"BrowInnerUp": ["browInnerUp_L", "browInnerUp_R"], "EyeBlinkLeft": ["eyeBlink_L"],
+                       "eyeBlink_R": ["EyeBlinkRight"], "JAWOPEN": ["jawOpen"], "MouthLeft": ["mouthLeft"],
+                       "Mystery": ["extra"]}
+    assert unmatched == [] and undriven == []
+
+
+def test_a_face_cap_take_comes_back_and_batch_lists_what_it_used(head, shapesmith, tmp_path):
+    obj, _ = head
+    scene = bpy.context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    names = ["eyeBlink_L", "eyeBlink_R", "jawOpen", "browInnerUp", "notAShape"]
+    values = np.round(np.random.default_rng(2).random((20, len(names))), 5)
+    path = str(tmp_path / "take.txt")
+    with open(path, "w") as handle:
+        handle.write("info,version,1\n")
+        handle.write("bs," + ",".join(names) + "\n")
+        for f, row in enumerate(values):
+            ms = f * 1000.0 / fps
+            handle.write(f"k,{ms:.6f},0,0,0,5,-3,1,0,0,0,0," + ",".join(repr(float(v)) for v in row) + "\n")
+    blend = str(tmp_path / "in.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    out, report_path = str(tmp_path / "out.blend"), str(tmp_path / "capture.json")
+    run_batch("import-capture", "--input", blend, "--object", "Template", "--capture", path, "--output", out,
+              "--json", report_path, check=True)
+    report = json.load(open(report_path))
+    assert report["unmatched_columns"] == ["notAShape"]
+    assert set(report["columns_used"]) == set(names[:4])
+    assert "mouthClose" in report["unmatched_keys"]
+    bpy.ops.wm.open_mainfile(filepath=out)
+    template = bpy.data.objects["Template"]
+    keys = template.data.shape_keys.key_blocks
+    for f in (0, 7, 19):
+        scene = bpy.context.scene
+        scene.frame_set(scene.frame_start + f)
+        assert keys["jawOpen"].value == pytest.approx(values[f, 2], abs=1e-6)
+    rotation = Matrix(np.array(template.matrix_world)[:3, :3].tolist())
+    assert rotation.to_euler().x == pytest.approx(math.radians(5), abs=1e-4)
