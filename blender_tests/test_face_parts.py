@@ -552,8 +552,6 @@ def add_seam_uvs(template_objects, target_objects):
             obj.data.uv_layers.new(name="UVMap").data.foreach_set("uv", uv)
 
 
-@pytest.mark.xfail(strict=False, reason="a glTF import splits vertices along UV seams, and the seam copies are not yet "
-                   "welded into one surface point: the transfer opens the seams")
 def test_a_seam_split_gltf_round_trip_gives_the_same_transfer(triangulated_face, shapesmith, tmp_path):
     face = triangulated_face
     templates, targets = [face["template"], *parts(face["template"])], [face["target"], *parts(face["target"])]
