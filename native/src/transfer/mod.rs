@@ -125,4 +125,6 @@ pub struct TransferResult {
 }
 
 #[cfg(test)]
+mod collision_tests;
+#[cfg(test)]
 mod tests;

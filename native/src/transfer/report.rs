@@ -368,7 +368,8 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transfer::tests::{lip_closing, lips, posed, skin_rising_over_teeth};
+    use crate::transfer::collision_tests::{posed, skin_rising_over_teeth};
+    use crate::transfer::tests::{lip_closing, lips};
     use crate::transfer::{measure_penetration, CollisionParams, VirtualEdgeParams};
     use crate::NoProgress;
 

@@ -399,7 +399,8 @@ mod tests {
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
-    use crate::transfer::tests::{lip_closing, lips, skin_over_teeth};
+    use crate::transfer::collision_tests::skin_over_teeth;
+    use crate::transfer::tests::{lip_closing, lips};
     use crate::transfer::virtual_edges::VirtualEdgeParams;
     use crate::transfer::{DeformationTransfer, TransferParams};
 
