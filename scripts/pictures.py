@@ -1,17 +1,20 @@
-"""What the picture scripts (render_transfer.py, render_wrap.py) share: one object rendered
-alone by Workbench through an orthographic camera, and tiles put side by side in one PNG."""
+"""What the picture scripts (render_transfer.py, render_wrap.py, render_face_parts.py) share:
+one object (or a face's objects) rendered alone by Workbench through an orthographic camera,
+and tiles put side by side in one PNG."""
 
 import bpy
 import numpy as np
 
 
 def render_alone(obj, location, direction, extent, size, path, *, clip_end=None):
-    """Renders `obj` (the scene's other meshes hidden) with the scene's Workbench shading,
-    seen from `location` along `direction` through an orthographic camera `extent` across
-    the frame's longer side, `size` pixels, to `path`. The caller sets the shading first."""
+    """Renders `obj` (an object, or a list of objects shown together; the scene's other
+    meshes hidden) with the scene's Workbench shading, seen from `location` along `direction`
+    through an orthographic camera `extent` across the frame's longer side, `size` pixels, to
+    `path`. The caller sets the shading first."""
     scene = bpy.context.scene
+    shown = set(obj) if isinstance(obj, (list, tuple)) else {obj}
     for other in scene.objects:
-        other.hide_render = other != obj and other.type == "MESH"
+        other.hide_render = other not in shown and other.type == "MESH"
     camera = bpy.data.objects.get("RenderCamera")
     if camera is None:
         camera = bpy.data.objects.new("RenderCamera", bpy.data.cameras.new("RenderCamera"))
