@@ -84,46 +84,102 @@ def head(sample, shapesmith):
     return obj, rig
 
 
-def layout_vertices(rig, count=40, seed=1):
-    """Vertices that move most across the shapes (a stand-in for a layout), plus a few rigid."""
+def rigid_vertices(rig, count=6):
+    """Vertices no shape moves, spread over the mesh: the stabilising markers a capture puts
+    on the forehead and temples besides the face's landmarks (they fix the first pose)."""
     motion = np.linalg.norm(rig.deltas, axis=2).max(axis=0)
-    strongest = [int(v) for v in np.argsort(-motion)[: 4 * count : 4]]
-    rigid = [int(v) for v in np.flatnonzero(motion < 1e-7)[:: 97][:6]]
-    return strongest[:count] + rigid
+    return [int(v) for v in np.flatnonzero(motion < 1e-7)[::97][:count]]
+
+
+def reconstruction_layout(shapesmith, obj, rig, count=60):
+    """Place Landmarks' layout with Add for Reconstruction up to `count` landmarks (every shape
+    gets a landmark that moves strongly in it, then the ones that best separate the shapes),
+    plus the rigid markers, as one collection. A layout of merely the most moving vertices
+    (all around the mouth) leaves the brows, eyes, cheeks and nose unseen: their weights
+    cannot come back from any solve."""
+    landmarks = module(shapesmith, "landmarks")
+    document = landmarks.place_landmarks(obj, epsilon=0.5, max_per_shape=2, landmarks=count)
+    assert document["uncovered"] == [] and document["inert"] == []
+    collection = landmarks.build_layout(obj, document, bpy.context.scene)
+    for vertex in rigid_vertices(rig):
+        empty = bpy.data.objects.new(f"LM_rigid_{vertex}", None)
+        empty["vertex"] = vertex
+        collection.objects.link(empty)
+    return collection
+
+
+def vertex_error(rig, document, weights):
+    """RMS over frames and vertices of the distance between the face the solved weights
+    make and the true one, as a fraction of the diagonal: what the weights are for. Shapes
+    that move the landmarks by less than the noise have weights no solve can pin down, but
+    then they move the face little too."""
+    error = np.asarray(document["weights"]) - weights
+    moved = np.einsum("tk,knc->tnc", error, rig.deltas.astype(np.float64))
+    diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
+    return float(np.sqrt((moved ** 2).sum(axis=2).mean())) / diagonal
 
 
 def test_3d_trajectories_give_back_the_weights_and_pose_with_lost_landmarks_and_an_empty_frame(head, shapesmith, tmp_path):
     performance = module(shapesmith, "performance")
     obj, rig = head
-    vertices = layout_vertices(rig)
-    collection = make_layout(obj, vertices)
+    collection = reconstruction_layout(shapesmith, obj, rig)
     names, ordered = performance.layout_landmarks(obj, collection)
     weights, matrices = truth(rig)
-    positions = landmark_world(rig, ordered, weights, matrices)
+    exact = landmark_world(rig, ordered, weights, matrices)
     diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
     rng = np.random.default_rng(3)
-    positions += rng.normal(0, NOISE * diagonal, positions.shape)
-    lost = rng.random(positions.shape[:2]) < 0.1
-    positions[lost] = np.nan
-    positions[40] = np.nan  # every landmark lost on one frame
-    path = str(tmp_path / "trajectories.csv")
-    write_csv(path, names, positions)
-    tracks = performance.read_trajectories(path, names, ordered, bpy.context.scene.frame_start)
-    assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
-    document = performance.solve(obj, tracks, smoothing=1.0)
+    lost = rng.random(exact.shape[:2]) < 0.1
+    lost[40] = True  # every landmark lost on one frame
     start = bpy.context.scene.frame_start
-    assert document["kept_frames"] == [start + 40]
-    assert document["weights"][40] == document["weights"][39]
-    assert document["observed"][0] == int((~lost[0]).sum())
+
+    def solve(positions, name):
+        positions = positions.copy()
+        positions[lost] = np.nan
+        path = str(tmp_path / name)
+        write_csv(path, names, positions)
+        tracks = performance.read_trajectories(path, names, ordered, start)
+        assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
+        document = performance.solve(obj, tracks, smoothing=1.0)
+        assert document["unseen_shapes"] == [] and document["kept_frames"] == [start + 40]
+        assert document["weights"][40] == document["weights"][39]
+        assert document["observed"][0] == int((~lost[0]).sum())
+        # The kept frame repeats its neighbour's pose (the head turns up to 0.007 radians a frame).
+        rotation_error = max(np.abs(np.array(r) - np.array(m.to_3x3())).max()
+                             for t, (r, m) in enumerate(zip(document["rotations"], matrices)) if t != 40)
+        residuals = [r for r in document["residuals_of_diagonal"] if r is not None]
+        return document, rotation_error, float(np.median(residuals))
+
+    # Noise-free: every frame's landmarks are explained exactly by the true weights and pose,
+    # so what is left is the smoothing's lag (a weight change of 1 costs one noise unit), the
+    # kept frame (weights move up to 0.08 a frame) and the frames where a shape's only
+    # landmark is lost (its weight is then held near the previous frame's). Those stay within
+    # a few hundredths (measured rms 0.013, 5 of 5200 weights off by more than 0.05), where
+    # shapes unseen by the layout (0.33) or a failing optimiser (weights 0.1 to 0.9 off) are
+    # far above.
+    document, rotation_error, residual = solve(exact, "exact.csv")
     rms, worst = weight_error(document, weights)
-    # Noise of 0.1% of the diagonal, 10% of the landmarks lost: the weights within a few
-    # hundredths (the frame kept from its neighbour included).
-    print(f"3D weight error: rms {rms:.4f}, max {worst:.3f}")
-    assert rms < 0.05, (rms, worst)
-    rotation_error = max(np.abs(np.array(r) - np.array(m.to_3x3())).max() for r, m in zip(document["rotations"], matrices))
+    off = float(np.mean(np.abs(np.asarray(document["weights"]) - weights) > 0.05))
+    print(f"3D noise-free weight error: rms {rms:.4f}, max {worst:.3f}, share off by > 0.05: {off:.4f}; "
+          f"rotation {rotation_error:.2e}, median residual {residual:.2e} of the diagonal")
+    assert rms < 0.03 and off < 0.01, (rms, worst, off)
+    assert rotation_error < 1e-3 and residual < 0.1 * NOISE, (rotation_error, residual)
+    # With noise of 0.1% of the diagonal, shapes that move the landmarks by about the noise
+    # (the eyes' looks, the dimples) have weights no solve can pin down: the unconstrained
+    # least-squares spread of this layout's weights is 0.17 rms at the true pose (the solve's
+    # residual, below the noise, is lower than the truth's). What comes back is the face: the
+    # solved weights make it within the noise (measured 0.07% of the diagonal), where zero
+    # weights are 2% off and the most moving vertices' layout (a third of the shapes unseen) 0.6%.
+    noisy = exact + rng.normal(0, NOISE * diagonal, exact.shape)
+    document, rotation_error, residual = solve(noisy, "noisy.csv")
+    rms, worst = weight_error(document, weights)
+    face = vertex_error(rig, document, weights)
+    zero = vertex_error(rig, {"weights": np.zeros_like(weights)}, weights)
+    print(f"3D noisy weight error: rms {rms:.4f}, max {worst:.3f}; face error {face:.2e} of the diagonal "
+          f"(zero weights: {zero:.2e}); rotation {rotation_error:.2e}, median residual {residual:.2e}")
+    assert face < NOISE, (face, rms, worst)
     assert rotation_error < 0.01
-    residuals = [r for r in document["residuals_of_diagonal"] if r is not None]
-    assert np.median(residuals) < 3 * NOISE
+    # The residual of a solve that explains the landmarks: about sqrt(3) noise units per landmark.
+    assert residual < 3 * NOISE
     # Keyed: one key per frame on each shape key and on the head's transform.
     performance.write_animation(obj, document)
     scene = bpy.context.scene
