@@ -298,7 +298,11 @@ def test_batch_solve_writes_keys_json_and_plot_and_leaves_the_input(head, shapes
     assert os.path.getmtime(blend) == before
     document = json.load(open(report))
     assert document["unknown_columns"] == ["Unknown_x"] and len(document["residuals"]) == 30
-    assert weight_error(document, weights)[1] < 0.02
+    # Noise-free, every landmark tracked: only the light smoothing's lag is left, on every
+    # weight (measured max 0.004; a wrong frame, unit or unseen shape is off by tenths).
+    rms, worst = weight_error(document, weights)
+    print(f"batch weight error: rms {rms:.4f}, max {worst:.3f}")
+    assert worst < 0.02, (rms, worst)
     assert os.path.getsize(plot) > 1000
     bad = run_batch("solve", "--input", blend, "--object", "Template", "--clip", "Nope", "--output", out)
     assert bad.returncode == 2 and bad.stderr.startswith("shapesmith: error:")
