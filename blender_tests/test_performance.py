@@ -84,46 +84,103 @@ def head(sample, shapesmith):
     return obj, rig
 
 
-def layout_vertices(rig, count=40, seed=1):
-    """Vertices that move most across the shapes (a stand-in for a layout), plus a few rigid."""
+def rigid_vertices(rig, count=6):
+    """Vertices no shape moves, spread over the mesh: the stabilising markers a capture puts
+    on the forehead and temples besides the face's landmarks (they fix the first pose)."""
     motion = np.linalg.norm(rig.deltas, axis=2).max(axis=0)
-    strongest = [int(v) for v in np.argsort(-motion)[: 4 * count : 4]]
-    rigid = [int(v) for v in np.flatnonzero(motion < 1e-7)[:: 97][:6]]
-    return strongest[:count] + rigid
+    return [int(v) for v in np.flatnonzero(motion < 1e-7)[::97][:count]]
+
+
+def reconstruction_layout(shapesmith, obj, rig, count=60):
+    """Place Landmarks' layout with Add for Reconstruction up to `count` landmarks (every shape
+    gets a landmark that moves strongly in it, then the ones that best separate the shapes),
+    plus the rigid markers, as one collection. A layout of merely the most moving vertices
+    (all around the mouth) leaves the brows, eyes, cheeks and nose unseen: their weights
+    cannot come back from any solve."""
+    landmarks = module(shapesmith, "landmarks")
+    document = landmarks.place_landmarks(obj, epsilon=0.5, max_per_shape=2, landmarks=count)
+    assert document["uncovered"] == [] and document["inert"] == []
+    collection = landmarks.build_layout(obj, document, bpy.context.scene)
+    for vertex in rigid_vertices(rig):
+        empty = bpy.data.objects.new(f"LM_rigid_{vertex}", None)
+        empty["vertex"] = vertex
+        collection.objects.link(empty)
+    return collection
+
+
+def vertex_error(rig, document, weights):
+    """RMS over frames and vertices of the distance between the face the solved weights
+    make and the true one, as a fraction of the diagonal: what the weights are for. Shapes
+    that move the landmarks by less than the noise have weights no solve can pin down, but
+    then they move the face little too."""
+    error = np.asarray(document["weights"]) - weights
+    moved = np.einsum("tk,knc->tnc", error, rig.deltas.astype(np.float64))
+    diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
+    return float(np.sqrt((moved ** 2).sum(axis=2).mean())) / diagonal
 
 
 def test_3d_trajectories_give_back_the_weights_and_pose_with_lost_landmarks_and_an_empty_frame(head, shapesmith, tmp_path):
     performance = module(shapesmith, "performance")
     obj, rig = head
-    vertices = layout_vertices(rig)
-    collection = make_layout(obj, vertices)
+    collection = reconstruction_layout(shapesmith, obj, rig)
     names, ordered = performance.layout_landmarks(obj, collection)
     weights, matrices = truth(rig)
-    positions = landmark_world(rig, ordered, weights, matrices)
+    exact = landmark_world(rig, ordered, weights, matrices)
     diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
     rng = np.random.default_rng(3)
-    positions += rng.normal(0, NOISE * diagonal, positions.shape)
-    lost = rng.random(positions.shape[:2]) < 0.1
-    positions[lost] = np.nan
-    positions[40] = np.nan  # every landmark lost on one frame
-    path = str(tmp_path / "trajectories.csv")
-    write_csv(path, names, positions)
-    tracks = performance.read_trajectories(path, names, ordered, bpy.context.scene.frame_start)
-    assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
-    document = performance.solve(obj, tracks, smoothing=1.0)
+    lost = rng.random(exact.shape[:2]) < 0.1
+    lost[40] = True  # every landmark lost on one frame
     start = bpy.context.scene.frame_start
-    assert document["kept_frames"] == [start + 40]
-    assert document["weights"][40] == document["weights"][39]
-    assert document["observed"][0] == int((~lost[0]).sum())
+
+    def solve(positions, name):
+        positions = positions.copy()
+        positions[lost] = np.nan
+        path = str(tmp_path / name)
+        write_csv(path, names, positions)
+        tracks = performance.read_trajectories(path, names, ordered, start)
+        assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
+        document = performance.solve(obj, tracks, smoothing=1.0)
+        assert document["unseen_shapes"] == [] and document["kept_frames"] == [start + 40]
+        assert document["weights"][40] == document["weights"][39]
+        assert document["observed"][0] == int((~lost[0]).sum())
+        # The kept frame repeats its neighbour's pose (the head turns up to 0.007 radians a frame).
+        rotation_error = max(np.abs(np.array(r) - np.array(m.to_3x3())).max()
+                             for t, (r, m) in enumerate(zip(document["rotations"], matrices)) if t != 40)
+        residuals = [r for r in document["residuals_of_diagonal"] if r is not None]
+        return document, rotation_error, float(np.median(residuals))
+
+    # Noise-free: every frame's landmarks are explained exactly by the true weights and pose,
+    # so what is left is the smoothing's lag (a weight change of 1 costs one noise unit), the
+    # kept frame (weights move up to 0.08 a frame) and the frames where a shape's only
+    # landmark is lost (its weight is then held near the previous frame's). Those stay within
+    # a few hundredths (measured rms 0.007, 23 of 5200 weights off by more than 0.05), where
+    # shapes unseen by the layout (rms 0.34) or a failing optimiser (weights 0.1 to 0.9 off)
+    # are far above.
+    document, rotation_error, residual = solve(exact, "exact.csv")
     rms, worst = weight_error(document, weights)
-    # Noise of 0.1% of the diagonal, 10% of the landmarks lost: the weights within a few
-    # hundredths (the frame kept from its neighbour included).
-    print(f"3D weight error: rms {rms:.4f}, max {worst:.3f}")
-    assert rms < 0.05, (rms, worst)
-    rotation_error = max(np.abs(np.array(r) - np.array(m.to_3x3())).max() for r, m in zip(document["rotations"], matrices))
+    off = float(np.mean(np.abs(np.asarray(document["weights"]) - weights) > 0.05))
+    print(f"3D noise-free weight error: rms {rms:.4f}, max {worst:.3f}, share off by > 0.05: {off:.4f}; "
+          f"rotation {rotation_error:.2e}, median residual {residual:.2e} of the diagonal")
+    assert rms < 0.03 and off < 0.01, (rms, worst, off)
+    assert rotation_error < 1e-3 and residual < 0.1 * NOISE, (rotation_error, residual)
+    # With noise of 0.1% of the diagonal, shapes that move the landmarks by about the noise
+    # (the eyes' looks, the dimples) have weights no solve can pin down: the unconstrained
+    # least-squares spread of this layout's weights is 0.17 rms at the true pose (the solve's
+    # residual, below the noise, is lower than the truth's). What comes back is the face: the
+    # solved weights make it within about the noise (measured 0.09% of the diagonal), where
+    # zero weights are 1.7% off and a layout of the most moving vertices alone (23 shapes
+    # unseen) 0.6%.
+    noisy = exact + rng.normal(0, NOISE * diagonal, exact.shape)
+    document, rotation_error, residual = solve(noisy, "noisy.csv")
+    rms, worst = weight_error(document, weights)
+    face = vertex_error(rig, document, weights)
+    zero = vertex_error(rig, {"weights": np.zeros_like(weights)}, weights)
+    print(f"3D noisy weight error: rms {rms:.4f}, max {worst:.3f}; face error {face:.2e} of the diagonal "
+          f"(zero weights: {zero:.2e}); rotation {rotation_error:.2e}, median residual {residual:.2e}")
+    assert face < 1.5 * NOISE, (face, rms, worst)
     assert rotation_error < 0.01
-    residuals = [r for r in document["residuals_of_diagonal"] if r is not None]
-    assert np.median(residuals) < 3 * NOISE
+    # The residual of a solve that explains the landmarks: about sqrt(3) noise units per landmark.
+    assert residual < 3 * NOISE
     # Keyed: one key per frame on each shape key and on the head's transform.
     performance.write_animation(obj, document)
     scene = bpy.context.scene
@@ -138,13 +195,13 @@ def test_2d_tracks_in_a_movie_clip_through_a_distorting_camera(head, shapesmith,
     performance = module(shapesmith, "performance")
     obj, rig = head
     frames = 40
-    vertices = layout_vertices(rig)
-    collection = make_layout(obj, vertices)
+    collection = reconstruction_layout(shapesmith, obj, rig)
     names, ordered = performance.layout_landmarks(obj, collection)
     weights, matrices = truth(rig, frames, seed=4)
     positions = landmark_world(rig, ordered, weights, matrices)
-    # A short image sequence gives the clip its frames and size.
-    width, height = 320, 240
+    # A short image sequence gives the clip its frames and size: large enough that every
+    # landmark stays in frame (Blender clamps a marker to the image's border).
+    width, height = 640, 480
     image = bpy.data.images.new("frame", width, height)
     for f in range(frames):
         image.filepath_raw = str(tmp_path / f"frame_{f + 1:04d}.png")
@@ -166,33 +223,59 @@ def test_2d_tracks_in_a_movie_clip_through_a_distorting_camera(head, shapesmith,
     principal = np.array(intrinsics.principal_point_pixels)
     diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
     noise_px = NOISE * diagonal * 700.0 / 0.6
-    rng = np.random.default_rng(5)
+    # The true pixels: the pinhole and the Polynomial lens of Blender's tracking camera.
+    seen = np.einsum("rc,tlc->tlr", to_camera[:3, :3], positions) + to_camera[:3, 3]
+    x, y = seen[..., 0] / -seen[..., 2], seen[..., 1] / -seen[..., 2]
+    r2 = x * x + y * y
+    factor = 1 - 0.08 * r2 + 0.02 * r2 * r2
+    exact = np.stack([700.0 * x * factor + principal[0], 700.0 * y * factor + principal[1]], axis=2)
+    noisy = exact + np.random.default_rng(5).normal(0, noise_px, exact.shape)
+    assert (noisy > 0).all() and (noisy[..., 0] < width).all() and (noisy[..., 1] < height).all()
     for l, name in enumerate(names):
         track = clip.tracking.tracks.new(name=name, frame=1)
         for f in range(frames):
-            p = to_camera[:3, :3] @ positions[f, l] + to_camera[:3, 3]
-            x, y = p[0] / -p[2], p[1] / -p[2]
-            r2 = x * x + y * y
-            factor = 1 - 0.08 * r2 + 0.02 * r2 * r2
-            u = 700.0 * x * factor + principal[0] + rng.normal(0, noise_px)
-            v = 700.0 * y * factor + principal[1] + rng.normal(0, noise_px)
-            track.markers.insert_frame(f + 1, co=(u / width, v / height))
+            track.markers.insert_frame(f + 1, co=(noisy[f, l, 0] / width, noisy[f, l, 1] / height))
     # A clip without a camera is a clear error.
     with pytest.raises(ValueError, match="scene camera"):
         performance.clip_tracks(clip, names, ordered, None)
+    # A marker that left the frame: Blender clamps it to the border, where it is no position.
+    outside = clip.tracking.tracks[names[0]].markers.insert_frame(frames + 1, co=(1.3, 0.5))
+    assert tuple(outside.co) == (1.0, 0.5)
+    clip.tracking.tracks[names[1]].markers.find_frame(3).co = (-0.2, 0.5)
     tracks = performance.clip_tracks(clip, names, ordered, camera)
-    assert tracks.values.shape == (frames, len(names), 2) and np.isfinite(tracks.values).all()
+    assert tracks.values.shape == (frames, len(names), 2)
+    lost = ~np.isfinite(tracks.values).all(axis=2)
+    assert np.argwhere(lost).tolist() == [[2, 1]]
+    # The markers store float32 fractions of the image: a thousandth of a pixel.
+    assert np.abs(tracks.values - noisy)[~lost].max() < 1e-3
+    tracks.values[2, 1] = noisy[2, 1]
+    # With the clip's noise (0.44 pixels, the 3D test's 0.1% of the diagonal seen from 0.6 m),
+    # one camera sees even less of what the eyes' looks and the dimples do than 3D markers
+    # (and nothing of the depth): what comes back is the face, within twice the noise
+    # (measured 0.11% of the diagonal; zero weights are 1.7% off, a third of the shapes
+    # unseen 0.6%).
     document = performance.solve(obj, tracks, smoothing=1.0)
     rms, worst = weight_error(document, weights)
-    print(f"2D weight error: rms {rms:.4f}, max {worst:.3f}")
-    assert rms < 0.08, (rms, worst)
-    assert np.median([r for r in document["residuals"] if r is not None]) < 3 * noise_px
+    face = vertex_error(rig, document, weights)
+    residual = float(np.median([r for r in document["residuals"] if r is not None]))
+    print(f"2D noisy weight error: rms {rms:.4f}, max {worst:.3f}; face error {face:.2e} of the diagonal; "
+          f"median residual {residual:.3f} px")
+    assert face < 2 * NOISE, (face, rms, worst)
+    assert residual < 3 * noise_px
+    # The same tracks without noise: the weights themselves come back (only the smoothing's
+    # lag is left: a weight change of 1 costs one noise unit, 1 pixel; measured rms 0.02,
+    # where the noisy solve is 0.09 and unseen shapes 0.34).
+    tracks.values = exact
+    document = performance.solve(obj, tracks, smoothing=1.0)
+    rms, worst = weight_error(document, weights)
+    print(f"2D noise-free weight error: rms {rms:.4f}, max {worst:.3f}")
+    assert rms < 0.03, (rms, worst)
 
 
 def test_a_clip_without_matching_tracks_is_a_clear_error(head, shapesmith, tmp_path):
     performance = module(shapesmith, "performance")
     obj, rig = head
-    collection = make_layout(obj, layout_vertices(rig, 5))
+    collection = make_layout(obj, rigid_vertices(rig, 5))
     names, ordered = performance.layout_landmarks(obj, collection)
     image = bpy.data.images.new("still", 64, 64)
     image.filepath_raw = str(tmp_path / "still.png")
@@ -208,10 +291,8 @@ def test_a_clip_without_matching_tracks_is_a_clear_error(head, shapesmith, tmp_p
 def test_batch_solve_writes_keys_json_and_plot_and_leaves_the_input(head, shapesmith, tmp_path):
     performance = module(shapesmith, "performance")
     obj, rig = head
-    vertices = layout_vertices(rig, 30)
-    collection = make_layout(obj, vertices)
+    collection = reconstruction_layout(shapesmith, obj, rig)
     names, ordered = performance.layout_landmarks(obj, collection)
-    obj.shapesmith.landmarks.collection = collection
     blend = str(tmp_path / "with_layout.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
     weights, matrices = truth(rig, 30, seed=7)
@@ -224,7 +305,11 @@ def test_batch_solve_writes_keys_json_and_plot_and_leaves_the_input(head, shapes
     assert os.path.getmtime(blend) == before
     document = json.load(open(report))
     assert document["unknown_columns"] == ["Unknown_x"] and len(document["residuals"]) == 30
-    assert weight_error(document, weights)[1] < 0.02
+    # Noise-free, every landmark tracked: only the light smoothing's lag is left, on every
+    # weight (measured max 0.004; a wrong frame, unit or unseen shape is off by tenths).
+    rms, worst = weight_error(document, weights)
+    print(f"batch weight error: rms {rms:.4f}, max {worst:.3f}")
+    assert worst < 0.02, (rms, worst)
     assert os.path.getsize(plot) > 1000
     bad = run_batch("solve", "--input", blend, "--object", "Template", "--clip", "Nope", "--output", out)
     assert bad.returncode == 2 and bad.stderr.startswith("shapesmith: error:")

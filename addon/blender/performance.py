@@ -166,7 +166,10 @@ def clip_tracks(clip, names, vertices, camera_object):
             continue
         for marker in track.markers:
             frame = marker.frame - 1
-            if 0 <= frame < duration and not marker.mute:
+            # Blender clamps a marker's position to the image: one on the border has left the
+            # frame, and its clamped place would pull the solve, so it is lost.
+            inside = 0.0 < marker.co[0] < 1.0 and 0.0 < marker.co[1] < 1.0
+            if 0 <= frame < duration and not marker.mute and inside:
                 values[frame, l] = (marker.co[0] * width, marker.co[1] * height)
     if len(untracked) == len(names):
         raise MeshDataError(
