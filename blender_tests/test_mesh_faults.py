@@ -42,16 +42,24 @@ def add_zero_area_face(bm):
 
 
 def duplicate_first_face(obj):
-    """Face 0 listed a second time (bmesh refuses to make one): through the mesh arrays."""
+    """Face 0 listed a second time (bmesh refuses to make one, and adding loops one by one
+    crashes Blender 5.x): the mesh rebuilt with `from_pydata`, which does not validate, and
+    its shape keys copied onto it."""
     mesh = obj.data
-    corners = list(mesh.polygons[0].vertices)
-    first_loop = len(mesh.loops)
-    mesh.loops.add(len(corners))
-    for i, v in enumerate(corners):
-        mesh.loops[first_loop + i].vertex_index = v
-    mesh.polygons.add(1)
-    mesh.polygons[-1].loop_start = first_loop
-    mesh.update(calc_edges=True)
+    count = len(mesh.vertices)
+    keys = []
+    for block in mesh.shape_keys.key_blocks:
+        co = np.empty(count * 3, np.float32)
+        block.data.foreach_get("co", co)
+        keys.append((block.name, block.value, co))
+    faces = [list(polygon.vertices) for polygon in mesh.polygons]
+    rebuilt = bpy.data.meshes.new(mesh.name)
+    rebuilt.from_pydata([vertex.co.copy() for vertex in mesh.vertices], [], faces + [faces[0]])
+    obj.data = rebuilt
+    for name, value, co in keys:
+        block = obj.shape_key_add(name=name, from_mix=False)
+        block.data.foreach_set("co", co)
+        block.value = value
 
 
 def state(obj):
