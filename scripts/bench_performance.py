@@ -1,7 +1,7 @@
 """Solve Performance benchmark (never asserted): milliseconds per frame and the known-answer
 weight errors on the bundled Template (and on its 25k-vertex subdivision for speed).
 
-    python scripts/bench_performance.py -- [--json OUT.json] [--frames 100]
+    python scripts/bench_performance.py -- [--json OUT.json] [--frames 100] [--plot OUT.png]
 
 A known performance: random smooth weights (clamped sines) and a rigid head motion; the
 landmarks' positions with Gaussian noise of 0.1% of the head's diagonal, as 3D trajectories
@@ -67,7 +67,8 @@ def project(camera, points):
 
 
 def run(native, rig, vertices, frames, kind, smoothing=1.0, seed=0):
-    """(ms per frame, weight RMS error, weight max error) of one known-answer solve."""
+    """(ms per frame, weight RMS error, weight max error, the native result) of one
+    known-answer solve."""
     weights, poses = truth(len(rig.names), frames, seed)
     points = world(rig, vertices, weights, poses)
     diagonal = float(np.linalg.norm(rig.neutral.max(0) - rig.neutral.min(0)))
@@ -83,7 +84,7 @@ def run(native, rig, vertices, frames, kind, smoothing=1.0, seed=0):
                                       np.ascontiguousarray(tracks), camera=camera, smoothing=smoothing)
     seconds = time.perf_counter() - started
     error = np.asarray(solved["weights"]) - weights
-    return 1000 * seconds / frames, float(np.sqrt(np.mean(error ** 2))), float(np.abs(error).max())
+    return 1000 * seconds / frames, float(np.sqrt(np.mean(error ** 2))), float(np.abs(error).max()), solved
 
 
 def main():
@@ -92,6 +93,7 @@ def main():
     cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
     parser.add_argument("--json", default=os.path.join(cache, "bench", "performance.json"))
     parser.add_argument("--frames", type=int, default=100)
+    parser.add_argument("--plot", help="also write the Performance panel's plot of the 3D solve with the designed layout (PNG)")
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
@@ -110,11 +112,17 @@ def main():
     document = landmarks.place_landmarks(template, epsilon=0.5, max_per_shape=1, landmarks=68)
     designed = [lm["vertex"] for lm in document["landmarks"]]
     results = {"frames": args.frames, "noise": NOISE, "layouts": {}, "speed": {}}
+    run(native, rig, designed, 10, "3d")  # warm-up: the first call starts the thread pool
     print(f"Known answer, {args.frames} frames, noise {NOISE:.1%} of the diagonal, smoothing 1")
     print(f"{'layout':<28}{'L':>4}{'kind':>6}{'ms/frame':>10}{'w rms':>9}{'w max':>8}")
     for name, vertices in (("added for reconstruction", designed), ("conventional 68", conventional)):
         for kind in ("3d", "2d"):
-            ms, rms, worst = run(native, rig, vertices, args.frames, kind)
+            ms, rms, worst, solved = run(native, rig, vertices, args.frames, kind)
+            if args.plot and kind == "3d" and name == "added for reconstruction":
+                plot = import_module(shapesmith.__name__ + ".blender.performance_plot")
+                document = {"frames": list(range(1, args.frames + 1)), "residuals": solved["residuals"],
+                            "weights": solved["weights"], "shapes": rig.names, "kind": "3d"}
+                plot.write_plot_png(document, args.plot)
             results["layouts"].setdefault(name, {"landmarks": len(vertices)})[kind] = {"ms_per_frame": ms, "weight_rms": rms, "weight_max": worst}
             print(f"{name:<28}{len(vertices):>4}{kind:>6}{ms:>10.2f}{rms:>9.4f}{worst:>8.3f}")
     import bench_transfer
@@ -122,7 +130,7 @@ def main():
     dense = bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)
     dense_rig = mesh_arrays.read_rig(dense)
     for kind in ("3d", "2d"):
-        ms, rms, worst = run(native, dense_rig, designed, args.frames, kind)
+        ms, rms, worst, _ = run(native, dense_rig, designed, args.frames, kind)
         results["speed"][f"25k_{kind}"] = {"vertices": len(dense_rig.neutral), "ms_per_frame": ms, "weight_rms": rms}
         print(f"{'25k head, same vertices':<28}{len(designed):>4}{kind:>6}{ms:>10.2f}{rms:>9.4f}{worst:>8.3f}")
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
