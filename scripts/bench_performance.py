@@ -29,6 +29,8 @@ NOISE = 0.001
 FOCAL = 1800.0
 DISTANCE = 0.6
 DISTORTION = (-0.08, 0.02, 0.0)
+# The plot's shapes: one each of the jaw, the mouth corners, the lids and the brows.
+PLOT_SHAPES = ["jawOpen", "mouthSmileLeft", "eyeBlinkLeft", "browInnerUp"]
 
 
 def truth(k, frames, seed=0):
@@ -122,7 +124,7 @@ def main():
                 plot = import_module(shapesmith.__name__ + ".blender.performance_plot")
                 document = {"frames": list(range(1, args.frames + 1)), "residuals": solved["residuals"],
                             "weights": solved["weights"], "shapes": rig.names, "kind": "3d"}
-                plot.write_plot_png(document, args.plot)
+                plot.write_plot_png(document, args.plot, PLOT_SHAPES)
             results["layouts"].setdefault(name, {"landmarks": len(vertices)})[kind] = {"ms_per_frame": ms, "weight_rms": rms, "weight_max": worst}
             print(f"{name:<28}{len(vertices):>4}{kind:>6}{ms:>10.2f}{rms:>9.4f}{worst:>8.3f}")
     import bench_transfer
