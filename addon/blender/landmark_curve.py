@@ -140,11 +140,16 @@ def curve_picture(document):
 
 def write_curve_png(document, path):
     """Writes the curve picture to `path` (PNG) through a temporary Blender image."""
-    pixels = curve_picture(document)
+    return save_png(curve_picture(document), path, "Shapesmith Landmark Curve")
+
+
+def save_png(pixels, path, name):
+    """Writes an (H, W, 3) Canvas picture (row 0 at the top) to `path` as PNG through a
+    temporary Blender image called `name`."""
     height, width, _ = pixels.shape
     rgba = np.ones((height, width, 4), dtype=np.float32)
     rgba[:, :, :3] = pixels[::-1]
-    image = bpy.data.images.new("Shapesmith Landmark Curve", width, height, alpha=False)
+    image = bpy.data.images.new(name, width, height, alpha=False)
     try:
         image.pixels.foreach_set(rgba.ravel())
         image.filepath_raw = path

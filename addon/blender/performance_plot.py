@@ -2,10 +2,9 @@
 below, against the scene frame. Drawn with numpy (the landmark curve's canvas and font) and
 saved through a temporary Blender image, so the .blend is not changed."""
 
-import bpy
 import numpy as np
 
-from .landmark_curve import GRID, INK, Canvas, nice_ticks
+from .landmark_curve import GRID, INK, Canvas, nice_ticks, save_png
 
 WIDTH, HEIGHT = 900, 560
 LEFT, RIGHT, TOP, GAP, BOTTOM = 80, 170, 30, 50, 40
@@ -74,16 +73,4 @@ def plot_picture(document, names=None):
 
 def write_plot_png(document, path, names=None):
     """Writes the plot to `path` (PNG) through a temporary Blender image."""
-    pixels = plot_picture(document, names)
-    height, width, _ = pixels.shape
-    rgba = np.ones((height, width, 4), dtype=np.float32)
-    rgba[:, :, :3] = pixels[::-1]
-    image = bpy.data.images.new("Shapesmith Performance Plot", width, height, alpha=False)
-    try:
-        image.pixels.foreach_set(rgba.ravel())
-        image.filepath_raw = path
-        image.file_format = "PNG"
-        image.save()
-    finally:
-        bpy.data.images.remove(image)
-    return path
+    return save_png(plot_picture(document, names), path, "Shapesmith Performance Plot")
