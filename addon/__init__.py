@@ -29,6 +29,7 @@ _MODULE_NAMES = (
     "operators.wrap_template",
     "operators.transfer_onto_character",
     "operators.solve_performance",
+    "operators.cancel_performance_solve",
     "operators.import_capture",
     "operators.save_performance_report",
     "ui.panels",

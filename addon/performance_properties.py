@@ -49,6 +49,12 @@ class SHAPESMITH_PG_performance(bpy.types.PropertyGroup):
         name="Capture FPS", default=0.0, min=0.0,
         description="Live Link Face: the capture's frame rate (0: read from the timecodes)")
     capture_head: bpy.props.BoolProperty(name="Head Rotation", default=True, description="Key the captured head rotation")
+    capture_head_invert: bpy.props.EnumProperty(
+        name="Invert", options={"ENUM_FLAG"}, default=set(),
+        items=(("YAW", "Yaw", "Turn the other way (Live Link Face: the phone held the other way round)"),
+               ("PITCH", "Pitch", "Nod the other way (Live Link Face: the phone held the other way round)"),
+               ("ROLL", "Roll", "Tilt the other way")),
+        description="Captured head angles whose sign to change")
     # The last solve or import.
     done: bpy.props.BoolProperty(default=False)
     summary: bpy.props.StringProperty(description="The last result's summary, one line per row")

@@ -675,6 +675,7 @@ def add_import_capture_args(parser):
     parser.add_argument("--mapping", help='JSON file {"column": "shape key" or ["key", ...]} for names that do not match')
     parser.add_argument("--capture-fps", type=float, help="Live Link Face: the capture's frame rate (default: from the timecodes)")
     parser.add_argument("--no-head", action="store_true", help="do not key the head rotation onto the object")
+    parser.add_argument("--invert-head", default="", help="comma-separated head angles whose sign to change: yaw,pitch,roll")
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--output", required=True, help="save the animated file here (the input is never written)")
 
@@ -692,7 +693,8 @@ def run_import_capture(args):
             raise BatchError(f"mapping file not found: {args.mapping}")
         with open(args.mapping) as handle:
             mapping = capture.read_mapping(handle.read())
-    report = capture.import_capture(obj, args.capture, bpy.context.scene, mapping, args.capture_fps, not args.no_head)
+    invert = {name.strip().upper() for name in args.invert_head.split(",") if name.strip()}
+    report = capture.import_capture(obj, args.capture, bpy.context.scene, mapping, args.capture_fps, not args.no_head, invert)
     print(f"{report['frames']} frames of {report['format']} onto '{obj.name}' (frames {report['first_frame']:g} to "
           f"{report['last_frame']:g}, capture {report['capture_fps']} fps, scene {report['scene_fps']:g} fps); "
           f"{len(report['columns_used'])} columns used, unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}, "

@@ -11,6 +11,16 @@ Formats:
   `k,<milliseconds>,<head x,y,z>,<head euler x,y,z in degrees>,<left eye x,y>,<right eye x,y>,
   <weights...>` line per captured frame.
 
+Head angles (yaw, pitch, roll) turn the head about its own axes, found from the rig (the front
+Pack Expressions uses: its stored front, else `front.rig_front`): left = up x front, up,
+front. The rotation is R = R_front(roll) R_up(yaw) R_left(pitch) by the right-hand rule, so
+positive pitch nods the face down, positive yaw turns it to its own left, positive roll tilts
+it to its right shoulder (Apple's ARKit face coordinates: x to the face's left, y up, z out of
+the face). Live Link Face stores radians (the Diffeomorphic DAZ importer's and the Maya Live
+Link importer's reading); the signs of its yaw and pitch follow how the phone was held (the
+Blender LiveLinkFace add-on notes them inverted in landscape), so each angle can be inverted.
+Face Cap stores degrees, Euler x, y, z = pitch, yaw, roll.
+
 Timing: captured frame i is keyed at `start + (t_i - t_0) x scene fps` (t in seconds): one key
 per captured frame, on whole frames when the capture's rate is the scene's, between frames
 otherwise, so the performance keeps its speed. Values are keyed exactly as captured.
@@ -22,10 +32,14 @@ import math
 import os
 import re
 
-from mathutils import Euler
+import numpy as np
+from mathutils import Matrix
 
+from .front import view_front
 from .keyframes import key_channel, key_transforms
 from .mesh_arrays import MeshDataError
+
+HEAD_ANGLES = ("YAW", "PITCH", "ROLL")
 
 # Columns of a Live Link Face CSV that are not shapes.
 LIVE_LINK_HEAD = ("HeadYaw", "HeadPitch", "HeadRoll")
@@ -117,7 +131,7 @@ def read_live_link(path, fps=None):
     values = [[number(row, c) for c in shape_columns] for row in rows[1:]]
     head = None
     if all(c is not None for c in head_columns):
-        # Yaw, pitch, roll in radians (as Blender's other Live Link importers read them).
+        # Pitch, yaw, roll in radians (see the module's header).
         head = [(number(row, head_columns[1]), number(row, head_columns[0]), number(row, head_columns[2])) for row in rows[1:]]
     ignored = [name for name in header if name in LIVE_LINK_OTHER]
     return Capture([header[c] for c in shape_columns], values, times, head, fps, "Live Link Face CSV", ignored)
@@ -179,12 +193,39 @@ def key_frames(capture, scene_fps, start):
     return frames
 
 
-def import_capture(obj, path, scene, mapping=None, fps=None, head=True):
+def head_axes(obj):
+    """(left, up, front) unit vectors of the face in `obj`'s mesh coordinates and the warnings
+    of finding them (a mesh the tools cannot read keeps Blender's front view: -Y, up +Z)."""
+    try:
+        front, up = view_front(obj)
+        warnings = []
+    except MeshDataError as error:
+        front, up = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
+        warnings = [f"the face's front was not found ({error}): the head turns about -Y (front) and +Z (up)"]
+    front, up = np.asarray(front, dtype=np.float64), np.asarray(up, dtype=np.float64)
+    return np.cross(up, front), up, front, warnings
+
+
+def head_rotations(angles, axes, invert=()):
+    """The head's rotation per captured frame (3 x 3 mathutils, mesh coordinates) from (pitch,
+    yaw, roll) in radians: R_front(roll) R_up(yaw) R_left(pitch); the angles named in `invert`
+    (YAW, PITCH, ROLL) change sign first."""
+    left, up, front = axes
+    signs = {name: -1.0 if name in invert else 1.0 for name in HEAD_ANGLES}
+    return [Matrix.Rotation(signs["ROLL"] * roll, 3, front) @ Matrix.Rotation(signs["YAW"] * yaw, 3, up)
+            @ Matrix.Rotation(signs["PITCH"] * pitch, 3, left) for pitch, yaw, roll in angles]
+
+
+def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_head=()):
     """Keys the capture onto `obj`'s shape keys (and its rotation when the capture has the
-    head's and `head`); returns the report. Everything is read and matched before any key."""
+    head's and `head`, about the face's own axes; `invert_head` names angles whose sign to
+    change); returns the report. Everything is read and matched before any key."""
     keys = obj.data.shape_keys
     if obj.type != "MESH" or keys is None or len(keys.key_blocks) < 2:
         raise MeshDataError(f"'{obj.name}' has no shape keys to drive")
+    unknown = set(invert_head) - set(HEAD_ANGLES)
+    if unknown:
+        raise MeshDataError(f"unknown head angle {', '.join(sorted(unknown))}: invert YAW, PITCH or ROLL")
     capture = read_capture(path, fps)
     names = [block.name for block in keys.key_blocks if block != keys.reference_key]
     matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping)
@@ -193,6 +234,11 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True):
             f"no column of '{os.path.basename(path)}' matches a shape key of '{obj.name}' (columns such as "
             f"{', '.join(capture.columns[:3])}): give a mapping"
         )
+    keyed_head = head and capture.head is not None
+    warnings = []
+    if keyed_head:
+        left, up, front, warnings = head_axes(obj)
+        rotations = head_rotations(capture.head, (left, up, front), invert_head)
     scene_fps = scene.render.fps / scene.render.fps_base
     frames = key_frames(capture, scene_fps, scene.frame_start)
     for column, targets in matched.items():
@@ -200,11 +246,9 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True):
         column_values = [row[c] for row in capture.values]
         for target in targets:
             key_channel(keys.key_blocks[target], "value", -1, frames, column_values, group="Shapesmith Capture")
-    keyed_head = head and capture.head is not None
     if keyed_head:
         rest = obj.matrix_world.copy()
-        key_transforms(obj, frames, [rest @ Euler((pitch, roll, yaw), "XYZ").to_matrix().to_4x4()
-                                     for pitch, yaw, roll in capture.head])
+        key_transforms(obj, frames, [rest @ rotation.to_4x4() for rotation in rotations])
     return {
         "object": obj.name,
         "capture": os.path.abspath(path),
@@ -219,4 +263,7 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True):
         "unmatched_keys": unmatched_keys,
         "ignored_columns": capture.ignored,
         "head_rotation": keyed_head,
+        "head_axes": {"left": list(left), "up": list(up), "front": list(front)} if keyed_head else None,
+        "inverted_head_angles": sorted(invert_head),
+        "warnings": warnings,
     }

@@ -199,45 +199,68 @@ def start_pose(obj):
     return [list(row) for row in rotation.to_matrix()], list(location), float(sum(scale) / 3.0)
 
 
+class SolveRequest:
+    """Everything one solve needs, read from Blender on the main thread: the rig's arrays, the
+    tracks and the settings. `run` then needs no Blender at all, so it may run on a worker
+    thread (`performance_job.SolveJob`)."""
+
+    def __init__(self, obj, tracks, smoothing=1.0, solve_scale=False):
+        self.object_name = obj.name
+        self.rig = read_rig(obj)
+        self.tracks = tracks
+        self.smoothing, self.solve_scale = smoothing, solve_scale
+        self.rotation, self.translation, self.scale = start_pose(obj)
+
+    def run(self, progress=None):
+        """The native solve (GIL released); `progress(fraction)` returning False stops it
+        (`CancelledError`)."""
+        rig, tracks = self.rig, self.tracks
+        return native.module().solve_performance(
+            rig.neutral, rig.deltas, rig.triangles, rig.names, tracks.vertices, np.ascontiguousarray(tracks.values),
+            camera=tracks.camera, smoothing=self.smoothing, solve_scale=self.solve_scale, start_rotation=self.rotation,
+            start_translation=self.translation, start_scale=self.scale, progress=progress,
+        )
+
+    def document(self, solved):
+        """The JSON-ready report of a finished solve."""
+        rig, tracks = self.rig, self.tracks
+        diagonal = float(np.linalg.norm(rig.neutral.max(axis=0) - rig.neutral.min(axis=0))) * self.scale
+        residuals = solved["residuals"]
+        units = "pixels" if tracks.camera else "scene units"
+        return {
+            "object": self.object_name,
+            "source": tracks.source,
+            "kind": "2d" if tracks.camera else "3d",
+            "frames": tracks.frames,
+            "fps": tracks.fps,
+            "landmarks": tracks.names,
+            "vertices": list(tracks.vertices),
+            "shapes": rig.names,
+            "weights": solved["weights"],
+            "rotations": solved["rotations"],
+            "quaternions": solved["quaternions"],
+            "translations": solved["translations"],
+            "scales": solved["scales"],
+            "residuals": residuals,
+            "residual_units": units,
+            "residuals_of_diagonal": None if tracks.camera else [None if r is None else r / diagonal for r in residuals],
+            "observed": solved["observed"],
+            "kept_frames": [tracks.frames[t] for t in solved["kept"]],
+            "rigid_landmarks": [tracks.names[l] for l in solved["rigid"]],
+            "unseen_shapes": solved["unseen"],
+            "inert_shapes": solved["inert"],
+            "unknown_columns": tracks.unknown,
+            "untracked_landmarks": tracks.untracked,
+            "smoothing": self.smoothing,
+            "warnings": rig.warnings,
+        }
+
+
 def solve(obj, tracks, smoothing=1.0, solve_scale=False, progress=None):
-    """Solves the pose and weights of every frame; returns the document (writes nothing)."""
-    rig = read_rig(obj)
-    rotation, translation, scale = start_pose(obj)
-    solved = native.module().solve_performance(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, tracks.vertices, np.ascontiguousarray(tracks.values),
-        camera=tracks.camera, smoothing=smoothing, solve_scale=solve_scale, start_rotation=rotation,
-        start_translation=translation, start_scale=scale, progress=progress,
-    )
-    diagonal = float(np.linalg.norm(rig.neutral.max(axis=0) - rig.neutral.min(axis=0))) * scale
-    residuals = solved["residuals"]
-    units = "pixels" if tracks.camera else "scene units"
-    return {
-        "object": obj.name,
-        "source": tracks.source,
-        "kind": "2d" if tracks.camera else "3d",
-        "frames": tracks.frames,
-        "fps": tracks.fps,
-        "landmarks": tracks.names,
-        "vertices": list(tracks.vertices),
-        "shapes": rig.names,
-        "weights": solved["weights"],
-        "rotations": solved["rotations"],
-        "quaternions": solved["quaternions"],
-        "translations": solved["translations"],
-        "scales": solved["scales"],
-        "residuals": residuals,
-        "residual_units": units,
-        "residuals_of_diagonal": None if tracks.camera else [None if r is None else r / diagonal for r in residuals],
-        "observed": solved["observed"],
-        "kept_frames": [tracks.frames[t] for t in solved["kept"]],
-        "rigid_landmarks": [tracks.names[l] for l in solved["rigid"]],
-        "unseen_shapes": solved["unseen"],
-        "inert_shapes": solved["inert"],
-        "unknown_columns": tracks.unknown,
-        "untracked_landmarks": tracks.untracked,
-        "smoothing": smoothing,
-        "warnings": rig.warnings,
-    }
+    """Solves the pose and weights of every frame, blocking; returns the document (writes
+    nothing)."""
+    request = SolveRequest(obj, tracks, smoothing, solve_scale)
+    return request.document(request.run(progress))
 
 
 def pose_matrices(document):

@@ -28,7 +28,8 @@ class SHAPESMITH_OT_import_capture(bpy.types.Operator):
                 raise capture.MeshDataError("choose the capture file (Live Link Face CSV or Face Cap TXT)")
             mapping = capture.read_mapping(settings.mapping.as_string()) if settings.mapping else None
             report = capture.import_capture(obj, bpy.path.abspath(settings.capture), context.scene, mapping,
-                                            settings.capture_fps or None, settings.capture_head)
+                                            settings.capture_fps or None, settings.capture_head,
+                                            set(settings.capture_head_invert))
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
@@ -42,6 +43,8 @@ class SHAPESMITH_OT_import_capture(bpy.types.Operator):
         settings.done = True
         settings.summary = "\n".join(lines)
         settings.document = ""
+        for warning in report["warnings"]:
+            self.report({"WARNING"}, warning)
         self.report({"INFO"}, "; ".join(lines[:2]))
         return {"FINISHED"}
 

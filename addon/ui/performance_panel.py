@@ -3,6 +3,7 @@ or from an ARKit capture."""
 
 import bpy
 
+from ..blender import performance_job
 from .panels import ShapesmithPanel
 
 
@@ -21,6 +22,8 @@ class SHAPESMITH_PT_performance(ShapesmithPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.prop(settings, "capture_fps")
             row.prop(settings, "capture_head")
+            if settings.capture_head:
+                layout.row(align=True).prop(settings, "capture_head_invert")
             layout.operator("shapesmith.import_capture", icon="IMPORT")
         else:
             if settings.source == "TRAJECTORIES":
@@ -33,7 +36,14 @@ class SHAPESMITH_PT_performance(ShapesmithPanel, bpy.types.Panel):
             layout.prop(settings, "landmarks")
             layout.prop(settings, "smoothing")
             layout.prop(settings, "target")
-            layout.operator("shapesmith.solve_performance", icon="PLAY")
+            job = performance_job.current()
+            if job is None:
+                layout.operator("shapesmith.solve_performance", icon="PLAY")
+            else:
+                row = layout.row(align=True)
+                text = "Cancelling" if job.cancelling else f"Solving {100 * job.fraction:.0f}%"
+                row.progress(factor=job.fraction, type="BAR", text=text)
+                row.operator("shapesmith.cancel_performance_solve", text="", icon="CANCEL")
         if settings.done:
             box = layout.box().column(align=True)
             for line in settings.summary.splitlines():
