@@ -7,7 +7,7 @@ noise 0.1% of the diagonal), in its three steps:
 
 1. the head with the 68 landmarks Place Landmarks chose (a cover of every shape, then the ones
    Add for Reconstruction adds), as dots on a front render;
-2. the tracks: each landmark's noisy 3D trajectory over the 30 frames before TRACK_FRAME,
+2. the tracks: each landmark's noisy 3D trajectory over the 15 frames before TRACK_FRAME,
    drawn over a render of the true performance at that frame (the take's image);
 3. the solve (3D trajectories, smoothing 1): the head driven by the solved weights and pose at
    TRACK_FRAME beside it, then at SOLVED_FRAMES, above the Performance panel's plot of the
@@ -35,7 +35,7 @@ from bench_transfer import batch_cache  # noqa: E402
 
 FRAMES = 100
 TRACK_FRAME = 40
-TRAIL = 30
+TRAIL = 15
 SOLVED_FRAMES = (12, 55, 70, 90)
 PLOT_SHAPES = ["jawOpen", "mouthSmileLeft", "eyeBlinkLeft", "browInnerUp"]
 WIDTH = 900
@@ -49,12 +49,18 @@ MARK = (0.6, 0.6, 0.6)
 
 
 class Stage:
-    """Where the orthographic front camera sees the head: centre and extent (scene units)."""
+    """The orthographic front camera: centred on the posed head (its neutral's box centre
+    moved by the pose: the mesh's origin is far below the head, so a small turn moves the head
+    much), the head's extent across the picture's longer side."""
 
     def __init__(self, rig):
-        low, high = rig.neutral.min(0), rig.neutral.max(0)
-        self.centre = (low + high) / 2
+        low, high = rig.neutral.min(0).astype(np.float64), rig.neutral.max(0).astype(np.float64)
+        self.rest_centre = (low + high) / 2
         self.extent = 1.08 * float(max(high[0] - low[0], high[2] - low[2]))
+        self.centre = self.rest_centre
+
+    def place(self, rotation, translation):
+        self.centre = np.asarray(rotation) @ self.rest_centre + np.asarray(translation)
 
     def render(self, obj, size, path):
         location = Vector(self.centre) + Vector((0.0, -1.0, 0.0))
@@ -142,6 +148,7 @@ def main():
     # 2. The tracks over the true frame.
     f = TRACK_FRAME
     pose(template, weights[f], rotations[f], translations[f])
+    stage.place(rotations[f], translations[f])
     canvas = Canvas(*TILE)
     canvas.pixels[:] = 0.35 + 0.65 * stage.render(template, TILE, os.path.join(work, "loop_truth.png"))
     trails = stage.to_pixels(noisy[f - TRAIL:f + 1], TILE)
@@ -155,6 +162,7 @@ def main():
     # 3. The driven head at the same frame, then at the strip's frames.
     def solved_render(frame, size, name):
         pose(template, solved["weights"][frame], solved["rotations"][frame], solved["translations"][frame])
+        stage.place(solved["rotations"][frame], solved["translations"][frame])
         return stage.render(template, size, os.path.join(work, name))
 
     tiles["solved"] = solved_render(f, TILE, "loop_solved.png")

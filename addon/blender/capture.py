@@ -122,17 +122,24 @@ def read_live_link(path, fps=None):
     shape_columns = [c for c, name in enumerate(header) if name not in LIVE_LINK_HEAD + LIVE_LINK_OTHER]
     head_columns = [header.index(name) if name in header else None for name in LIVE_LINK_HEAD]
 
-    def number(row, c):
-        try:
-            return float(row[c])
-        except (IndexError, ValueError):
-            raise MeshDataError(f"'{os.path.basename(path)}': column '{header[c]}' has a value that is not a number: {row[c:c + 1]}")
-
-    values = [[number(row, c) for c in shape_columns] for row in rows[1:]]
+    try:
+        # Every cell after the timecode is a number: parsed at once (a 10-minute take is 2M cells).
+        table = np.array([row[1:len(header)] for row in rows[1:]], dtype=np.float64)
+    except ValueError:
+        table = None
+    if table is None or table.shape != (len(rows) - 1, len(header) - 1):
+        for row in rows[1:]:
+            for c in range(1, len(header)):
+                try:
+                    float(row[c])
+                except (IndexError, ValueError):
+                    raise MeshDataError(
+                        f"'{os.path.basename(path)}': column '{header[c]}' has a value that is not a number: {row[c:c + 1]}")
+    values = table[:, [c - 1 for c in shape_columns]]
     head = None
     if all(c is not None for c in head_columns):
         # Pitch, yaw, roll in radians (see the module's header).
-        head = [(number(row, head_columns[1]), number(row, head_columns[0]), number(row, head_columns[2])) for row in rows[1:]]
+        head = table[:, [head_columns[1] - 1, head_columns[0] - 1, head_columns[2] - 1]].tolist()
     ignored = [name for name in header if name in LIVE_LINK_OTHER]
     return Capture([header[c] for c in shape_columns], values, times, head, fps, "Live Link Face CSV", ignored)
 
@@ -241,9 +248,10 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_h
         rotations = head_rotations(capture.head, (left, up, front), invert_head)
     scene_fps = scene.render.fps / scene.render.fps_base
     frames = key_frames(capture, scene_fps, scene.frame_start)
+    values = np.asarray(capture.values, dtype=np.float64)
     for column, targets in matched.items():
         c = capture.columns.index(column)
-        column_values = [row[c] for row in capture.values]
+        column_values = values[:, c]
         for target in targets:
             key_channel(keys.key_blocks[target], "value", -1, frames, column_values, group="Shapesmith Capture")
     if keyed_head:
