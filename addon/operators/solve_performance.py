@@ -116,9 +116,12 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
                 area.tag_redraw()
 
     def _end(self, context):
+        """Removes the timer and the status text (the window may be gone when Blender ends
+        the operator)."""
         context.window_manager.event_timer_remove(self._timer)
-        context.workspace.status_text_set(None)
-        for area in context.screen.areas:
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        for area in context.screen.areas if context.screen is not None else ():
             if area.type == "VIEW_3D":
                 area.tag_redraw()
 
