@@ -546,7 +546,10 @@ def test_a_face_cap_take_comes_back_and_batch_lists_what_it_used(head, shapesmit
     bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
     out, report_path = str(tmp_path / "out.blend"), str(tmp_path / "capture.json")
     run_batch("import-capture", "--input", blend, "--object", "Template", "--capture", path, "--output", out,
-              "--json", report_path, check=True)
+              "--json", report_path, "--invert-head", "pitch", check=True)
+    bad = run_batch("import-capture", "--input", blend, "--object", "Template", "--capture", path, "--output", out,
+                    "--invert-head", "twist")
+    assert bad.returncode == 2 and "unknown head angle" in bad.stderr
     report = json.load(open(report_path))
     assert report["unmatched_columns"] == ["notAShape"]
     assert set(report["columns_used"]) == set(names[:4])
@@ -559,7 +562,9 @@ def test_a_face_cap_take_comes_back_and_batch_lists_what_it_used(head, shapesmit
         scene.frame_set(scene.frame_start + f)
         assert keys["jawOpen"].value == pytest.approx(values[f, 2], abs=1e-6)
     # Face Cap's Euler x, y, z (degrees) are pitch, yaw, roll about the face's left, up and
-    # front axes (+X, +Z, -Y on the Template): R_front(roll) R_up(yaw) R_left(pitch).
+    # front axes (+X, +Z, -Y on the Template): R_front(roll) R_up(yaw) R_left(pitch), the
+    # pitch inverted here (--invert-head pitch).
+    assert report["inverted_head_angles"] == ["PITCH"]
     expected = (rotation_about((0, -1, 0), math.radians(1)) @ rotation_about((0, 0, 1), math.radians(-3))
-                @ rotation_about((1, 0, 0), math.radians(5)))
+                @ rotation_about((1, 0, 0), math.radians(-5)))
     assert np.allclose(np.array(template.matrix_world)[:3, :3], expected, atol=1e-5)
