@@ -383,6 +383,15 @@ def test_a_solve_job_cancelled_midway_keys_nothing_and_run_to_its_end_keys_what_
     assert all(np.array_equal(blocking[k], stepped[k]) for k in stepped)
     assert json.loads(settings.document)["weights"] == job.document["weights"]
 
+    # A shape key removed while the solve runs: the result no longer fits the rig, so the
+    # job fails and keys nothing.
+    obj.animation_data_clear()
+    obj.data.shape_keys.animation_data_clear()
+    job = jobs.SolveJob(obj, tracks, smoothing=1.0)
+    obj.shape_key_remove(obj.data.shape_keys.key_blocks["jawOpen"])
+    assert drive(job) == "failed" and "removed during the solve" in str(job.error)
+    assert obj.animation_data is None and obj.data.shape_keys.animation_data is None
+
 
 def test_a_designed_layout_recovers_the_weights_better_than_a_conventional_68_point_one(head, shapesmith):
     """Paper 003's claim on real solves: the known performance (noise 0.1% of the diagonal, 3D
