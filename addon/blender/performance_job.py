@@ -58,6 +58,11 @@ class SolveJob:
         """Asks the solve to stop; nothing is written once asked, even if it was just done."""
         self._stop.set()
 
+    def wait(self, timeout):
+        """Waits up to `timeout` seconds for the worker to end (after `cancel`, it stops at its
+        next checkpoint, within about 25 ms)."""
+        self._worker.join(timeout)
+
     @property
     def cancelling(self):
         return self._stop.is_set() and self.state == "running"

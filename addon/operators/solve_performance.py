@@ -103,8 +103,10 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
         return self.finish(context.scene.shapesmith_performance, job.document)
 
     def cancel(self, context):
-        """Blender ends the operator (a file is loaded, the window closes): stop the solve."""
+        """Blender ends the operator (a file is loaded, the window closes): stop the solve, and
+        let the native call return before Blender goes on (it may be quitting)."""
         self._job.cancel()
+        self._job.wait(1.0)
         self._end(context)
 
     def _show(self, context):
