@@ -83,7 +83,7 @@ def run(native, rig, vertices, frames, kind, smoothing=1.0, seed=0):
         tracks = project(camera, points) + rng.normal(0, NOISE * diagonal * FOCAL / DISTANCE, points.shape[:2] + (2,))
     started = time.perf_counter()
     solved = native.solve_performance(rig.neutral, rig.deltas, rig.triangles, rig.names, list(vertices),
-                                      np.ascontiguousarray(tracks), camera=camera, smoothing=smoothing)
+                                      np.ascontiguousarray(tracks), {"smoothing": smoothing}, camera=camera)
     seconds = time.perf_counter() - started
     error = np.asarray(solved["weights"]) - weights
     return 1000 * seconds / frames, float(np.sqrt(np.mean(error ** 2))), float(np.abs(error).max()), solved
@@ -111,7 +111,8 @@ def main():
     rig = mesh_arrays.read_rig(template)
     conventional, _ = bench_landmarks.conventional_layout(template, landmarks.mesh_parts(template))
     conventional = sorted(set(conventional))
-    document = landmarks.place_landmarks(template, epsilon=0.5, max_per_shape=1, landmarks=68)
+    settings = import_module(shapesmith.__name__ + ".blender.settings")
+    document = landmarks.place_landmarks(template, settings.LandmarkSettings(epsilon=0.5, max_per_shape=1, landmarks=68))
     designed = [lm["vertex"] for lm in document["landmarks"]]
     results = {"frames": args.frames, "noise": NOISE, "layouts": {}, "speed": {}}
     run(native, rig, designed, 10, "3d")  # warm-up: the first call starts the thread pool

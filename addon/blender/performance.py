@@ -19,6 +19,7 @@ from mathutils import Matrix
 from .. import native
 from .keyframes import key_channel, key_transforms
 from .mesh_arrays import MeshDataError, read_rig
+from .settings import PerformanceSettings
 
 # Axis suffixes of a trajectory CSV's columns: `<landmark>_x` (or `.x`, ` x`, `:x`).
 AXES = "xyz"
@@ -199,13 +200,16 @@ def start_pose(obj):
     return [list(row) for row in rotation.to_matrix()], list(location), float(sum(scale) / 3.0)
 
 
-def solve(obj, tracks, smoothing=1.0, solve_scale=False, progress=None):
-    """Solves the pose and weights of every frame; returns the document (writes nothing)."""
+def solve(obj, tracks, settings=None, progress=None):
+    """Solves the pose and weights of every frame with `settings` (a
+    `settings.PerformanceSettings`; None: the defaults), from the head's placement; returns the
+    document (writes nothing)."""
+    settings = settings or PerformanceSettings()
     rig = read_rig(obj)
     rotation, translation, scale = start_pose(obj)
     solved = native.module().solve_performance(
         rig.neutral, rig.deltas, rig.triangles, rig.names, tracks.vertices, np.ascontiguousarray(tracks.values),
-        camera=tracks.camera, smoothing=smoothing, solve_scale=solve_scale, start_rotation=rotation,
+        settings.as_native(), camera=tracks.camera, start_rotation=rotation,
         start_translation=translation, start_scale=scale, progress=progress,
     )
     diagonal = float(np.linalg.norm(rig.neutral.max(axis=0) - rig.neutral.min(axis=0))) * scale
@@ -235,7 +239,7 @@ def solve(obj, tracks, smoothing=1.0, solve_scale=False, progress=None):
         "inert_shapes": solved["inert"],
         "unknown_columns": tracks.unknown,
         "untracked_landmarks": tracks.untracked,
-        "smoothing": smoothing,
+        "smoothing": settings.smoothing,
         "warnings": rig.warnings,
     }
 

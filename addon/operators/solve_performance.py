@@ -6,6 +6,7 @@ import json
 import bpy
 
 from ..blender import performance
+from ..blender.settings import performance_settings
 from .base import expected_errors, poll_mesh, progress_cursor
 
 
@@ -42,8 +43,7 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
         try:
             tracks = read_tracks(obj, settings, scene)
             with progress_cursor(context) as progress:
-                document = performance.solve(obj, tracks, smoothing=settings.smoothing,
-                                             solve_scale=settings.solve_scale, progress=progress)
+                document = performance.solve(obj, tracks, performance_settings(settings), progress=progress)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
