@@ -160,11 +160,15 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         description="Optional new head of the same topology: shapes that distort it most are packed first",
     )
     limit_expressions: bpy.props.BoolProperty(
-        name="Limit", description="Stop after a maximum number of expressions (J max)", default=_PACK.max_expressions is not None
+        name="Limit",
+        description="Stop after a maximum number of expressions (J max)",
+        default=_PACK.max_expressions is not None,
     )
     max_expressions: bpy.props.IntProperty(name="J max", description="Most expressions to pack", default=10, min=1)
     symmetric: bpy.props.BoolProperty(
-        name="Symmetric Pairs Together", description="Pose left/right partners in the same expression", default=_PACK.symmetric
+        name="Symmetric Pairs Together",
+        description="Pose left/right partners in the same expression",
+        default=_PACK.symmetric,
     )
     antagonist_cosine: bpy.props.FloatProperty(
         name="Antagonist Cosine",

@@ -117,7 +117,9 @@ def allowed_vertices(face, allowed_parts):
     return allowed.tolist()
 
 
-def place_landmarks(obj, settings=None, *, cameras=None, progress=None, compare_group=None, parts=None, allowed_parts=None):
+def place_landmarks(
+    obj, settings=None, *, cameras=None, progress=None, compare_group=None, parts=None, allowed_parts=None
+):
     """Runs the layout on `obj` with `settings` (a `settings.LandmarkSettings`; None: the
     defaults) and scores it; returns the layout document (a dict). Writes nothing.
     `cameras`: (C, 3) camera positions in the mesh's space (None: the hemisphere);
