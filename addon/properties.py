@@ -3,6 +3,14 @@ undo restores them) and per-scene tool settings."""
 
 import bpy
 
+from .blender.settings import AnalyzeSettings, LandmarkSettings, PackSettings, TransferSettings
+
+# The defaults of every tool option below: the core's, through the add-on's dataclasses.
+_PACK = PackSettings()
+_LANDMARKS = LandmarkSettings()
+_TRANSFER = TransferSettings()
+_ANALYZE = AnalyzeSettings()
+
 
 class SHAPESMITH_PG_shape_pair(bpy.types.PropertyGroup):
     first: bpy.props.StringProperty(name="First", description="Shape key name")
@@ -127,21 +135,21 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         name="Threshold (mu)",
         description="A vertex belongs to a shape's region when it moves at least this fraction of the shape's "
         "largest displacement (paper: 0.25 to 0.4)",
-        default=0.3,
+        default=_PACK.mu,
         min=0.01,
         max=1.0,
     )
     a: bpy.props.FloatProperty(
         name="Strength vs Distortion (a)",
         description="Importance weight of displacement strength; the rest goes to the target's triangle distortion",
-        default=0.5,
+        default=_PACK.a,
         min=0.0,
         max=1.0,
     )
     beta: bpy.props.FloatProperty(
         name="Uniqueness (beta)",
         description="Importance weight of shapes unlike those already placed (0: off)",
-        default=0.0,
+        default=_PACK.beta,
         min=0.0,
         soft_max=2.0,
     )
@@ -152,35 +160,39 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         description="Optional new head of the same topology: shapes that distort it most are packed first",
     )
     limit_expressions: bpy.props.BoolProperty(
-        name="Limit", description="Stop after a maximum number of expressions (J max)", default=False
+        name="Limit",
+        description="Stop after a maximum number of expressions (J max)",
+        default=_PACK.max_expressions is not None,
     )
     max_expressions: bpy.props.IntProperty(name="J max", description="Most expressions to pack", default=10, min=1)
     symmetric: bpy.props.BoolProperty(
-        name="Symmetric Pairs Together", description="Pose left/right partners in the same expression", default=True
+        name="Symmetric Pairs Together",
+        description="Pose left/right partners in the same expression",
+        default=_PACK.symmetric,
     )
     antagonist_cosine: bpy.props.FloatProperty(
         name="Antagonist Cosine",
         description="Two shapes whose displacements have a cosine below this are never posed together",
-        default=-0.5,
+        default=_PACK.antagonist_cosine,
         min=-1.0,
         max=0.0,
     )
     fewest: bpy.props.BoolProperty(
         name="Fewest Possible",
         description="Also prove the fewest expressions the conflicts allow (shown beside J)",
-        default=False,
+        default=_PACK.fewest,
     )
     collision_conflicts: bpy.props.BoolProperty(
         name="Collisions",
         description="Never pose together two shapes that pass through each other when mixed (tongue out through "
         "closed lips)",
-        default=True,
+        default=_PACK.collision_conflicts,
     )
     collision_tolerance: bpy.props.FloatProperty(
         name="Collision Tolerance",
         description="Intersection curve between separate pieces (tongue and lips, eyeball and lids) a mix may "
         "add beyond its shapes alone, as a fraction of the head's bounding-box diagonal",
-        default=0.11,
+        default=_PACK.collision_tolerance,
         min=1e-6,
         soft_max=0.5,
         precision=3,
@@ -189,13 +201,13 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         name="Occlusions",
         description="Never pose a shape with one that hides its motion from the front camera (an eye turning "
         "under a closed lid)",
-        default=True,
+        default=_PACK.occlusion_conflicts,
     )
     occlusion_keep: bpy.props.FloatProperty(
         name="Keep Visible",
         description="Share of a shape's visible moving vertices that must stay in sight of the front camera when "
         "posed with another",
-        default=0.5,
+        default=_PACK.occlusion_keep,
         min=0.01,
         max=1.0,
     )
@@ -243,12 +255,12 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     virtual_edges: bpy.props.BoolProperty(
         name="Virtual Edges",
         description="Keep opposite lips, eyelids and nostril walls from passing through each other",
-        default=True,
+        default=_TRANSFER.transfer.virtual_edges is not None,
     )
     tau_d: bpy.props.FloatProperty(
         name="Distance (tau_d)",
         description="Vertex pairs closer than this fraction of the bounding-box diagonal are candidates",
-        default=0.015,
+        default=_TRANSFER.transfer.virtual_edges.tau_d,
         min=0.0001,
         max=0.2,
         precision=4,
@@ -257,23 +269,24 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         name="Detour (tau_r)",
         description="A candidate pair becomes a virtual edge when its path along the surface is this many "
         "times longer than the straight distance",
-        default=4.0,
+        default=_TRANSFER.transfer.virtual_edges.tau_r,
         min=1.0,
         soft_max=20.0,
     )
     edge_weight: bpy.props.FloatProperty(
-        name="Weight", description="Weight of each virtual edge against the shape-following energy", default=3.0, min=0.0, soft_max=100.0
+        name="Weight", description="Weight of each virtual edge against the shape-following energy",
+        default=_TRANSFER.transfer.edge_weight, min=0.0, soft_max=100.0
     )
     collisions: bpy.props.BoolProperty(
         name="Collision Pass",
         description="After each shape is solved, push back lips, lids and skin that pass through each other or "
         "through teeth, eyes and lashes, and solve the shape again (shapes that add no more intersection than the template's own are unchanged)",
-        default=True,
+        default=_TRANSFER.transfer.collisions is not None,
     )
     collision_margin: bpy.props.FloatProperty(
         name="Margin",
         description="Distance the collision pass keeps from the other surface, as a fraction of the local edge length",
-        default=0.25,
+        default=_TRANSFER.transfer.collisions.margin,
         min=0.0,
         max=2.0,
         precision=3,
@@ -291,7 +304,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     compare_plain: bpy.props.BoolProperty(
         name="Compare Without Virtual Edges",
         description="Also measure the penetration of plain transfer (one more solve)",
-        default=False,
+        default=_TRANSFER.compare_plain,
     )
     training: bpy.props.PointerProperty(
         name="Training",
@@ -304,7 +317,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         description="How strongly personalised shapes stay close to the transferred ones where the training "
         "expressions are noisy (their noise is estimated from the vertices they do not move); exact scans are "
         "followed wherever a shape moves",
-        default=1.0,
+        default=_TRANSFER.personalise.beta_reg,
         min=0.01,
         soft_max=10.0,
     )
@@ -312,7 +325,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         name="Refine Weights",
         description="Refit the weights of each training expression's shapes within [0, 1] against the transferred "
         "shapes first (for scans not posed at full strength); shapes not in the expression stay out",
-        default=False,
+        default=_TRANSFER.personalise.refine_weights,
     )
 
 
@@ -412,23 +425,24 @@ class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
 
     epsilon: bpy.props.FloatProperty(
         name="Epsilon", description="A vertex is a candidate for a shape when it moves at least this fraction of the "
-        "shape's largest displacement (0.3 to 0.8 is useful)", default=0.5, min=0.01, max=1.0, soft_min=0.3, soft_max=0.8)
+        "shape's largest displacement (0.3 to 0.8 is useful)", default=_LANDMARKS.epsilon, min=0.01, max=1.0, soft_min=0.3, soft_max=0.8)
     alpha: bpy.props.FloatProperty(
         name="Alpha", description="Weight of visibility against displacement when choosing among candidates",
-        default=0.5, min=0.0, max=1.0)
+        default=_LANDMARKS.alpha, min=0.0, max=1.0)
     gamma: bpy.props.FloatProperty(
         name="Gamma", description="Weight of quality against count (0 places the fewest landmarks, ignoring quality)",
-        default=0.5, min=0.0, soft_max=2.0)
+        default=_LANDMARKS.gamma, min=0.0, soft_max=2.0)
     rays: bpy.props.IntProperty(
-        name="Rays", description="Visibility rays per vertex and pose (hemisphere mode)", default=64, min=1, soft_max=512)
+        name="Rays", description="Visibility rays per vertex and pose (hemisphere mode)", default=_LANDMARKS.rays, min=1, soft_max=512)
     symmetric: bpy.props.BoolProperty(
-        name="Symmetric", description="Mirror-symmetric layout across the Rig panel's symmetry axis", default=False)
+        name="Symmetric", description="Mirror-symmetric layout across the Rig panel's symmetry axis",
+        default=_LANDMARKS.symmetric)
     max_per_shape: bpy.props.IntProperty(
         name="Max per Shape", description="Rounds of the multi-cover: up to this many landmarks per shape",
-        default=2, min=1, max=8)
+        default=_LANDMARKS.max_per_shape, min=1, max=8)
     radius: bpy.props.FloatProperty(
         name="Radius", description="Later rounds keep this far from earlier landmarks (fraction of the bbox diagonal)",
-        default=0.03, min=0.0, max=0.5, precision=3)
+        default=_LANDMARKS.radius, min=0.0, max=0.5, precision=3)
     camera_source: bpy.props.EnumProperty(
         name="Visibility",
         description="What a landmark must be visible from",
@@ -468,12 +482,12 @@ class SHAPESMITH_PG_scene(bpy.types.PropertyGroup):
         name="Symmetry Axis",
         description="Local axis across whose zero plane the face is mirrored",
         items=(("0", "X", ""), ("1", "Y", ""), ("2", "Z", "")),
-        default="0",
+        default=str(_ANALYZE.axis),
     )
     pair_by_name: bpy.props.BoolProperty(
         name="Pair by Name",
         description="Pair shapes by Left/Right, _L/_R, .L/.R names where geometry finds no mirror partner",
-        default=True,
+        default=_ANALYZE.symmetry.use_names,
     )
     transfer: bpy.props.PointerProperty(type=SHAPESMITH_PG_transfer_settings)
 

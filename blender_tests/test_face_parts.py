@@ -285,12 +285,12 @@ def test_after_transfer_no_skin_of_the_head_is_inside_the_teeth(face, shapesmith
 def test_landmarks_go_on_the_head_unless_a_part_is_allowed(face, shapesmith):
     landmarks = module(shapesmith, "landmarks")
     head = face["template"]
-    options = dict(rays=16, max_per_shape=1)
-    document = landmarks.place_landmarks(head, **options)
+    settings = module(shapesmith, "settings").LandmarkSettings(rays=16, max_per_shape=1)
+    document = landmarks.place_landmarks(head, settings)
     assert {l["object"] for l in document["landmarks"]} == {"Tpl_Head"}
     assert "tongueOut" in document["uncovered"]  # it moves only the teeth, where no landmark may go
     teeth = parts(head)[0]
-    allowed = landmarks.place_landmarks(head, allowed_parts=[teeth], **options)
+    allowed = landmarks.place_landmarks(head, settings, allowed_parts=[teeth])
     on_teeth = [l for l in allowed["landmarks"] if l["object"] == "Tpl_Teeth"]
     assert on_teeth and "tongueOut" not in allowed["uncovered"]
     assert {l["object"] for l in allowed["landmarks"]} <= {"Tpl_Head", "Tpl_Teeth"}
@@ -457,7 +457,9 @@ def results(shapesmith, template, target):
     """What the tools give on a face: the packed expressions, the landmarks' world positions,
     and the transferred keys in world space ({(object, key): (N, 3)}), with the rest shapes."""
     expressions = [sorted(e["shapes"]) for e in module(shapesmith, "packing").pack_object(template)["expressions"]]
-    document = module(shapesmith, "landmarks").place_landmarks(template, rays=16, max_per_shape=1)
+    document = module(shapesmith, "landmarks").place_landmarks(
+        template, module(shapesmith, "settings").LandmarkSettings(rays=16, max_per_shape=1)
+    )
     matrix = np.array(template.matrix_world)
     landmarks = np.array([l["position"] for l in document["landmarks"]]) @ matrix[:3, :3].T + matrix[:3, 3]
     assert transfer(template, target) == {"FINISHED"}

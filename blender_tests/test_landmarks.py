@@ -140,12 +140,13 @@ def test_progress_reaches_the_caller_and_stopping_keeps_the_previous_layout(samp
     template = make_active(bpy.data.objects["Template"])
     first = place(epsilon=0.5)
     seen = []
-    document = landmarks.place_landmarks(template, epsilon=0.5, progress=seen.append)
+    settings = shapesmith.blender.settings.LandmarkSettings(epsilon=0.5)
+    document = landmarks.place_landmarks(template, settings, progress=seen.append)
     assert len(seen) > 10 and seen == sorted(set(seen)) and 0.0 <= seen[0] and seen[-1] == 1.0
-    without = landmarks.place_landmarks(template, epsilon=0.5)
+    without = landmarks.place_landmarks(template, settings)
     assert [lm["vertex"] for lm in document["landmarks"]] == [lm["vertex"] for lm in without["landmarks"]]
     with pytest.raises(shapesmith.native.module().CancelledError):
-        landmarks.place_landmarks(template, epsilon=0.5, progress=lambda fraction: fraction < 0.3)
+        landmarks.place_landmarks(template, settings, progress=lambda fraction: fraction < 0.3)
     assert json.loads(template.shapesmith.landmarks.document) == first
     assert len(layout_empties(template)) == len(first["landmarks"])
 
@@ -271,9 +272,9 @@ def test_a_bad_epsilon_is_refused_with_the_previous_layout_kept(sample, shapesmi
     document = place()
     for bad in (0.0, 1.5):
         with pytest.raises(ValueError, match="epsilon must be in"):
-            shapesmith.blender.landmarks.place_landmarks(template, epsilon=bad)
+            shapesmith.blender.landmarks.place_landmarks(template, shapesmith.blender.settings.LandmarkSettings(epsilon=bad))
     with pytest.raises(ValueError, match="rays must be at least 1"):
-        shapesmith.blender.landmarks.place_landmarks(template, rays=0)
+        shapesmith.blender.landmarks.place_landmarks(template, shapesmith.blender.settings.LandmarkSettings(rays=0))
     assert json.loads(template.shapesmith.landmarks.document) == document
     assert len(layout_empties(template)) == len(document["landmarks"])
 

@@ -5,6 +5,7 @@ the result stored on the object, what the rigger does with it, bad input, and ba
 import csv
 import json
 import math
+from dataclasses import replace
 
 import bpy
 import numpy as np
@@ -351,7 +352,7 @@ def test_nan_coordinates_are_refused(sample):
 def test_zero_expressions_are_refused(sample, shapesmith):
     template = bpy.data.objects["Template"]
     with pytest.raises(ValueError, match="at least 1"):
-        shapesmith.blender.packing.pack_object(template, max_expressions=0)
+        shapesmith.blender.packing.pack_object(template, shapesmith.blender.settings.PackSettings(max_expressions=0))
     assert not template.shapesmith.pack.result.done
 
 
@@ -499,7 +500,7 @@ def test_conflicts_are_reused_until_the_rig_or_their_settings_change(sample, sha
 
     # Options the tests do not depend on: the stored results still serve, and the answer is
     # the one a cold packing gives.
-    excluded = dict(options, exclude=["mouthClose"], antagonist_cosine=-0.9)
+    excluded = dict(options, exclude=["mouthClose"], settings=replace(options["settings"], antagonist_cosine=-0.9))
     warm = packing.pack_object(template, **excluded)
     fresh = packing.pack_object(template, reuse_conflicts=False, **excluded)
     assert warm["poseability"]["pairs_reused"] > 0
@@ -507,7 +508,7 @@ def test_conflicts_are_reused_until_the_rig_or_their_settings_change(sample, sha
     assert [e["shapes"] for e in warm["expressions"]] == [e["shapes"] for e in fresh["expressions"]]
 
     # A new tolerance, or an edited shape key, tests every pair again.
-    changed = packing.pack_object(template, **dict(options, collision_tolerance=0.2))
+    changed = packing.pack_object(template, **dict(options, settings=replace(options["settings"], collision_tolerance=0.2)))
     assert changed["poseability"]["pairs_reused"] == 0 and changed["poseability"]["collision_pairs_tested"] > 500
     key = template.data.shape_keys.key_blocks["jawOpen"]
     key.data[0].co.z += 0.01

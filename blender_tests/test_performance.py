@@ -90,7 +90,8 @@ def reconstruction_layout(shapesmith, obj, rig, count=60):
     (all around the mouth) leaves the brows, eyes, cheeks and nose unseen: their weights
     cannot come back from any solve."""
     landmarks = module(shapesmith, "landmarks")
-    document = landmarks.place_landmarks(obj, epsilon=0.5, max_per_shape=2, landmarks=count)
+    settings = module(shapesmith, "settings").LandmarkSettings(epsilon=0.5, max_per_shape=2, landmarks=count)
+    document = landmarks.place_landmarks(obj, settings)
     assert document["uncovered"] == [] and document["inert"] == []
     collection = landmarks.build_layout(obj, document, bpy.context.scene)
     for vertex in rigid_vertices(rig):
@@ -131,7 +132,7 @@ def test_3d_trajectories_give_back_the_weights_and_pose_with_lost_landmarks_and_
         write_csv(path, names, positions)
         tracks = performance.read_trajectories(path, names, ordered, start)
         assert tracks.unknown == ["Unknown_x"] and not tracks.untracked
-        document = performance.solve(obj, tracks, smoothing=1.0)
+        document = performance.solve(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
         assert document["unseen_shapes"] == [] and document["kept_frames"] == [start + 40]
         assert document["weights"][40] == document["weights"][39]
         assert document["observed"][0] == int((~lost[0]).sum())
@@ -246,7 +247,7 @@ def test_2d_tracks_in_a_movie_clip_through_a_distorting_camera(head, shapesmith,
     # (and nothing of the depth): what comes back is the face, within twice the noise
     # (measured 0.11% of the diagonal; zero weights are 1.7% off, a third of the shapes
     # unseen 0.6%).
-    document = performance.solve(obj, tracks, smoothing=1.0)
+    document = performance.solve(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
     rms, worst = weight_error(document, weights)
     face = vertex_error(rig, document, weights)
     residual = float(np.median([r for r in document["residuals"] if r is not None]))
@@ -258,7 +259,7 @@ def test_2d_tracks_in_a_movie_clip_through_a_distorting_camera(head, shapesmith,
     # lag is left: a weight change of 1 costs one noise unit, 1 pixel; measured rms 0.02,
     # where the noisy solve is 0.09 and unseen shapes 0.34).
     tracks.values = exact
-    document = performance.solve(obj, tracks, smoothing=1.0)
+    document = performance.solve(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
     rms, worst = weight_error(document, weights)
     print(f"2D noise-free weight error: rms {rms:.4f}, max {worst:.3f}")
     assert rms < 0.03, (rms, worst)
@@ -352,7 +353,7 @@ def test_a_solve_job_cancelled_midway_keys_nothing_and_run_to_its_end_keys_what_
     before = np.array(obj.matrix_world)
     values = [key.value for key in obj.data.shape_keys.key_blocks]
 
-    job = jobs.SolveJob(obj, tracks, smoothing=1.0)
+    job = jobs.SolveJob(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
     assert jobs.current() is job
     with pytest.raises(ValueError, match="already running"):
         jobs.SolveJob(obj, tracks)
@@ -364,7 +365,7 @@ def test_a_solve_job_cancelled_midway_keys_nothing_and_run_to_its_end_keys_what_
     assert np.array_equal(np.array(obj.matrix_world), before)
     assert [key.value for key in obj.data.shape_keys.key_blocks] == values
 
-    job = jobs.SolveJob(obj, tracks, smoothing=1.0)
+    job = jobs.SolveJob(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
     assert drive(job) == "finished" and job.fraction == 1.0
     stepped = keyframes_of(shapesmith, obj)
     # One key per frame on every shape key and on the head's location, rotation and scale.
@@ -387,7 +388,7 @@ def test_a_solve_job_cancelled_midway_keys_nothing_and_run_to_its_end_keys_what_
     # job fails and keys nothing.
     obj.animation_data_clear()
     obj.data.shape_keys.animation_data_clear()
-    job = jobs.SolveJob(obj, tracks, smoothing=1.0)
+    job = jobs.SolveJob(obj, tracks, module(shapesmith, "settings").PerformanceSettings(smoothing=1.0))
     obj.shape_key_remove(obj.data.shape_keys.key_blocks["jawOpen"])
     assert drive(job) == "failed" and "removed during the solve" in str(job.error)
     assert obj.animation_data is None and obj.data.shape_keys.animation_data is None

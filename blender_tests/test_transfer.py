@@ -156,8 +156,9 @@ def test_the_collision_pass_on_by_default_lists_what_is_still_worse(sample, shap
 def test_shapes_the_pass_leaves_alone_are_bit_for_bit_as_without_it(sample, shapesmith):
     transfer = transfer_module(shapesmith)
     template, target = bpy.data.objects["Template"], bpy.data.objects["Target_YoungWoman"]
-    off = transfer.transfer_object(template, target, collisions=False)
-    on = transfer.transfer_object(template, target, collisions=True)
+    tool = shapesmith.blender.settings
+    off = transfer.transfer_object(template, target, tool.TransferSettings(transfer=tool.DeformationSettings(collisions=None)))
+    on = transfer.transfer_object(template, target, tool.TransferSettings())
     applied = [row["collisions"]["applied"] for row in on.report["penetration"]]
     assert "before_collisions_length" not in off.report["penetration"][0]
     untouched = [k for k, a in enumerate(applied) if not a]
@@ -179,9 +180,11 @@ def test_a_bad_collision_margin_is_refused_and_the_target_left_alone(sample, sha
     transfer = transfer_module(shapesmith)
     target = bpy.data.objects["Target_Boy"]
     before = snapshot(target)
+    tool = shapesmith.blender.settings
     for margin in (-0.5, float("nan"), 10.0):
+        chosen = tool.TransferSettings(transfer=tool.DeformationSettings(collisions=tool.CollisionSettings(margin=margin)))
         with pytest.raises(ValueError, match="margin"):
-            transfer.transfer_object(bpy.data.objects["Template"], target, collisions=True, collision_margin=margin)
+            transfer.transfer_object(bpy.data.objects["Template"], target, chosen)
     assert snapshot(target) == before
     settings().collision_margin = 10.0  # the panel's field clamps to what the core accepts
     assert settings().collision_margin == pytest.approx(2.0)

@@ -96,7 +96,13 @@ def character(motion, name="Character_Test"):
     return obj, [[int(v), [float(x) for x in q]] for v, q in zip(vertices, targets)]
 
 
-def wrap_and_carry(shapesmith, obj, entries, **transfer_options):
+def without_collision_pass(shapesmith):
+    """Transfer settings with the collision pass off (the carry's then is off too)."""
+    tool = module(shapesmith, "blender.settings")
+    return tool.TransferSettings(transfer=tool.DeformationSettings(collisions=None))
+
+
+def wrap_and_carry(shapesmith, obj, entries, transfer_settings=None):
     """The whole chain through the plain functions: keys written on `obj`; returns (names,
     the Wrapped, the carried Transfer)."""
     wrap = module(shapesmith, "blender.wrap")
@@ -105,7 +111,7 @@ def wrap_and_carry(shapesmith, obj, entries, **transfer_options):
     template_points, character_points = wrap.pairs_from_list(entries, template, obj)
     wrapped = wrap.wrap_object(template, obj, template_points, character_points)
     wrapped_object = wrap.show_wrapped(wrapped)
-    result = wrap.carry_onto_character(template, obj, wrapped_object, transfer_options=transfer_options)
+    result = wrap.carry_onto_character(template, obj, wrapped_object, transfer_settings)
     written, _, _ = shape_keys.write_transferred_keys(result)
     return written, wrapped, result
 
@@ -152,10 +158,10 @@ def test_keys_on_a_decimated_moved_identity_match_the_same_topology_transfer(sam
     # carry alone: the pass decides per shape which vertices to hold, and the wrapped template
     # (a slightly slid mouth) gets some decisions the true head does not.
     transfer = module(shapesmith, "blender.transfer")
-    plain_truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY], collisions=False)
+    plain_truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY], without_collision_pass(shapesmith))
     plain_reference = sampled_truth(shapesmith, motion, obj, plain_truth.deltas.astype(np.float64))
     plain_result = module(shapesmith, "blender.wrap").carry_onto_character(
-        bpy.data.objects["Template"], obj, wrapped_object, transfer_options={"collisions": False}
+        bpy.data.objects["Template"], obj, wrapped_object, without_collision_pass(shapesmith)
     )
     plain_carried = plain_result.deltas
     plain_carry_error = moving_error(plain_carried, plain_reference, diagonal)
@@ -201,8 +207,8 @@ def test_another_motion_of_the_character_gives_the_same_keys_moved(sample, shape
     # round it keeps) flip under the rounding of another frame, and where they do a shape
     # differs locally (measured with the pass: largest 1.8e-2 of the diagonal, 3e-2 to 4e-2
     # with an earlier pass, in eyeBlinkRight, mouthLeft, mouthClose). This test is about the wrap.
-    names, _, _ = wrap_and_carry(shapesmith, first, first_entries, collisions=False)
-    wrap_and_carry(shapesmith, second, second_entries, collisions=False)
+    names, _, _ = wrap_and_carry(shapesmith, first, first_entries, without_collision_pass(shapesmith))
+    wrap_and_carry(shapesmith, second, second_entries, without_collision_pass(shapesmith))
     # Second = T(first) for the similarity T taking the first motion to the second.
     s1, a1, t1 = MOTIONS["cm_y_up"]
     s2, a2, _ = MOTIONS["mm_turned"]

@@ -42,6 +42,14 @@ def load_shapesmith():
     return importlib.import_module(names[0])
 
 
+def tool_settings():
+    """The installed extension's `blender/settings.py`: each tool's settings dataclass, whose
+    defaults are every tool flag's (the core's, as the panel's)."""
+    from importlib import import_module
+
+    return import_module(load_shapesmith().__name__ + ".blender.settings")
+
+
 def open_blend(path):
     if not path or not os.path.isfile(path):
         raise BatchError(f"input file not found: {path}")
@@ -85,7 +93,7 @@ def save_copy(path):
 # --- commands ---------------------------------------------------------------------------
 
 
-def add_sample_args(parser):
+def add_sample_args(parser, settings):
     parser.add_argument("--output", required=True, help="where to write sample.blend")
 
 
@@ -102,12 +110,19 @@ FACE_HELP = (
 )
 
 
-def add_analyze_args(parser):
+def add_analyze_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help=FACE_HELP)
-    parser.add_argument("--axis", choices="XYZ", default="X", help="symmetry axis (default X)")
-    parser.add_argument("--no-name-pairs", action="store_true", help="do not pair shapes by Left/Right names")
+    default = settings.AnalyzeSettings()
+    parser.add_argument("--axis", choices="XYZ", default="XYZ"[default.axis], help="symmetry axis (default %(default)s)")
+    parser.add_argument("--name-pairs", action=argparse.BooleanOptionalAction, default=default.symmetry.use_names,
+                        help="pair shapes by Left/Right names where geometry finds no mirror partner (--no-name-pairs: do not)")
     parser.add_argument("--json", help="write the report here")
+
+
+def analyze_settings(args, settings):
+    """The analysis' settings from the flags (`settings`: the extension's settings module)."""
+    return settings.AnalyzeSettings(axis="XYZ".index(args.axis), symmetry=settings.SymmetrySettings(use_names=args.name_pairs))
 
 
 def run_analyze(args):
@@ -117,7 +132,7 @@ def run_analyze(args):
 
     analysis = import_module(shapesmith.__name__ + ".blender.analysis")
     obj = find_face(args.object, shapesmith)
-    report = analysis.analyze_object(obj, axis="XYZ".index(args.axis), pair_by_name=not args.no_name_pairs)
+    report = analysis.analyze_object(obj, analyze_settings(args, tool_settings()))
     for line in analysis.summary_lines(report):
         print(line)
     report["pair_details"] = report["symmetric_pairs"]
@@ -128,14 +143,16 @@ def run_analyze(args):
     write_json(args.json, report)
 
 
-def add_pack_args(parser):
+def add_pack_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help=FACE_HELP)
     parser.add_argument("--target", help="target head of the same topology (importance by its distortion); with "
                         "face parts, the head then its parts, comma separated")
-    parser.add_argument("--mu", type=float, help="binary blendshape threshold (default: the object's, 0.3)")
-    parser.add_argument("--a", type=float, help="strength vs distortion weight (default 0.5)")
-    parser.add_argument("--beta", type=float, help="uniqueness weight (default 0)")
+    # Unset flags keep the settings stored on the object, whose own defaults are these.
+    default = settings.PackSettings()
+    parser.add_argument("--mu", type=float, help=f"binary blendshape threshold (default: the object's; {default.mu})")
+    parser.add_argument("--a", type=float, help=f"strength vs distortion weight (default: the object's; {default.a})")
+    parser.add_argument("--beta", type=float, help=f"uniqueness weight (default: the object's; {default.beta})")
     parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
     parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
     parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
@@ -143,11 +160,11 @@ def add_pack_args(parser):
                         help="allow shapes that pass through each other when mixed in one expression")
     parser.add_argument("--collision-tolerance", type=float,
                         help="intersection curve between pieces a mix may add, as a fraction of the head's diagonal "
-                        "(default 0.11)")
+                        f"(default: the object's; {default.collision_tolerance})")
     parser.add_argument("--no-occlusion-conflicts", action="store_true",
                         help="allow a shape with one that hides its motion from the front camera")
     parser.add_argument("--occlusion-keep", type=float,
-                        help="share of a shape's visible moving vertices that must stay in sight (default 0.5)")
+                        help=f"share of a shape's visible moving vertices that must stay in sight (default: the object's; {default.occlusion_keep})")
     parser.add_argument("--camera", help="camera object whose view is the face's front (default: the object's "
                         "Front Camera, else the front found from the rig)")
     parser.add_argument("--json", help="write the report (expressions, pairs, antagonists, conflicts with their "
@@ -160,6 +177,23 @@ def add_pack_args(parser):
     parser.add_argument("--tile-height", type=int, default=400, help="sheet tile height in pixels (default 400)")
     parser.add_argument("--bake", action="store_true", help="bake REF_01.. shape keys (saved with --output)")
     parser.add_argument("--output", help="save a copy of the file with the result stored on the object")
+
+
+def pack_settings(args, stored):
+    """The pack settings: those `stored` on the object (a `PackSettings`), with the flags given
+    in their place."""
+    from dataclasses import replace
+
+    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions,
+                 "collision_tolerance": args.collision_tolerance, "occlusion_keep": args.occlusion_keep}
+    return replace(
+        stored,
+        **{key: value for key, value in overrides.items() if value is not None},
+        fewest=args.fewest or stored.fewest,
+        symmetric=not args.no_symmetry and stored.symmetric,
+        collision_conflicts=not args.no_collision_conflicts and stored.collision_conflicts,
+        occlusion_conflicts=not args.no_occlusion_conflicts and stored.occlusion_conflicts,
+    )
 
 
 def run_pack(args):
@@ -175,13 +209,7 @@ def run_pack(args):
     packing = import_module(shapesmith.__name__ + ".blender.packing")
     obj = find_face(args.object, shapesmith)
     options = packing.packing_options(obj, axis=int(bpy.context.scene.shapesmith.symmetry_axis))
-    overrides = {"mu": args.mu, "a": args.a, "beta": args.beta, "max_expressions": args.max_expressions,
-                 "collision_tolerance": args.collision_tolerance, "occlusion_keep": args.occlusion_keep}
-    options.update({key: value for key, value in overrides.items() if value is not None})
-    options["fewest"] = args.fewest or options.get("fewest", False)
-    options["symmetric"] = not args.no_symmetry and options.get("symmetric", True)
-    options["collision_conflicts"] = not args.no_collision_conflicts and options["collision_conflicts"]
-    options["occlusion_conflicts"] = not args.no_occlusion_conflicts and options["occlusion_conflicts"]
+    options["settings"] = pack_settings(args, options["settings"])
     if args.target:
         options["target"] = find_face(args.target, shapesmith)
     if args.camera:
@@ -209,29 +237,34 @@ def run_pack(args):
     write_json(args.json, report)
 
 
-def add_landmarks_args(parser):
+def add_landmarks_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help=FACE_HELP)
     parser.add_argument(
         "--landmark-parts",
         help="face parts landmarks may go on, comma separated (default: the parts ticked in the stored list; none: the head only)",
     )
-    parser.add_argument("--epsilon", type=float, default=0.5, help="candidate threshold in (0, 1] (default 0.5)")
-    parser.add_argument("--alpha", type=float, default=0.5, help="visibility against displacement (default 0.5)")
-    parser.add_argument("--gamma", type=float, default=0.5, help="quality against count; 0 = fewest (default 0.5)")
-    parser.add_argument("--rays", type=int, default=64, help="visibility rays per vertex and pose (default 64)")
-    parser.add_argument("--symmetric", action="store_true", help="mirror-symmetric layout")
-    parser.add_argument("--axis", choices="XYZ", default="X", help="symmetry axis (default X)")
-    parser.add_argument("--max-per-shape", type=int, default=2, help="multi-cover rounds (default 2)")
-    parser.add_argument("--radius", type=float, default=0.03, help="exclusion radius / bbox diagonal (default 0.03)")
+    default = settings.LandmarkSettings()
+    parser.add_argument("--epsilon", type=float, default=default.epsilon, help="candidate threshold in (0, 1] (default %(default)s)")
+    parser.add_argument("--alpha", type=float, default=default.alpha, help="visibility against displacement (default %(default)s)")
+    parser.add_argument("--gamma", type=float, default=default.gamma,
+                        help="quality against count; 0 = fewest (default %(default)s)")
+    parser.add_argument("--rays", type=int, default=default.rays, help="visibility rays per vertex and pose (default %(default)s)")
+    parser.add_argument("--symmetric", action=argparse.BooleanOptionalAction, default=default.symmetric,
+                        help="mirror-symmetric layout")
+    parser.add_argument("--axis", choices="XYZ", default="XYZ"[default.axis], help="symmetry axis (default %(default)s)")
+    parser.add_argument("--max-per-shape", type=int, default=default.max_per_shape, help="multi-cover rounds (default %(default)s)")
+    parser.add_argument("--radius", type=float, default=default.radius,
+                        help="exclusion radius / bbox diagonal (default %(default)s)")
     cameras = parser.add_mutually_exclusive_group()
     cameras.add_argument("--scene-cameras", action="store_true", help="visibility from the scene's cameras")
     cameras.add_argument("--camera-collection", help="visibility from the cameras in this collection")
     design = parser.add_argument_group("landmarks added for reconstruction after the cover")
-    design.add_argument("--landmarks", type=int, metavar="M", help="add landmarks until the layout has M in all")
-    design.add_argument("--target-error", type=float, metavar="E",
+    design.add_argument("--landmarks", type=int, metavar="M", default=default.landmarks,
+                        help="add landmarks until the layout has M in all")
+    design.add_argument("--target-error", type=float, metavar="E", default=default.target_error,
                         help="add landmarks until the predicted error is E (fraction of the bbox diagonal)")
-    design.add_argument("--criterion", choices=("a", "d"), default="a",
+    design.add_argument("--criterion", choices=("a", "d"), default=default.criterion,
                         help="a: the predicted error (default); d: the log-determinant of the information")
     design.add_argument("--curve", metavar="PNG", help="plot the predicted error per landmark count to this PNG")
     parser.add_argument("--score-group", help="also score the layout of this vertex group, and compare with it")
@@ -239,6 +272,15 @@ def add_landmarks_args(parser):
     parser.add_argument("--csv", help="write one row per landmark here")
     parser.add_argument("--picture", help="render a front view with the landmarks to this PNG")
     parser.add_argument("--output", help="save the file with the layout (empties, vertex group) here")
+
+
+def landmark_settings(args, settings):
+    """The layout's settings from the flags (`settings`: the extension's settings module)."""
+    return settings.LandmarkSettings(
+        epsilon=args.epsilon, alpha=args.alpha, gamma=args.gamma, rays=args.rays, symmetric=args.symmetric,
+        axis="XYZ".index(args.axis), max_per_shape=args.max_per_shape, radius=args.radius, landmarks=args.landmarks,
+        target_error=args.target_error, criterion=args.criterion,
+    )
 
 
 def run_landmarks(args):
@@ -265,12 +307,9 @@ def run_landmarks(args):
     if args.curve and args.landmarks is None and args.target_error is None:
         raise BatchError("--curve plots the landmarks added after the cover: give --landmarks or --target-error")
     cameras = landmarks.camera_positions(obj, source, scene, collection)
-    params = dict(epsilon=args.epsilon, alpha=args.alpha, gamma=args.gamma, rays=args.rays, symmetric=args.symmetric,
-                  max_per_shape=args.max_per_shape, radius=args.radius, landmarks=args.landmarks,
-                  target_error=args.target_error, criterion=args.criterion)
     score = landmarks.score_group(obj, args.score_group) if args.score_group else None
     document = landmarks.place_landmarks(
-        obj, cameras=cameras, axis="XYZ".index(args.axis), allowed_parts=allowed_parts, **params
+        obj, landmark_settings(args, tool_settings()), cameras=cameras, allowed_parts=allowed_parts
     )
     if score is not None:
         document["comparison"] = score
@@ -294,7 +333,35 @@ def run_landmarks(args):
         save_copy(args.output)
 
 
-def add_transfer_args(parser):
+def add_transfer_settings_args(parser, settings, onto):
+    """The flags of the transfer's solve (`settings.TransferSettings`, named as the Transfer
+    panel's properties) for `transfer` and for `wrap`'s transfer `onto` the wrapped template;
+    returns the defaults."""
+    default = settings.TransferSettings()
+    edges, collisions = default.transfer.virtual_edges, default.transfer.collisions
+    parser.add_argument(
+        "--virtual-edges", action=argparse.BooleanOptionalAction, default=edges is not None,
+        help=f"virtual edges against lips and lids passing through each other{onto} (--no-virtual-edges: plain deformation "
+        "transfer)",
+    )
+    parser.add_argument("--tau-d", type=float, default=edges.tau_d,
+                        help="virtual-edge distance, fraction of the bbox diagonal (default %(default)s)")
+    parser.add_argument("--tau-r", type=float, default=edges.tau_r,
+                        help="virtual-edge surface-to-straight distance ratio (default %(default)s)")
+    parser.add_argument("--edge-weight", type=float, default=default.transfer.edge_weight,
+                        help="weight of each virtual edge (default %(default)s)")
+    parser.add_argument(
+        "--collisions", action=argparse.BooleanOptionalAction, default=collisions is not None,
+        help="run the collision pass (lips, lids, skin through teeth and eyes; on by default, --no-collisions turns it off)",
+    )
+    parser.add_argument(
+        "--collision-margin", type=float, default=collisions.margin,
+        help="distance the collision pass keeps from the other surface, fraction of the local edge length (default %(default)s)",
+    )
+    return default
+
+
+def add_transfer_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--source", required=True, help="the template: " + FACE_HELP)
     parser.add_argument(
@@ -303,20 +370,9 @@ def add_transfer_args(parser):
         "separated, paired with the template's parts by name after each face's common prefix, else in order",
     )
     parser.add_argument("--targets", help="glob over object names, e.g. 'Target_*'")
-    parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer")
-    parser.add_argument("--tau-d", type=float, default=0.015, help="virtual-edge distance, fraction of the bbox diagonal")
-    parser.add_argument("--tau-r", type=float, default=4.0, help="virtual-edge surface-to-straight distance ratio")
-    parser.add_argument("--edge-weight", type=float, default=3.0, help="weight of each virtual edge (default 3)")
+    default = add_transfer_settings_args(parser, settings, "")
     parser.add_argument(
-        "--collisions", action=argparse.BooleanOptionalAction, default=True,
-        help="run the collision pass (lips, lids, skin through teeth and eyes; on by default, --no-collisions turns it off)",
-    )
-    parser.add_argument(
-        "--collision-margin", type=float, default=0.25,
-        help="distance the collision pass keeps from the other surface, fraction of the local edge length (default 0.25)",
-    )
-    parser.add_argument(
-        "--compare-plain", action="store_true",
+        "--compare-plain", action=argparse.BooleanOptionalAction, default=default.compare_plain,
         help="also transfer without virtual edges and collision pass and report its penetration (one more solve)",
     )
     parser.add_argument(
@@ -326,11 +382,11 @@ def add_transfer_args(parser):
     )
     parser.add_argument("--pack-json", help="Pack Expressions JSON report naming the expressions' shapes")
     parser.add_argument(
-        "--beta-reg", type=float, default=1.0,
-        help="personalisation: pull towards the transferred shapes against noisy training expressions (default 1)",
+        "--beta-reg", type=float, default=default.personalise.beta_reg,
+        help="personalisation: pull towards the transferred shapes against noisy training expressions (default %(default)s)",
     )
     parser.add_argument(
-        "--refine-weights", action="store_true",
+        "--refine-weights", action=argparse.BooleanOptionalAction, default=default.personalise.refine_weights,
         help="personalisation: refit the weights of each training expression's shapes within [0, 1] first",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
@@ -361,6 +417,8 @@ def run_transfer(args):
     from importlib import import_module
 
     shapesmith = load_shapesmith()
+    # The flags have the Transfer panel's property names, so the panel's reading serves them.
+    settings = tool_settings().transfer_settings(args)
     started = time.perf_counter()
     open_blend(args.input)
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
@@ -386,17 +444,9 @@ def run_transfer(args):
             transfer.transfer_object(
                 source,
                 target,
-                virtual_edges=not args.no_virtual_edges,
-                tau_d=args.tau_d,
-                tau_r=args.tau_r,
-                edge_weight=args.edge_weight,
+                settings,
                 training_objects=examples,
                 pack_report=pack_report,
-                beta_reg=args.beta_reg,
-                refine_weights=args.refine_weights,
-                compare_plain=args.compare_plain,
-                collisions=args.collisions,
-                collision_margin=args.collision_margin,
                 template_penetration=template_penetration,
             )
         )
@@ -455,7 +505,7 @@ def run_transfer(args):
     )
 
 
-def add_crossings_args(parser):
+def add_crossings_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help="mesh object with shape keys (e.g. a transferred target)")
     parser.add_argument("--shapes", help="comma-separated keys to check (default: every key but the reference key)")
@@ -503,7 +553,7 @@ def run_crossings(args):
     })
 
 
-def add_wrap_args(parser):
+def add_wrap_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--template", required=True, help="the template: " + FACE_HELP)
     parser.add_argument(
@@ -517,7 +567,10 @@ def add_wrap_args(parser):
     )
     parser.add_argument("--no-transfer", action="store_true", help="wrap only: keep the wrapped template, write no keys")
     parser.add_argument("--keep-wrapped", action="store_true", help="keep the wrapped template object in the output")
-    parser.add_argument("--no-virtual-edges", action="store_true", help="plain deformation transfer onto the wrapped template")
+    default = add_transfer_settings_args(parser, settings, " on the wrapped template")
+    # What only the transfer's own command sets: the carried keys are not personalised.
+    parser.set_defaults(compare_plain=default.compare_plain, beta_reg=default.personalise.beta_reg,
+                        refine_weights=default.personalise.refine_weights)
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
     parser.add_argument("--json", help="write the report here")
@@ -558,7 +611,7 @@ def run_wrap(args):
                 template,
                 character,
                 wrapped_object,
-                transfer_options={"virtual_edges": not args.no_virtual_edges},
+                tool_settings().transfer_settings(args),
                 seconds=wrapped.seconds,
             )
             seconds = result.report["stage_seconds"]
@@ -601,7 +654,7 @@ def run_wrap(args):
     )
 
 
-def add_solve_args(parser):
+def add_solve_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help="the head: mesh with shape keys and a landmark layout")
     source = parser.add_mutually_exclusive_group(required=True)
@@ -610,8 +663,11 @@ def add_solve_args(parser):
     parser.add_argument("--camera", help="with --clip: the camera object placed for the shot (default: the scene's camera)")
     parser.add_argument("--landmarks", help="collection of landmark empties (default: the head's Place Landmarks layout)")
     parser.add_argument("--scale", type=float, default=1.0, help="trajectories: scene units per file unit (default 1)")
-    parser.add_argument("--smoothing", type=float, default=1.0, help="temporal smoothing lambda >= 0 (default 1)")
-    parser.add_argument("--solve-scale", action="store_true", help="3D: solve a uniform head scale per frame")
+    default = settings.PerformanceSettings()
+    parser.add_argument("--smoothing", type=float, default=default.smoothing,
+                        help="temporal smoothing lambda >= 0 (default %(default)s)")
+    parser.add_argument("--solve-scale", action=argparse.BooleanOptionalAction, default=default.solve_scale,
+                        help="3D: solve a uniform head scale per frame")
     parser.add_argument("--target", help="key the pose on this object (an empty) instead of the head")
     parser.add_argument("--plot", metavar="PNG", help="plot the residual and the most active weights to this PNG")
     parser.add_argument("--plot-shapes", help="comma-separated shapes to plot (default: the most active)")
@@ -651,7 +707,8 @@ def run_solve(args):
         camera = find_object(args.camera) if args.camera else scene.camera
         tracks = performance.clip_tracks(clip, names, vertices, camera)
     read = time.perf_counter()
-    document = performance.solve(obj, tracks, smoothing=args.smoothing, solve_scale=args.solve_scale)
+    # The flags have the Performance panel's property names, so the panel's reading serves them.
+    document = performance.solve(obj, tracks, tool_settings().performance_settings(args))
     solved = time.perf_counter()
     performance.write_animation(obj, document, target)
     for line in performance.summary_lines(document):
@@ -668,7 +725,7 @@ def run_solve(args):
     write_json(args.json, document)
 
 
-def add_import_capture_args(parser):
+def add_import_capture_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
     parser.add_argument("--object", required=True, help="the head: mesh with (ARKit-named) shape keys")
     parser.add_argument("--capture", required=True, help="Live Link Face CSV or Face Cap TXT")
@@ -717,21 +774,31 @@ COMMANDS = {
 }
 
 
-def parse(argv):
+def parser_for(argv):
+    """The command line's parser, with the flags of the command `argv` names: a tool's take
+    their defaults from the installed extension's settings (`tool_settings`), so only that
+    command's are built (`sample` needs no extension)."""
     parser = argparse.ArgumentParser(prog="batch.py --", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
+    command = argv[0] if argv else None
     for name, (add_args, _, help_text) in COMMANDS.items():
-        add_args(sub.add_parser(name, help=help_text))
-    return parser.parse_args(argv)
+        command_parser = sub.add_parser(name, help=help_text)
+        if name == command:
+            add_args(command_parser, None if name == "sample" else tool_settings())
+    return parser
+
+
+def parse(argv):
+    return parser_for(argv).parse_args(argv)
 
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
     try:
-        args = parse(argv)
-    except SystemExit as exit_:
-        return exit_.code or 0
-    try:
+        try:
+            args = parse(argv)
+        except SystemExit as exit_:
+            return exit_.code or 0
         COMMANDS[args.command][1](args)
     except (BatchError, ValueError) as error:
         # ValueError covers MeshDataError and the core's InvalidInputError and InfeasibleError.

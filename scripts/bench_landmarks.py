@@ -164,7 +164,11 @@ def conventional_layout(obj, parts):
 
 
 def place(module, obj, epsilon, **params):
-    document = module.place_landmarks(obj, epsilon=epsilon, **params)
+    """One layout with the settings `epsilon` and `params` (`LandmarkSettings` fields)."""
+    from importlib import import_module
+
+    settings = import_module(module.__name__.rsplit(".", 1)[0] + ".settings")
+    document = module.place_landmarks(obj, settings.LandmarkSettings(epsilon=epsilon, **params))
     return {
         "epsilon": epsilon,
         "landmarks": len(document["landmarks"]),

@@ -23,6 +23,7 @@ import json
 import os
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import bpy
@@ -77,16 +78,18 @@ def measure(packing, obj, repeats):
     best = dict.fromkeys(keys, float("inf"))
     parts = None
     options = packing.packing_options(obj)
+    options["settings"] = replace(options["settings"], fewest=True)
+    without_tests = dict(options, settings=replace(options["settings"], collision_conflicts=False, occlusion_conflicts=False))
     for _ in range(repeats):
         obj.pop(packing.CONFLICTS_PROPERTY, None)
-        report = packing.pack_object(obj, **dict(options, fewest=True))
+        report = packing.pack_object(obj, **options)
         started = time.perf_counter()
         packing.store_packing(obj, report)
         write = time.perf_counter() - started
-        cached = packing.pack_object(obj, **dict(options, fewest=True))
+        cached = packing.pack_object(obj, **options)
         if not cached["poseability"]["pairs_reused"]:
             raise BatchError(f"the conflicts stored on {obj.name} were not reused")
-        without = packing.pack_object(obj, **dict(options, fewest=True, collision_conflicts=False, occlusion_conflicts=False))
+        without = packing.pack_object(obj, **without_tests)
         seconds = dict(
             report["seconds"], write=write, native_cached=cached["seconds"]["native"], native_without=without["seconds"]["native"]
         )

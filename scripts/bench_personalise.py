@@ -60,7 +60,7 @@ def mean_active_error(predicted, truth, diagonal):
 
 def packed_expressions(nat, rig, target_neutral, max_expressions=None):
     report = nat.pack_expressions(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, target_neutral=target_neutral, max_expressions=max_expressions
+        rig.neutral, rig.deltas, rig.triangles, rig.names, {"max_expressions": max_expressions}, target_neutral=target_neutral
     )
     return [e["shapes"] for e in report["expressions"]]
 
@@ -88,12 +88,18 @@ class WarpGroundTruth:
 
     def transfer(self, examples=None, weights=None, **options):
         """(error, native report) of one transfer; `examples` J x N x 3, `weights` J x K."""
+        arguments = {}
         if examples is not None:
-            options.update(examples=np.ascontiguousarray(examples, dtype=np.float32), example_weights=weights.tolist())
+            arguments = dict(examples=np.ascontiguousarray(examples, dtype=np.float32), example_weights=weights.tolist())
             options.update(self.personalise_options)
+        # `virtual_edges` on or off; the other options are the personalisation's settings.
+        settings = {
+            "transfer": {} if options.pop("virtual_edges", True) else {"virtual_edges": None},
+            "personalise": options,
+            "measure_penetration": False,
+        }
         deltas, report = self.nat.transfer_shapes(
-            self.rig.neutral, self.rig.deltas, self.target, self.rig.triangles, self.rig.names,
-            measure_penetration=False, **options,
+            self.rig.neutral, self.rig.deltas, self.target, self.rig.triangles, self.rig.names, settings, **arguments,
         )
         return self.error(deltas), report
 

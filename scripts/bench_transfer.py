@@ -52,7 +52,7 @@ def added_summary(transfer_module, report):
     return out
 
 
-def penetration_benchmark(transfer_module, landmarks_module, rig, template, targets):
+def penetration_benchmark(transfer_module, landmarks_module, settings, rig, template, targets):
     """Per target: total intersection-curve length with and without virtual edges beside the
     template's, and the shapes that add more intersection to the target's neutral than to
     the template's (plain, virtual edges before the collision pass, and after it). For each
@@ -65,7 +65,7 @@ def penetration_benchmark(transfer_module, landmarks_module, rig, template, targ
     result = {}
     for target in targets:
         transfer = transfer_module.transfer_object(
-            template, target, compare_plain=True, collisions=True, template_penetration=template_penetration
+            template, target, settings.TransferSettings(compare_plain=True), template_penetration=template_penetration
         )
         report = transfer.report
         rows = report["penetration"]
@@ -114,7 +114,7 @@ def cheap_metric_check(nat, rig, target_neutral, deltas, count=8):
     return worst
 
 
-def edge_weight_sweep(transfer_module, template, targets, weights=(0.0, 1.0, 3.0, 10.0)):
+def edge_weight_sweep(transfer_module, settings, template, targets, weights=(0.0, 1.0, 3.0, 10.0)):
     """Shapes worse than the template and added curve, per virtual-edge weight, with the
     collision pass on (weight 0: no virtual edges)."""
     template_penetration = transfer_module.measure_template_penetration(template)
@@ -122,10 +122,10 @@ def edge_weight_sweep(transfer_module, template, targets, weights=(0.0, 1.0, 3.0
     for weight in weights:
         row = {}
         for target in targets:
-            report = transfer_module.transfer_object(
-                template, target, virtual_edges=weight > 0, edge_weight=max(weight, 1e-9), collisions=True,
-                template_penetration=template_penetration,
-            ).report
+            chosen = settings.TransferSettings(transfer=settings.DeformationSettings(
+                virtual_edges=settings.VirtualEdgeSettings() if weight > 0 else None, edge_weight=max(weight, 1e-9),
+            ))
+            report = transfer_module.transfer_object(template, target, chosen, template_penetration=template_penetration).report
             summary = added_summary(transfer_module, report)
             row[target.name] = {label: {"worse": len(v["worse"]), "added_curve": v["added_curve"]} for label, v in summary.items()}
         out[str(weight)] = row
@@ -234,11 +234,11 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
         neutral = rest_positions(target)
         read = min(read, time.perf_counter() - started)
 
-    def best(**options):
+    def best(settings, **arguments):
         chosen = None
         for _ in range(runs):
             started = time.perf_counter()
-            _, report = nat.transfer_shapes(rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, **options)
+            _, report = nat.transfer_shapes(rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, settings, **arguments)
             wall = time.perf_counter() - started
             if chosen is None or wall < chosen["wall"]:
                 chosen = {"wall": wall, "native": report["seconds"], "virtual_edges": report["virtual_edges"]}
@@ -247,11 +247,11 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
     started = time.perf_counter()
     template_penetration = nat.measure_penetration(rig.neutral, rig.deltas, rig.triangles)
     template_seconds = time.perf_counter() - started
-    without = best(measure_penetration=False, collisions=False)
-    with_pass = best(measure_penetration=False, collisions=True)
-    reported = best(measure_penetration=True, collisions=True, template_penetration=template_penetration)
+    without = best({"measure_penetration": False, "transfer": {"collisions": None}})
+    with_pass = best({"measure_penetration": False})
+    reported = best(None, template_penetration=template_penetration)
     _, report = nat.transfer_shapes(
-        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, compare_plain=True, collisions=True,
+        rig.neutral, rig.deltas, neutral, rig.triangles, rig.names, {"compare_plain": True},
         template_penetration=template_penetration,
     )
     report["diagonal"] = float(np.linalg.norm(neutral.max(0) - neutral.min(0)))
@@ -262,7 +262,7 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
     started = time.perf_counter()
     _, personalised = nat.transfer_shapes(
         rig.neutral, rig.deltas, neutral, rig.triangles, rig.names,
-        measure_penetration=False, examples=examples, example_weights=weights.tolist(),
+        {"measure_penetration": False}, examples=examples, example_weights=weights.tolist(),
     )
     return {
         "vertices": len(rig.neutral),
@@ -365,6 +365,7 @@ def main():
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
     transfer_module = import_module(shapesmith.__name__ + ".blender.transfer")
     landmarks_module = import_module(shapesmith.__name__ + ".blender.landmarks")
+    settings = import_module(shapesmith.__name__ + ".blender.settings")
     rest_positions = transfer_module.rest_positions
     nat = shapesmith.native.module()
     bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
@@ -373,8 +374,8 @@ def main():
     targets = sorted((o for o in bpy.data.objects if o.name.startswith("Target_")), key=lambda o: o.name)
     result = {"timings": {}}
     if not args.timings_only:
-        result["penetration"] = penetration_benchmark(transfer_module, landmarks_module, rig, template, targets)
-        result["edge_weight_sweep"] = edge_weight_sweep(transfer_module, template, targets)
+        result["penetration"] = penetration_benchmark(transfer_module, landmarks_module, settings, rig, template, targets)
+        result["edge_weight_sweep"] = edge_weight_sweep(transfer_module, settings, template, targets)
     for head in args.heads:
         if head == "bundled":
             pair = template, targets[0]

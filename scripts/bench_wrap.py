@@ -131,8 +131,8 @@ def run_size(shapesmith, label, vertices, truth):
         np.ascontiguousarray(wrapped_deltas, dtype=np.float32),
         np.ascontiguousarray(points, dtype=np.float32),
         mesh_arrays.read_triangles(character),
+        {"collision_pass": False},
         **wrap.template_curve(plain_report),
-        collisions=False,
     )
     plain_seconds = time.perf_counter() - plain_started
     copies = {

@@ -11,6 +11,7 @@ and the tests' bounds all come from one set-up:
   reconstruction, and the conventional 68-point layout of `bench_landmarks.py`.
 """
 
+import importlib
 import math
 import time
 
@@ -89,7 +90,7 @@ def solve(native, rig, vertices, frames, kind, smoothing=1.0, seed=0):
     weights, values, camera = tracks(rig, vertices, frames, kind, seed)
     started = time.perf_counter()
     solved = native.solve_performance(rig.neutral, rig.deltas, rig.triangles, rig.names, list(vertices),
-                                      np.ascontiguousarray(values), camera=camera, smoothing=smoothing)
+                                      np.ascontiguousarray(values), {"smoothing": smoothing}, camera=camera)
     seconds = time.perf_counter() - started
     error = np.asarray(solved["weights"]) - weights
     return seconds, float(np.sqrt(np.mean(error ** 2))), float(np.abs(error).max()), solved
@@ -98,7 +99,8 @@ def solve(native, rig, vertices, frames, kind, smoothing=1.0, seed=0):
 def designed_layout(landmarks_module, obj, count=LAYOUT_SIZE):
     """The vertices of Place Landmarks' cover (one landmark a shape) with landmarks added for
     reconstruction up to `count`."""
-    document = landmarks_module.place_landmarks(obj, epsilon=0.5, max_per_shape=1, landmarks=count)
+    settings = importlib.import_module(landmarks_module.__name__.rsplit(".", 1)[0] + ".settings")
+    document = landmarks_module.place_landmarks(obj, settings.LandmarkSettings(epsilon=0.5, max_per_shape=1, landmarks=count))
     return [lm["vertex"] for lm in document["landmarks"]]
 
 

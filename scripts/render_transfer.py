@@ -33,7 +33,12 @@ def transferred_copy(modules, template, target, name, virtual_edges, collisions)
     copy.data = target.data.copy()
     copy.name = name
     bpy.context.scene.collection.objects.link(copy)
-    transfer = modules["transfer"].transfer_object(template, copy, virtual_edges=virtual_edges, collisions=collisions)
+    settings = modules["settings"]
+    chosen = settings.TransferSettings(transfer=settings.DeformationSettings(
+        virtual_edges=settings.VirtualEdgeSettings() if virtual_edges else None,
+        collisions=settings.CollisionSettings() if collisions else None,
+    ))
+    transfer = modules["transfer"].transfer_object(template, copy, chosen)
     modules["shape_keys"].write_transferred_keys(transfer)
     return copy, transfer
 
@@ -74,7 +79,7 @@ def main():
     args = parser.parse_args(argv)
     output = os.path.abspath(args.output or os.path.join(SCRIPTS, "..", "docs", f"transfer_{args.shape}.png"))
     shapesmith = batch.load_shapesmith()
-    modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys", "mesh_arrays", "crossings")}
+    modules = {name: import_module(f"{shapesmith.__name__}.blender.{name}") for name in ("transfer", "shape_keys", "mesh_arrays", "crossings", "settings")}
     bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     template, target = bpy.data.objects["Template"], bpy.data.objects[args.target]
 

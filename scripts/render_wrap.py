@@ -70,7 +70,7 @@ def wrap_and_carry(shapesmith):
     template_points, character_points = wrap.stored_pairs(character, template)
     wrapped = wrap.wrap_object(template, character, template_points, character_points)
     wrapped_object = wrap.show_wrapped(wrapped)
-    result = wrap.carry_onto_character(template, character, wrapped_object, transfer_options={"virtual_edges": True})
+    result = wrap.carry_onto_character(template, character, wrapped_object)
     written, _, warnings = shape_keys.write_transferred_keys(result, True, False)
     for line in wrap.summary_lines(wrapped) + list(warnings):
         print(line)

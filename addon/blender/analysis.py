@@ -4,18 +4,19 @@ import time
 
 from .. import native
 from .face_parts import face_objects, face_summary, read_face_rig
+from .settings import AnalyzeSettings
 
 
-def analyze_object(obj, axis=0, pair_by_name=True, parts=None):
+def analyze_object(obj, settings=None, parts=None):
     """Reads the rig (with its face parts: `parts`, else the list stored on `obj`), runs the
-    native analysis, returns its report (a dict) with the face's objects, the shape-key
+    native analysis with `settings` (a `settings.AnalyzeSettings`; None: the defaults),
+    returns its report (a dict) with the face's objects, the shape-key
     warnings and timings added. Writes nothing."""
     started = time.perf_counter()
     rig, face = read_face_rig(face_objects(obj, parts))
     read = time.perf_counter()
-    report = native.module().analyze_rig(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, axis=axis, use_names=pair_by_name
-    )
+    settings = settings or AnalyzeSettings()
+    report = native.module().analyze_rig(rig.neutral, rig.deltas, rig.triangles, rig.names, settings.as_native())
     report["warnings"] = rig.warnings
     report["objects"] = face_summary(face)
     report["seconds"] = {"read": read - started, "native": time.perf_counter() - read}

@@ -18,29 +18,13 @@ from .. import native
 from .face_parts import face_objects, face_summary, landmark_parts, read_face_rig, stored_parts
 from .mesh_arrays import MeshDataError, read_positions, read_triangles
 from .packing import stored_weights
+from .settings import LandmarkSettings, ScoreSettings
 
 COLLECTION_NAME = "Landmarks"
 VERTEX_GROUP_NAME = "Landmarks"
 # An empty's display size as a fraction of the head's bounding-box diagonal: visible, yet
 # small enough that neighbouring landmarks (a few % of the diagonal apart) do not merge.
 EMPTY_SIZE = 0.012
-# Reconstruction noise per coordinate, relative to the diagonal (SPEC: 0.2%, as a tracker).
-SCORE_NOISE = 0.002
-
-
-def settings_params(settings):
-    """The native keyword arguments for a scene's Landmarks settings."""
-    return dict(
-        epsilon=settings.epsilon,
-        alpha=settings.alpha,
-        gamma=settings.gamma,
-        rays=settings.rays,
-        symmetric=settings.symmetric,
-        max_per_shape=settings.max_per_shape,
-        radius=settings.radius,
-        landmarks=settings.landmarks if settings.design == "COUNT" else None,
-        target_error=settings.target_error if settings.design == "TARGET" else None,
-    )
 
 
 def camera_positions(obj, source, scene=None, collection=None):
@@ -105,14 +89,16 @@ def score_vertices(obj, rig, vertices):
     """Noisy reconstruction score of a layout (SPEC section 2), with the packed expressions
     among the test poses when the object has them."""
     poses = packed_poses(obj, rig.names)
+    settings = ScoreSettings()
     score = native.module().score_layout(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, noise=SCORE_NOISE, extra_poses=poses
+        rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, settings.as_native(), extra_poses=poses
     )
-    return dict(score, noise=SCORE_NOISE, packed_expressions=0 if poses is None else len(poses))
+    return dict(score, noise=settings.noise, packed_expressions=0 if poses is None else len(poses))
 
 
-def check_design(landmarks=None, target_error=None, **_):
+def check_design(settings):
     """Refuses a bad count or target before any work (the core checks them again)."""
+    landmarks, target_error = settings.landmarks, settings.target_error
     if landmarks is not None and landmarks < 1:
         raise MeshDataError(f"the landmark count must be at least 1, got {landmarks}")
     if target_error is not None and not (target_error > 0 and np.isfinite(target_error)):
@@ -131,17 +117,21 @@ def allowed_vertices(face, allowed_parts):
     return allowed.tolist()
 
 
-def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None, parts=None, allowed_parts=None, **params):
-    """Runs the layout on `obj` and scores it; returns the layout document (a dict). Writes
-    nothing. `params` are the native keywords (epsilon, alpha, gamma, rays, symmetric,
-    max_per_shape, radius, landmarks, target_error, criterion); `progress(fraction)`, when
+def place_landmarks(
+    obj, settings=None, *, cameras=None, progress=None, compare_group=None, parts=None, allowed_parts=None
+):
+    """Runs the layout on `obj` with `settings` (a `settings.LandmarkSettings`; None: the
+    defaults) and scores it; returns the layout document (a dict). Writes nothing.
+    `cameras`: (C, 3) camera positions in the mesh's space (None: the hemisphere);
+    `progress(fraction)`, when
     given, is called as the work advances and stops it by returning False (CancelledError).
     With `compare_group`, that vertex group's layout (e.g. a conventional one the user
     tracks) is scored too, as `comparison`. `parts`: the head's face parts (default: its
     stored list), all traced for visibility and moving in every pose; landmarks go on the
     head and on `allowed_parts` only (default: the parts ticked in the list). Raises
     MeshDataError or the core's errors on bad input."""
-    check_design(**params)
+    settings = settings or LandmarkSettings()
+    check_design(settings)
     started = time.perf_counter()
     rig, face = read_face_rig(face_objects(obj, parts))
     if allowed_parts is None:
@@ -153,8 +143,8 @@ def place_landmarks(obj, cameras=None, axis=0, progress=None, compare_group=None
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
     layout = native.module().place_landmarks(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, cameras=cameras, axis=axis, progress=progress,
-        allowed=allowed_vertices(face, allowed_parts), **params
+        rig.neutral, rig.deltas, rig.triangles, rig.names, settings.as_native(), cameras=cameras, progress=progress,
+        allowed=allowed_vertices(face, allowed_parts),
     )
     vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
     if not vertices:

@@ -13,6 +13,7 @@ from .. import native
 from .face_parts import face_objects, face_of, face_summary, pair_parts, read_face_rest, read_face_rig
 from .front import front_summary, rig_front
 from .mesh_arrays import MeshDataError
+from .settings import PackSettings, pack_settings
 
 # The collision and occlusion results of the last packing, on the object (saved with the file,
 # undone with it; the leading underscore keeps it out of the Custom Properties panel).
@@ -46,30 +47,19 @@ def cached_conflicts(obj, key):
 
 
 def packing_options(obj, axis=0, time_limit=None):
-    """The keyword arguments of `pack_object` from the settings stored on `obj`: parameters,
-    refinements, and the symmetric pairs of Analyze Rig (as the user left them) when the rig
-    was analysed; otherwise the native call finds the pairs itself."""
-    settings = obj.shapesmith.pack
+    """The arguments of `pack_object` stored on `obj`: its Pack panel's settings
+    (`settings.pack_settings`), refinements, target and front camera, and the symmetric pairs
+    of Analyze Rig (as the user left them) when the rig was analysed; otherwise the native
+    call finds the pairs itself."""
+    props = obj.shapesmith.pack
     options = dict(
-        target=settings.target,
-        mu=settings.mu,
-        a=settings.a,
-        beta=settings.beta,
-        max_expressions=settings.max_expressions if settings.limit_expressions else None,
-        symmetric=settings.symmetric,
-        antagonist_cosine=settings.antagonist_cosine,
-        fewest=settings.fewest,
-        pin_together=[(p.first, p.second) for p in settings.pin_together],
-        keep_apart=[(p.first, p.second) for p in settings.keep_apart],
-        exclude=[e.name for e in settings.exclude],
-        axis=axis,
-        time_limit=time_limit,
+        settings=pack_settings(props, axis=axis, time_limit=time_limit),
+        target=props.target,
+        pin_together=[(p.first, p.second) for p in props.pin_together],
+        keep_apart=[(p.first, p.second) for p in props.keep_apart],
+        exclude=[e.name for e in props.exclude],
         pairs=None,
-        collision_conflicts=settings.collision_conflicts,
-        collision_tolerance=settings.collision_tolerance,
-        occlusion_conflicts=settings.occlusion_conflicts,
-        occlusion_keep=settings.occlusion_keep,
-        camera=settings.front_camera,
+        camera=props.front_camera,
     )
     if obj.shapesmith.analysis.done:
         options["pairs"] = [(p.first, p.second) for p in obj.shapesmith.pairs]
@@ -84,35 +74,39 @@ def _check_named_pairs(pairs, what):
 
 def pack_object(
     obj,
+    settings=None,
+    *,
     target=None,
-    max_expressions=None,
     pairs=None,
-    symmetric=True,
-    time_limit=None,
-    progress=None,
-    reuse_conflicts=True,
+    pin_together=(),
+    keep_apart=(),
+    exclude=(),
     camera=None,
     parts=None,
     target_parts=None,
-    **params,
+    progress=None,
+    reuse_conflicts=True,
 ):
-    """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer and
-    returns its report with timings and shape-key warnings added. Writes nothing.
+    """Reads the rig (`read_rig` leaves out the keys a previous Bake wrote), runs the native packer with
+    `settings` (a `settings.PackSettings`; None: the defaults) and returns its report with
+    timings and shape-key warnings added. Writes nothing.
 
     With `reuse_conflicts`, the collision and occlusion results an earlier packing stored on
     the object (`store_packing`) are reused when the rig and their settings are unchanged
     (`conflicts_key`): only pairs they did not decide are tested. The report's
     `conflicts_cache` is what `store_packing` stores next.
 
-    `params` are passed through to `shapesmith_native.pack_expressions` (mu, a, beta,
-    antagonist_cosine, fewest, pin_together, keep_apart, exclude, axis, collision_conflicts,
-    collision_tolerance, occlusion_conflicts, occlusion_keep). The occlusion test looks from the
-    rig's front (`rig_front`: `camera` when given, else found from the rig), which the report
-    gives as `front`, `up` and `front_source`. `progress(fraction)`, when given, is called on
-    this thread as the work advances (False cancels). `parts`, `target_parts`: the face parts
-    of `obj` and `target` (default: the lists stored on them), packed as one rig with the head,
+    `pairs` (symmetric pairs, used with the settings' `symmetric`), `pin_together`,
+    `keep_apart` (pairs of shape names) and `exclude` (names) are the refinements. The
+    occlusion test looks from the rig's front (`rig_front`: `camera` when given, else found
+    from the rig; it replaces the settings' `camera_direction`), which the report gives as
+    `front`, `up` and `front_source`. `progress(fraction)`, when given, is called on this
+    thread as the work advances (False cancels). `parts`, `target_parts`: the face parts of
+    `obj` and `target` (default: the lists stored on them), packed as one rig with the head,
     so that a key moving only a part (tongueOut in the teeth) is tested against the head's.
     Raises MeshDataError (or the core's InvalidInputError) for anything the user has to fix."""
+    settings = settings or PackSettings()
+    max_expressions = settings.max_expressions
     started = time.perf_counter()
     if max_expressions is not None and max_expressions < 1:
         raise MeshDataError(f"the maximum number of expressions must be at least 1 (got {max_expressions})")
@@ -128,14 +122,14 @@ def pack_object(
                     f"{len(own.data.vertices)}: the target must share the rig's topology"
                 )
         target_neutral = read_face_rest(face_of(targets))
-    for what in ("pin_together", "keep_apart"):
-        _check_named_pairs(params.get(what, ()), what.replace("_", " "))
-    if symmetric and pairs is not None:
+    _check_named_pairs(pin_together, "pin together")
+    _check_named_pairs(keep_apart, "keep apart")
+    if settings.symmetric and pairs is not None:
         _check_named_pairs(pairs, "symmetric pairs")
-    front = rig_front(obj, rig, axis=params.get("axis", 0), camera=camera)
-    params["camera_direction"] = front["front"]
+    front = rig_front(obj, rig, axis=settings.axis, camera=camera)
+    native_settings = dict(settings.as_native(), camera_direction=list(front["front"]))
     read = time.perf_counter()
-    key = conflicts_key(rig, params)
+    key = conflicts_key(rig, native_settings)
     known = cached_conflicts(obj, key) if reuse_conflicts else None
     hashed = time.perf_counter()
     report = native.module().pack_expressions(
@@ -143,14 +137,14 @@ def pack_object(
         deltas,
         rig.triangles,
         names,
+        native_settings,
         target_neutral=target_neutral,
-        max_expressions=max_expressions,
-        symmetric=symmetric,
-        pairs=pairs if symmetric else None,
-        time_limit=time_limit,
+        pairs=pairs if settings.symmetric else None,
+        pin_together=list(pin_together),
+        keep_apart=list(keep_apart),
+        exclude=list(exclude),
         known=known,
         progress=progress,
-        **params,
     )
     solved = time.perf_counter()
     report["conflicts_cache"] = {"key": key, "known": report["poseability"].pop("known")}

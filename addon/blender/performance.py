@@ -19,6 +19,7 @@ from mathutils import Matrix
 from .. import native
 from .keyframes import key_channel, key_transforms
 from .mesh_arrays import MeshDataError, read_rig
+from .settings import PerformanceSettings
 
 # Axis suffixes of a trajectory CSV's columns: `<landmark>_x` (or `.x`, ` x`, `:x`).
 AXES = "xyz"
@@ -204,11 +205,11 @@ class SolveRequest:
     tracks and the settings. `run` then needs no Blender at all, so it may run on a worker
     thread (`performance_job.SolveJob`)."""
 
-    def __init__(self, obj, tracks, smoothing=1.0, solve_scale=False):
+    def __init__(self, obj, tracks, settings=None):
         self.object_name = obj.name
         self.rig = read_rig(obj)
         self.tracks = tracks
-        self.smoothing, self.solve_scale = smoothing, solve_scale
+        self.settings = settings or PerformanceSettings()
         self.rotation, self.translation, self.scale = start_pose(obj)
 
     def run(self, progress=None):
@@ -217,7 +218,7 @@ class SolveRequest:
         rig, tracks = self.rig, self.tracks
         return native.module().solve_performance(
             rig.neutral, rig.deltas, rig.triangles, rig.names, tracks.vertices, np.ascontiguousarray(tracks.values),
-            camera=tracks.camera, smoothing=self.smoothing, solve_scale=self.solve_scale, start_rotation=self.rotation,
+            self.settings.as_native(), camera=tracks.camera, start_rotation=self.rotation,
             start_translation=self.translation, start_scale=self.scale, progress=progress,
         )
 
@@ -251,15 +252,16 @@ class SolveRequest:
             "inert_shapes": solved["inert"],
             "unknown_columns": tracks.unknown,
             "untracked_landmarks": tracks.untracked,
-            "smoothing": self.smoothing,
+            "smoothing": self.settings.smoothing,
             "warnings": rig.warnings,
         }
 
 
-def solve(obj, tracks, smoothing=1.0, solve_scale=False, progress=None):
-    """Solves the pose and weights of every frame, blocking; returns the document (writes
-    nothing)."""
-    request = SolveRequest(obj, tracks, smoothing, solve_scale)
+def solve(obj, tracks, settings=None, progress=None):
+    """Solves the pose and weights of every frame with `settings` (a
+    `settings.PerformanceSettings`; None: the defaults), from the head's placement, blocking;
+    returns the document (writes nothing)."""
+    request = SolveRequest(obj, tracks, settings)
     return request.document(request.run(progress))
 
 

@@ -26,15 +26,15 @@ def current():
 
 
 class SolveJob:
-    """One solve: `SolveJob(obj, tracks, ...)` reads the rig and starts the worker; `step()`
+    """One solve: `SolveJob(obj, tracks, settings, target)` reads the rig and starts the worker; `step()`
     on the main thread until it returns False; `cancel()` at any time. `state` is "running",
     then "finished" (keyed; `document` holds the report), "cancelled" or "failed" (`error`)."""
 
-    def __init__(self, obj, tracks, smoothing=1.0, solve_scale=False, target=None):
+    def __init__(self, obj, tracks, settings=None, target=None):
         global _current
         if current() is not None:
             raise MeshDataError("a solve is already running: wait for it or cancel it")
-        self.request = SolveRequest(obj, tracks, smoothing, solve_scale)
+        self.request = SolveRequest(obj, tracks, settings)
         self.vertex_count = len(obj.data.vertices)
         self.target_name = target.name if target is not None else None
         self.state, self.fraction, self.document, self.error = "running", 0.0, None, None

@@ -11,6 +11,7 @@ import numpy as np
 from .. import native
 from .face_parts import face_objects, face_of, pair_parts, read_face_rest, read_face_rig
 from .mesh_arrays import MeshDataError, check_mesh, read_triangles, rest_positions, show_mesh
+from .settings import TransferSettings, VirtualEdgeSettings
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
 _EXPRESSION_NAME = re.compile(r"(?:^|[_.\- ])REF_(\d+)$")
@@ -219,18 +220,10 @@ def read_training(objects, source, target, names, expressions):
 def transfer_object(
     source,
     target,
+    settings=None,
     *,
-    virtual_edges=True,
-    tau_d=0.015,
-    tau_r=4.0,
-    edge_weight=3.0,
     training_objects=(),
     pack_report=None,
-    beta_reg=1.0,
-    refine_weights=False,
-    compare_plain=False,
-    collisions=True,
-    collision_margin=0.25,
     template_penetration=None,
     source_parts=None,
     target_parts=None,
@@ -238,7 +231,8 @@ def transfer_object(
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
-    transfer and returns a `Transfer`. Writes nothing; raises MeshDataError (or the core's
+    transfer with `settings` (a `settings.TransferSettings`, None for the defaults) and returns
+    a `Transfer`. Writes nothing; raises MeshDataError (or the core's
     InvalidInputError) for anything the user has to fix. `progress(fraction)`, when given, is
     called as the work advances and stops it by returning False (CancelledError).
     `template_penetration` is `measure_template_penetration(source)` when the caller already
@@ -246,6 +240,9 @@ def transfer_object(
     face parts of each (`face_parts.face_objects`; default: the lists stored on the heads);
     `joined_target`: the target is one mesh of the template's objects joined (a wrap's)."""
     started = time.perf_counter()
+    settings = settings or TransferSettings()
+    if not settings.measure_penetration:
+        raise MeshDataError("the add-on's transfer report needs the penetration measured: keep measure_penetration on")
     rig, face, target_face, target_neutral = _read_pair(source, target, source_parts, target_parts, joined_target)
     examples = example_weights = None
     training = {}
@@ -266,18 +263,9 @@ def transfer_object(
         target_neutral,
         rig.triangles,
         rig.names,
-        virtual_edges=virtual_edges,
-        tau_d=tau_d,
-        tau_r=tau_r,
-        edge_weight=edge_weight,
+        settings.as_native(),
         examples=examples,
         example_weights=None if example_weights is None else example_weights.tolist(),
-        beta_reg=beta_reg,
-        refine_weights=refine_weights,
-        compare_plain=compare_plain,
-        measure_penetration=True,
-        collisions=collisions,
-        collision_margin=collision_margin,
         template_penetration=template_penetration,
         progress=progress,
     )
@@ -299,11 +287,13 @@ def measure_template_penetration(source, parts=None):
     return native.module().measure_penetration(rig.neutral, rig.deltas, rig.triangles)
 
 
-def find_virtual_edges(target, tau_d=0.015, tau_r=4.0):
-    """The target's virtual edges (E, 2) and its rest positions."""
+def find_virtual_edges(target, settings=None):
+    """The target's virtual edges (E, 2) and its rest positions; `settings`: a
+    `settings.VirtualEdgeSettings` (None: the defaults)."""
     check_mesh(target, need_shape_keys=False)
     positions = rest_positions(target)
-    return native.module().find_virtual_edges(positions, read_triangles(target), tau_d=tau_d, tau_r=tau_r), positions
+    settings = settings or VirtualEdgeSettings()
+    return native.module().find_virtual_edges(positions, read_triangles(target), settings.as_native()), positions
 
 
 def preview_name(target):

@@ -15,6 +15,7 @@ import numpy as np
 from .. import native
 from .face_parts import face_objects, face_of, read_face_rest, read_face_triangles
 from .mesh_arrays import MeshDataError, read_triangles, show_mesh
+from .settings import CarrySettings, TransferSettings, WrapSettings
 from .transfer import Transfer, joined_face_corners, rest_positions, transfer_object
 
 # A custom property holding point pairs in the JSON form of `batch.py wrap --pairs`.
@@ -173,8 +174,10 @@ def refresh_markers(character, template):
             marker.location = getattr(pair, f"{side}_co")
 
 
-def wrap_object(template, character, template_points, character_points, *, align_only=False, progress=None):
-    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing."""
+def wrap_object(template, character, template_points, character_points, settings=None, *, progress=None):
+    """Validates and runs the native wrap with `settings` (a `settings.WrapSettings`; None:
+    the defaults); returns a `Wrapped`. Writes nothing."""
+    settings = settings or WrapSettings()
     started = time.perf_counter()
     if character is None or template is None:
         raise MeshDataError("pick a template and make the character the active mesh")
@@ -190,7 +193,7 @@ def wrap_object(template, character, template_points, character_points, *, align
         character_triangles,
         np.ascontiguousarray(template_points, dtype=np.float32).reshape(-1, 3),
         np.ascontiguousarray(character_points, dtype=np.float32).reshape(-1, 3),
-        align_only=align_only,
+        settings.as_native(),
         progress=progress,
     )
     seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
@@ -313,31 +316,33 @@ def character_rows(report, character_penetration):
     return rows
 
 
-def carry_onto_character(template, character, wrapped_object, *, transfer_options=None, seconds=None, progress=None):
+def carry_onto_character(template, character, wrapped_object, transfer_settings=None, *, seconds=None, progress=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
-    the transfer's virtual edges and options), then carries them onto the character's own
-    vertices. Returns a `transfer.Transfer` whose target is the character, ready for
+    `transfer_settings`, a `settings.TransferSettings`; None: the defaults), then carries
+    them onto the character's own vertices. Returns a `transfer.Transfer` whose target is the character, ready for
     `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
     started = time.perf_counter()
-    onto_wrapped = transfer_object(template, wrapped_object, joined_target=True, progress=progress, **(transfer_options or {}))
+    transfer_settings = transfer_settings or TransferSettings()
+    onto_wrapped = transfer_object(template, wrapped_object, transfer_settings, joined_target=True, progress=progress)
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
     # The carried keys are judged on the character's own mesh by the criterion the transfer
     # used; with the transfer's collision pass on, the carry's holds them to it, with the same
     # margin.
-    collisions = onto_wrapped.report["params"]["transfer"]["collisions"]
-    collision_options = {**template_curve(onto_wrapped.report), "collisions": collisions is not None}
+    collisions = transfer_settings.transfer.collisions
+    carry = CarrySettings(collision_pass=collisions is not None)
     if collisions is not None:
-        collision_options["collision_margin"] = float(collisions["margin"])
+        carry.collision_margin = collisions.margin
     deltas, carry_report = native.module().carry_shapes(
         np.ascontiguousarray(wrapped_neutral),
         wrapped_triangles,
         np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
         character_neutral,
         character_triangles,
+        carry.as_native(),
         progress=progress,
-        **collision_options,
+        **template_curve(onto_wrapped.report),
     )
     carried = time.perf_counter()
     report = dict(onto_wrapped.report)

@@ -4,6 +4,7 @@ antagonists of the active mesh, stored on it for review."""
 import bpy
 
 from ..blender.analysis import analyze_object, store_analysis
+from ..blender.settings import analyze_settings
 from .base import expected_errors, poll_mesh
 
 
@@ -19,9 +20,8 @@ class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
 
     def execute(self, context):
         obj = context.active_object
-        settings = context.scene.shapesmith
         try:
-            report = analyze_object(obj, axis=int(settings.symmetry_axis), pair_by_name=settings.pair_by_name)
+            report = analyze_object(obj, analyze_settings(context.scene))
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -9,8 +9,8 @@ from ..blender.landmarks import (
     comparison_group,
     comparison_line,
     place_landmarks,
-    settings_params,
 )
+from ..blender.settings import landmark_settings
 from .base import expected_errors, poll_mesh, progress_cursor
 
 
@@ -35,8 +35,8 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
             cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
             with progress_cursor(context) as progress:
                 document = place_landmarks(
-                    obj, cameras=cameras, axis=int(scene.shapesmith.symmetry_axis), progress=progress,
-                    compare_group=comparison_group(obj, settings.score_group), **settings_params(settings),
+                    obj, landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis)), cameras=cameras,
+                    progress=progress, compare_group=comparison_group(obj, settings.score_group),
                 )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

@@ -3,6 +3,7 @@
 
 import bpy
 
+from ..blender.settings import VirtualEdgeSettings
 from ..blender.transfer import find_virtual_edges, show_virtual_edges
 from .base import expected_errors, poll_mesh
 
@@ -21,7 +22,7 @@ class SHAPESMITH_OT_preview_virtual_edges(bpy.types.Operator):
         settings = context.scene.shapesmith.transfer
         target = context.active_object
         try:
-            edges, positions = find_virtual_edges(target, tau_d=settings.tau_d, tau_r=settings.tau_r)
+            edges, positions = find_virtual_edges(target, VirtualEdgeSettings(tau_d=settings.tau_d, tau_r=settings.tau_r))
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

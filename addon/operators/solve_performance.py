@@ -8,6 +8,7 @@ import json
 import bpy
 
 from ..blender import performance, performance_job
+from ..blender.settings import performance_settings
 from .base import expected_errors, poll_mesh, progress_cursor
 
 # How often the timer steps a running solve (its progress, Esc, the end).
@@ -52,8 +53,7 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
         try:
             tracks = read_tracks(obj, settings, scene)
             with progress_cursor(context) as progress:
-                document = performance.solve(obj, tracks, smoothing=settings.smoothing,
-                                             solve_scale=settings.solve_scale, progress=progress)
+                document = performance.solve(obj, tracks, performance_settings(settings), progress=progress)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
@@ -70,8 +70,7 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
         settings = scene.shapesmith_performance
         try:
             tracks = read_tracks(obj, settings, scene)
-            self._job = performance_job.SolveJob(obj, tracks, smoothing=settings.smoothing,
-                                                 solve_scale=settings.solve_scale, target=settings.target)
+            self._job = performance_job.SolveJob(obj, tracks, performance_settings(settings), target=settings.target)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -4,6 +4,7 @@ solved in full before anything is written."""
 
 import bpy
 
+from ..blender.settings import transfer_settings
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
 from ..blender.wrap import carry_onto_character
@@ -44,12 +45,7 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
                     template,
                     character,
                     wrapped_object,
-                    transfer_options={
-                        "virtual_edges": settings.virtual_edges,
-                        "tau_d": settings.tau_d,
-                        "tau_r": settings.tau_r,
-                        "edge_weight": settings.edge_weight,
-                    },
+                    transfer_settings(settings),
                     progress=progress,
                 )
             written, skipped, warnings = write_transferred_keys(result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers)

@@ -3,6 +3,7 @@ full before anything is written, so an error leaves the target as it was."""
 
 import bpy
 
+from ..blender.settings import transfer_settings
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, transfer_object, worse_than_template
 from .base import expected_errors, poll_mesh, progress_cursor
@@ -31,16 +32,8 @@ class TransferOperator:
                 transfer = transfer_object(
                     settings.source,
                     target,
-                    virtual_edges=settings.virtual_edges,
-                    tau_d=settings.tau_d,
-                    tau_r=settings.tau_r,
-                    edge_weight=settings.edge_weight,
+                    transfer_settings(settings),
                     training_objects=self.training_objects(settings),
-                    beta_reg=settings.beta_reg,
-                    refine_weights=settings.refine_weights,
-                    compare_plain=settings.compare_plain,
-                    collisions=settings.collisions,
-                    collision_margin=settings.collision_margin,
                     progress=progress,
                 )
             written, skipped, warnings = write_transferred_keys(

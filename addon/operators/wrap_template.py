@@ -4,6 +4,7 @@ inspected before any key is written."""
 
 import bpy
 
+from ..blender.settings import WrapSettings
 from ..blender.wrap import show_wrapped, stored_pairs, store_wrap, wrap_object
 from .base import expected_errors, poll_mesh, progress_cursor
 
@@ -29,7 +30,8 @@ class WrapOperator:
             template_points, character_points = stored_pairs(character, template)
             with progress_cursor(context) as progress:
                 wrapped = wrap_object(
-                    template, character, template_points, character_points, align_only=self.align_only, progress=progress
+                    template, character, template_points, character_points, WrapSettings(align_only=self.align_only),
+                    progress=progress,
                 )
             show_wrapped(wrapped)
         except expected_errors() as error:

@@ -10,7 +10,9 @@ use crate::geometry::mirror::{find_symmetry, MirrorMap, PairSource, SymmetryPara
 use crate::geometry::weld::WeldedRig;
 use crate::rig::{degenerate_triangles, validate_points, RigView};
 
-#[derive(Clone, Debug)]
+/// Analyze Rig's settings ([`crate::settings`]).
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct AnalysisParams {
     /// Lateral axis of the symmetry plane (0 = local X).
     pub axis: usize,

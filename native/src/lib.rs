@@ -11,7 +11,8 @@
 //!
 //! Shared parts: [`rig`] (the borrowed rig and its validation), [`bounded`] (box-constrained
 //! least squares), [`geometry`] (mirror map,
-//! symmetric and antagonist shape pairs, k-d tree neighbours, closest points, the penetration metric), [`sparse`] (sparse Cholesky), [`ilp`] (HiGHS through good_lp).
+//! symmetric and antagonist shape pairs, k-d tree neighbours, closest points, the penetration metric), [`sparse`] (sparse Cholesky), [`ilp`] (HiGHS through good_lp),
+//! [`settings`] (each tool's settings as one JSON object onto its `*Params`).
 //! No Blender notion enters this crate; the `python` feature adds the thin pyo3 layer in `py`.
 
 pub mod analysis;
@@ -24,6 +25,7 @@ pub mod packing;
 pub mod performance;
 pub mod progress;
 pub mod rig;
+pub mod settings;
 pub mod sparse;
 pub mod transfer;
 pub mod wrap;

@@ -55,7 +55,8 @@ impl MirrorMap {
     }
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SymmetryParams {
     /// Mirror test: `||M(D_i) - D_j|| / max(||D_i||, ||D_j||)` below this (SPEC: 0.25).
     pub pair_tolerance: f64,

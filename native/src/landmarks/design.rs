@@ -44,7 +44,7 @@ use crate::geometry::neighbours::PointTree;
 /// The prior precision of a weight: `1 / Var(U[0, 1]) = 12`.
 pub const PRIOR_PRECISION: f64 = 12.0;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Criterion {
     /// Weighted A-optimal: the predicted reconstruction error.

@@ -56,7 +56,10 @@ use crate::progress::NoProgress;
 
 pub use score::{score_layout, LayoutScore, ScoreParams};
 
-#[derive(Clone, Debug)]
+/// Place Landmarks' settings ([`crate::settings`]); the cameras and the allowed vertices are
+/// the caller's data, `#[serde(skip)]`.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct LandmarkParams {
     /// Candidate threshold on the relative displacement, in (0, 1] (Eq. 3; paper 0.3..0.8).
     pub epsilon: f64,
@@ -67,6 +70,7 @@ pub struct LandmarkParams {
     /// Hemisphere rays per vertex and pose (ignored with `cameras`).
     pub rays: usize,
     /// Known camera positions in the mesh's local space: one visibility segment each.
+    #[serde(skip)]
     pub cameras: Option<Vec<[f64; 3]>>,
     pub symmetric: bool,
     /// Lateral axis of the symmetry plane (0 = local X).
@@ -115,6 +119,7 @@ pub struct LandmarkParams {
     /// A face whose teeth and eyes are pieces of the mesh keeps them as occluders and moving
     /// geometry while landmarks stay on the skin; a shape that moves only forbidden vertices
     /// is reported in `uncovered`.
+    #[serde(skip)]
     pub allowed: Option<Vec<bool>>,
 }
 

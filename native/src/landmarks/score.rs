@@ -15,13 +15,16 @@ use crate::geometry::weld::WeldedRig;
 use crate::invalid;
 use crate::rig::RigView;
 
-#[derive(Clone, Debug)]
+/// Score Layout's settings ([`crate::settings`]); the extra poses are data, `#[serde(skip)]`.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ScoreParams {
     /// Standard deviation of the measurement noise per coordinate, as a fraction of the
     /// bounding-box diagonal (SPEC: 0.2%).
     pub noise: f64,
     pub seed: u64,
     /// Further test poses, K weights each (e.g. the packed expressions as 0/1 rows).
+    #[serde(skip)]
     pub extra_poses: Vec<Vec<f64>>,
     /// Random sparse mixes: 3 to 6 shapes, weights uniform in [0, 1].
     pub random_mixes: usize,

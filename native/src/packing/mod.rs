@@ -69,7 +69,10 @@ use crate::rig::RigView;
 use programs::{fewest_colours, first_fit, heaviest_independent_set};
 use setup::{prepare, Prepared};
 
-#[derive(Clone, Debug)]
+/// Pack Expressions' settings ([`crate::settings`]); the refinements and the stored results
+/// are the rig's data (shape indices), `#[serde(skip)]`: the caller sets them.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PackingParams {
     /// Binary blendshape threshold relative to each shape's largest displacement (Eq. (2)).
     pub mu: f64,
@@ -93,12 +96,16 @@ pub struct PackingParams {
     pub antagonist_cosine: f64,
     /// The user's symmetric pairs; when given they replace the geometric ones (even with
     /// `symmetric` off).
+    #[serde(skip)]
     pub pairs: Option<Vec<(usize, usize)>>,
     /// Shapes that must share an expression.
+    #[serde(skip)]
     pub pin_together: Vec<(usize, usize)>,
     /// Shapes that must not share an expression.
+    #[serde(skip)]
     pub keep_apart: Vec<(usize, usize)>,
     /// Shapes never placed.
+    #[serde(skip)]
     pub exclude: Vec<usize>,
     /// Also prove the fewest expressions possible for the same conflicts.
     pub fewest: bool,
@@ -120,6 +127,7 @@ pub struct PackingParams {
     /// `mu`, tolerance, keep share and camera ([`PoseabilityReport::known`]): the pairs they
     /// decided are not tested again. The caller keeps them (the add-on on the object, keyed
     /// by a hash of the rig and those settings); the other options do not change them.
+    #[serde(skip)]
     pub known: Option<KnownPoseability>,
 }
 

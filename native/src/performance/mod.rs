@@ -42,7 +42,10 @@ pub use camera::Camera;
 use frame::{FrameSolver, LandmarkBasis, Measurement, Projection, State};
 pub use pose::Pose;
 
-#[derive(Clone, Debug)]
+/// Solve Performance's settings ([`crate::settings`]); the start pose is the head's
+/// placement, data, `#[serde(skip)]`.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PerformanceParams {
     /// `lambda`: the penalty on `|w_t - w_{t-1}|^2` against residuals in noise units; 0 solves
     /// every frame on its own.
@@ -63,6 +66,7 @@ pub struct PerformanceParams {
     pub rigid_fraction: f64,
     /// The head's pose to start from: its scale is kept unless `solve_scale`, and with 2D
     /// tracks its rotation is the first frame's first guess.
+    #[serde(skip)]
     pub start: Pose,
 }
 

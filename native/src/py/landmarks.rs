@@ -8,12 +8,14 @@ use serde::Serialize;
 use super::arrays;
 use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
+use super::settings::settings as read_settings;
 use crate::ilp::SolveStatus;
 use crate::invalid;
 use crate::landmarks::{
-    place_landmarks as place, score_layout as score, Criterion, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
+    place_landmarks as place, score_layout as score, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
 };
 use crate::rig::RigView;
+use crate::settings::settings_to_json;
 
 #[derive(Serialize)]
 struct NamedLandmark {
@@ -34,31 +36,6 @@ struct Seconds {
 }
 
 #[derive(Serialize)]
-struct EchoedParams {
-    epsilon: f64,
-    alpha: f64,
-    gamma: f64,
-    rays: usize,
-    cameras: usize,
-    symmetric: bool,
-    max_per_shape: usize,
-    radius: f64,
-    share_limit: f64,
-    min_visibility: f64,
-    axis: usize,
-    seed: u64,
-    time_limit: Option<f64>,
-    landmarks: Option<usize>,
-    target_error: Option<f64>,
-    criterion: Criterion,
-    pool_epsilon: f64,
-    pool_visibility: f64,
-    noise: f64,
-    curve_to: usize,
-    reuse_visibility: bool,
-}
-
-#[derive(Serialize)]
 struct LayoutReport {
     landmarks: Vec<NamedLandmark>,
     optimal: bool,
@@ -74,7 +51,17 @@ struct LayoutReport {
     predicted_error: f64,
     curve: Vec<CurvePoint>,
     design_stop: Option<DesignStop>,
-    params: EchoedParams,
+    /// The settings used, with `cameras` their count.
+    params: serde_json::Value,
+}
+
+/// The settings as the report gives them: the cameras as their count.
+fn echo(params: &LandmarkParams) -> serde_json::Value {
+    let mut echoed = settings_to_json(params);
+    if let serde_json::Value::Object(map) = &mut echoed {
+        map.insert("cameras".into(), params.cameras.as_ref().map_or(0, Vec::len).into());
+    }
+    echoed
 }
 
 fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> LayoutReport {
@@ -110,53 +97,28 @@ fn report(layout: LandmarkLayout, names: &[String], params: &LandmarkParams) -> 
         predicted_error: layout.predicted_error,
         curve: layout.curve,
         design_stop: layout.design_stop,
-        params: EchoedParams {
-            epsilon: params.epsilon,
-            alpha: params.alpha,
-            gamma: params.gamma,
-            rays: params.rays,
-            cameras: params.cameras.as_ref().map_or(0, Vec::len),
-            symmetric: params.symmetric,
-            max_per_shape: params.max_per_shape,
-            radius: params.radius,
-            share_limit: params.share_limit,
-            min_visibility: params.min_visibility,
-            axis: params.axis,
-            seed: params.seed,
-            time_limit: params.time_limit,
-            landmarks: params.landmarks,
-            target_error: params.target_error,
-            criterion: params.criterion,
-            pool_epsilon: params.pool_epsilon,
-            pool_visibility: params.pool_visibility,
-            noise: params.noise,
-            curve_to: params.curve_to,
-            reuse_visibility: params.reuse_visibility,
-        },
+        params: echo(params),
     }
 }
 
-/// place_landmarks(neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
-///                 rays=64, symmetric=False, max_per_shape=2, radius=0.03, cameras=None,
-///                 axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0,
-///                 landmarks=None, target_error=None, criterion="a", pool_epsilon=0.3,
-///                 pool_visibility=0.25, noise=0.002, curve_to=68, reuse_visibility=True,
+/// place_landmarks(neutral, deltas, triangles, names, settings=None, *, cameras=None,
 ///                 allowed=None, progress=None) -> dict
 ///
+/// `settings`: a dict onto [`LandmarkParams`] (None: `default_settings("landmarks")`):
+/// epsilon, alpha, gamma, rays, symmetric, axis, mirror_tolerance, max_per_shape, radius,
+/// share_limit, min_visibility, seed, time_limit, landmarks, target_error, criterion,
+/// pool_epsilon, pool_visibility, noise, curve_to, reuse_visibility; a key left out keeps its
+/// default, an unknown one is an InvalidInputError naming it. `landmarks` / `target_error`:
+/// add landmarks after the cover by the design `criterion` ("a": the predicted error, "d":
+/// the log-determinant) up to this count in all, or until the predicted error (fraction of
+/// the diagonal) reaches the target.
 /// `cameras`: optional (C, 3) float32 camera positions in the mesh's local space.
 /// `allowed`: optional list of N bools, the vertices a landmark may go on (a face's skin,
 /// not its teeth and eyes); every vertex still moves and hides others.
-/// `landmarks` / `target_error`: add landmarks after the cover by the design `criterion`
-/// ("a": the predicted error, "d": the log-determinant) up to this count in all, or until the
-/// predicted error (fraction of the diagonal) reaches the target.
 /// `progress(fraction)` is called on the calling thread as the work advances; returning
 /// `False` stops it (`CancelledError`).
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, *, epsilon=0.5, alpha=0.5, gamma=0.5,
-                    rays=64, symmetric=false, max_per_shape=2, radius=0.03, cameras=None,
-                    axis=0, seed=0, time_limit=None, share_limit=0.1, min_visibility=0.0, landmarks=None,
-                    target_error=None, criterion="a", pool_epsilon=0.3, pool_visibility=0.25, noise=0.002,
-                    curve_to=68, reuse_visibility=true, allowed=None, progress=None))]
+#[pyo3(signature = (neutral, deltas, triangles, names, settings=None, *, cameras=None, allowed=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn place_landmarks<'py>(
     py: Python<'py>,
@@ -164,39 +126,15 @@ fn place_landmarks<'py>(
     deltas: PyReadonlyArray3<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
-    epsilon: f64,
-    alpha: f64,
-    gamma: f64,
-    rays: usize,
-    symmetric: bool,
-    max_per_shape: usize,
-    radius: f64,
+    settings: Option<Bound<'py, PyAny>>,
     cameras: Option<PyReadonlyArray2<'py, f32>>,
-    axis: usize,
-    seed: u64,
-    time_limit: Option<f64>,
-    share_limit: f64,
-    min_visibility: f64,
-    landmarks: Option<i64>,
-    target_error: Option<f64>,
-    criterion: &str,
-    pool_epsilon: f64,
-    pool_visibility: f64,
-    noise: f64,
-    curve_to: usize,
-    reuse_visibility: bool,
     allowed: Option<Vec<bool>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let criterion = match criterion.to_ascii_lowercase().as_str() {
-        "a" => Criterion::A,
-        "d" => Criterion::D,
-        other => return Err(py_err(py)(invalid!("criterion must be 'a' (predicted error) or 'd' (log-determinant), got '{other}'"))),
-    };
-    let landmarks = match landmarks {
-        Some(m) if m < 1 => return Err(py_err(py)(invalid!("landmarks must be at least 1, got {m}"))),
-        other => other.map(|m| m as usize),
-    };
+    let settings: LandmarkParams = read_settings(py, settings.as_ref(), "landmarks")?;
+    if settings.landmarks == Some(0) {
+        return Err(py_err(py)(invalid!("landmarks must be at least 1, got 0")));
+    }
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
@@ -204,31 +142,7 @@ fn place_landmarks<'py>(
         Some(array) => Some(arrays::points(array, "cameras").map_err(py_err(py))?.iter().map(|c| c.map(f64::from)).collect()),
         None => None,
     };
-    let params = LandmarkParams {
-        epsilon,
-        alpha,
-        gamma,
-        rays,
-        cameras,
-        symmetric,
-        axis,
-        max_per_shape,
-        radius,
-        share_limit,
-        min_visibility,
-        seed,
-        time_limit,
-        landmarks,
-        target_error,
-        criterion,
-        pool_epsilon,
-        pool_visibility,
-        noise,
-        curve_to,
-        reuse_visibility,
-        allowed,
-        ..LandmarkParams::default()
-    };
+    let params = LandmarkParams { cameras, allowed, ..settings };
     let layout = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
         place(&rig, &params, progress)
@@ -236,13 +150,14 @@ fn place_landmarks<'py>(
     arrays::to_python(py, &report(layout, &names, &params))
 }
 
-/// score_layout(neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
-///              extra_poses=None, random_mixes=50) -> dict with mean, max, poses, landmarks
+/// score_layout(neutral, deltas, triangles, names, vertices, settings=None, *,
+///              extra_poses=None) -> dict with mean, max, poses, landmarks
 ///
-/// `vertices`: a list or array of vertex indices; `extra_poses`: optional (P, K) float32.
+/// `settings`: a dict onto [`ScoreParams`] (noise, seed, random_mixes; None:
+/// `default_settings("score")`). `vertices`: a list or array of vertex indices;
+/// `extra_poses`: optional (P, K) float32.
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
-                    extra_poses=None, random_mixes=50))]
+#[pyo3(signature = (neutral, deltas, triangles, names, vertices, settings=None, *, extra_poses=None))]
 #[allow(clippy::too_many_arguments)]
 fn score_layout<'py>(
     py: Python<'py>,
@@ -251,11 +166,10 @@ fn score_layout<'py>(
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
     vertices: Vec<i64>,
-    noise: f64,
-    seed: u64,
+    settings: Option<Bound<'py, PyAny>>,
     extra_poses: Option<PyReadonlyArray2<'py, f32>>,
-    random_mixes: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let settings: ScoreParams = read_settings(py, settings.as_ref(), "score")?;
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
@@ -277,7 +191,7 @@ fn score_layout<'py>(
             array.as_array().outer_iter().map(|row| row.iter().map(|&w| f64::from(w)).collect()).collect()
         }
     };
-    let params = ScoreParams { noise, seed, extra_poses, random_mixes };
+    let params = ScoreParams { extra_poses, ..settings };
     let result = detached(py, || {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
         score(&rig, &landmarks, &params)

@@ -8,36 +8,21 @@ use serde_json::{json, Value};
 use super::arrays;
 use super::errors::py_err;
 use super::run::detached_with_progress;
+use super::settings::settings as read_settings;
 use crate::error::ShapesmithResult;
 use crate::invalid;
 use crate::packing::{self, Packing, PackingParams};
 use crate::rig::RigView;
+use crate::settings::settings_to_json;
 
 type NamePairs = Vec<(String, String)>;
 
-/// The keyword arguments shared by both packers, as Python passed them.
-struct Options {
-    mu: f64,
-    a: f64,
-    beta: f64,
-    max_expressions: Option<usize>,
-    symmetric: bool,
-    antagonist_cosine: f64,
-    antagonist_iou: f64,
-    pair_tolerance: f64,
+/// The rig's data both packers take beside their settings, by shape name as Python passed it.
+struct Refinements {
     pairs: Option<NamePairs>,
     pin_together: NamePairs,
     keep_apart: NamePairs,
     exclude: Vec<String>,
-    fewest: bool,
-    time_limit: Option<f64>,
-    axis: usize,
-    mirror_tolerance: f64,
-    collision_conflicts: bool,
-    collision_tolerance: f64,
-    occlusion_conflicts: bool,
-    occlusion_keep: f64,
-    camera_direction: [f64; 3],
     /// An earlier report's `known`, as JSON (shape names).
     known: Option<String>,
 }
@@ -87,8 +72,9 @@ fn known_to_json(known: &packing::KnownPoseability, names: &[String]) -> Value {
     })
 }
 
-impl Options {
-    fn params(&self, names: &[String]) -> ShapesmithResult<PackingParams> {
+impl Refinements {
+    /// The settings with the refinements and the stored results as shape indices.
+    fn apply(&self, settings: PackingParams, names: &[String]) -> ShapesmithResult<PackingParams> {
         let index = |name: &str, what: &str| {
             names.iter().position(|n| n == name).ok_or_else(|| invalid!("{what}: there is no shape key named '{name}'"))
         };
@@ -96,43 +82,25 @@ impl Options {
             list.iter().map(|(a, b)| Ok((index(a, what)?, index(b, what)?))).collect()
         };
         Ok(PackingParams {
-            mu: self.mu,
-            a: self.a,
-            beta: self.beta,
-            max_expressions: self.max_expressions,
-            symmetric: self.symmetric,
-            axis: self.axis,
-            mirror_tolerance: self.mirror_tolerance,
-            pair_tolerance: self.pair_tolerance,
-            antagonist_iou: self.antagonist_iou,
-            antagonist_cosine: self.antagonist_cosine,
             pairs: self.pairs.as_ref().map(|p| pairs(p, "pairs")).transpose()?,
             pin_together: pairs(&self.pin_together, "pin_together")?,
             keep_apart: pairs(&self.keep_apart, "keep_apart")?,
             exclude: self.exclude.iter().map(|n| index(n, "exclude")).collect::<ShapesmithResult<_>>()?,
-            fewest: self.fewest,
-            time_limit: self.time_limit,
-            collision_conflicts: self.collision_conflicts,
-            collision_tolerance: self.collision_tolerance,
-            occlusion_conflicts: self.occlusion_conflicts,
-            occlusion_keep: self.occlusion_keep,
-            camera_direction: self.camera_direction,
             known: self.known.as_deref().map(|text| known_from_json(text, names)).transpose()?,
+            ..settings
         })
     }
 
-    fn echo(&self) -> Value {
-        json!({
-            "mu": self.mu, "a": self.a, "beta": self.beta, "max_expressions": self.max_expressions,
-            "symmetric": self.symmetric, "antagonist_cosine": self.antagonist_cosine,
-            "antagonist_iou": self.antagonist_iou, "pair_tolerance": self.pair_tolerance,
-            "pairs": self.pairs, "pin_together": self.pin_together, "keep_apart": self.keep_apart,
-            "exclude": self.exclude, "fewest": self.fewest, "time_limit": self.time_limit,
-            "axis": self.axis, "mirror_tolerance": self.mirror_tolerance,
-            "collision_conflicts": self.collision_conflicts, "collision_tolerance": self.collision_tolerance,
-            "occlusion_conflicts": self.occlusion_conflicts, "occlusion_keep": self.occlusion_keep,
-            "camera_direction": self.camera_direction,
-        })
+    /// The report's `params`: the settings used and the refinements by name.
+    fn echo(&self, settings: &PackingParams) -> Value {
+        let mut echoed = settings_to_json(settings);
+        if let Value::Object(map) = &mut echoed {
+            map.insert("pairs".into(), json!(self.pairs));
+            map.insert("pin_together".into(), json!(self.pin_together));
+            map.insert("keep_apart".into(), json!(self.keep_apart));
+            map.insert("exclude".into(), json!(self.exclude));
+        }
+        echoed
     }
 }
 
@@ -147,19 +115,20 @@ fn run<'py>(
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
     target_neutral: Option<PyReadonlyArray2<'py, f32>>,
-    options: Options,
+    settings: PackingParams,
+    refinements: Refinements,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
     let target = target_neutral.as_ref().map(|t| arrays::points(t, "target_neutral")).transpose().map_err(py_err(py))?;
-    let params = options.params(&names).map_err(py_err(py))?;
+    let params = refinements.apply(settings, &names).map_err(py_err(py))?;
     let packing = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
         packer(&rig, target, &params, progress)
     })?;
-    arrays::to_python(py, &named(&packing, &names, options.echo()))
+    arrays::to_python(py, &named(&packing, &names, refinements.echo(&params)))
 }
 
 fn named(p: &Packing, names: &[String], params: Value) -> Value {
@@ -204,14 +173,15 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
     })
 }
 
-/// pack_expressions(neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5,
-///     beta=0.0, max_expressions=None, symmetric=True, antagonist_cosine=-0.5,
-///     antagonist_iou=0.6, pair_tolerance=0.25, pairs=None, pin_together=[], keep_apart=[],
-///     exclude=[], fewest=False, time_limit=None, axis=0, mirror_tolerance=1e-3,
-///     collision_conflicts=True, collision_tolerance=0.11, occlusion_conflicts=True,
-///     occlusion_keep=0.5, camera_direction=(0, -1, 0), known=None, progress=None) -> dict
+/// pack_expressions(neutral, deltas, triangles, names, settings=None, *, target_neutral=None,
+///     pairs=None, pin_together=[], keep_apart=[], exclude=[], known=None, progress=None) -> dict
 ///
 /// Packs the shape keys into as few reference expressions as possible (Carrigan et al. 2020).
+/// `settings`: a dict onto [`PackingParams`] (None: `default_settings("pack")`): mu, a, beta,
+/// max_expressions, symmetric, axis, mirror_tolerance, pair_tolerance, antagonist_iou,
+/// antagonist_cosine, fewest, time_limit, collision_conflicts, collision_tolerance,
+/// occlusion_conflicts, occlusion_keep, camera_direction; a key left out keeps its default,
+/// an unknown one is an InvalidInputError naming it.
 /// `pairs`, `pin_together` and `keep_apart` are lists of (name, name); `exclude` a list of
 /// names. Returns a dict: expressions, importance, inert, excluded, unplaced, pairs,
 /// antagonists, conflicts (each edge's shapes and reasons: user, antagonist, overlap,
@@ -221,16 +191,12 @@ fn named(p: &Packing, names: &[String], params: Value) -> Value {
 /// collision tolerance, occlusion keep share and camera, which then skips those pairs;
 /// InvalidInputError when it names shapes the rig lacks), regions (each placed shape's strongly moving
 /// vertices, for the reference sheet), weights (J x K 0/1 in the order of `names`),
-/// fewest, params. `progress(fraction)`, when given, is called on the calling thread as the
-/// work advances (the collision and occlusion tests take most of it); returning False
-/// cancels (CancelledError).
+/// fewest, params (the settings used and the refinements). `progress(fraction)`, when given,
+/// is called on the calling thread as the work advances (the collision and occlusion tests
+/// take most of it); returning False cancels (CancelledError).
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
-                    max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
-                    pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
-                    exclude=Vec::new(), fewest=false, time_limit=None, axis=0, mirror_tolerance=1e-3,
-                    collision_conflicts=true, collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE,
-                    occlusion_conflicts=true, occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], known=None, progress=None))]
+#[pyo3(signature = (neutral, deltas, triangles, names, settings=None, *, target_neutral=None, pairs=None,
+                    pin_together=Vec::new(), keep_apart=Vec::new(), exclude=Vec::new(), known=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_expressions<'py>(
     py: Python<'py>,
@@ -238,49 +204,26 @@ fn pack_expressions<'py>(
     deltas: PyReadonlyArray3<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
+    settings: Option<Bound<'py, PyAny>>,
     target_neutral: Option<PyReadonlyArray2<'py, f32>>,
-    mu: f64,
-    a: f64,
-    beta: f64,
-    max_expressions: Option<usize>,
-    symmetric: bool,
-    antagonist_cosine: f64,
-    antagonist_iou: f64,
-    pair_tolerance: f64,
     pairs: Option<NamePairs>,
     pin_together: NamePairs,
     keep_apart: NamePairs,
     exclude: Vec<String>,
-    fewest: bool,
-    time_limit: Option<f64>,
-    axis: usize,
-    mirror_tolerance: f64,
-    collision_conflicts: bool,
-    collision_tolerance: f64,
-    occlusion_conflicts: bool,
-    occlusion_keep: f64,
-    camera_direction: [f64; 3],
     known: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let options = Options {
-        mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
-        pairs, pin_together, keep_apart, exclude, fewest, time_limit, axis, mirror_tolerance,
-        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction, known,
-    };
-    run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, options, progress)
+    let settings: PackingParams = read_settings(py, settings.as_ref(), "pack")?;
+    let refinements = Refinements { pairs, pin_together, keep_apart, exclude, known };
+    run(py, packing::pack_expressions, neutral, deltas, triangles, names, target_neutral, settings, refinements, progress)
 }
 
-/// pack_greedy(...) -> dict, with the arguments of `pack_expressions` except `fewest` and
-/// `time_limit` (nothing is solved): the first-fit baseline on the same conflicts, nodes in
-/// order of importance. Expressions carry `status` None and `optimal` False.
+/// pack_greedy(...) -> dict, with the arguments of `pack_expressions`; the settings' `fewest`
+/// and `time_limit` are not used (nothing is solved): the first-fit baseline on the same
+/// conflicts, nodes in order of importance. Expressions carry `status` None and `optimal` False.
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, *, target_neutral=None, mu=0.3, a=0.5, beta=0.0,
-                    max_expressions=None, symmetric=true, antagonist_cosine=-0.5, antagonist_iou=0.6,
-                    pair_tolerance=0.25, pairs=None, pin_together=Vec::new(), keep_apart=Vec::new(),
-                    exclude=Vec::new(), axis=0, mirror_tolerance=1e-3, collision_conflicts=true,
-                    collision_tolerance=packing::DEFAULT_COLLISION_TOLERANCE, occlusion_conflicts=true,
-                    occlusion_keep=0.5, camera_direction=[0.0, -1.0, 0.0], known=None, progress=None))]
+#[pyo3(signature = (neutral, deltas, triangles, names, settings=None, *, target_neutral=None, pairs=None,
+                    pin_together=Vec::new(), keep_apart=Vec::new(), exclude=Vec::new(), known=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn pack_greedy<'py>(
     py: Python<'py>,
@@ -288,35 +231,19 @@ fn pack_greedy<'py>(
     deltas: PyReadonlyArray3<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
+    settings: Option<Bound<'py, PyAny>>,
     target_neutral: Option<PyReadonlyArray2<'py, f32>>,
-    mu: f64,
-    a: f64,
-    beta: f64,
-    max_expressions: Option<usize>,
-    symmetric: bool,
-    antagonist_cosine: f64,
-    antagonist_iou: f64,
-    pair_tolerance: f64,
     pairs: Option<NamePairs>,
     pin_together: NamePairs,
     keep_apart: NamePairs,
     exclude: Vec<String>,
-    axis: usize,
-    mirror_tolerance: f64,
-    collision_conflicts: bool,
-    collision_tolerance: f64,
-    occlusion_conflicts: bool,
-    occlusion_keep: f64,
-    camera_direction: [f64; 3],
     known: Option<String>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let options = Options {
-        mu, a, beta, max_expressions, symmetric, antagonist_cosine, antagonist_iou, pair_tolerance,
-        pairs, pin_together, keep_apart, exclude, fewest: false, time_limit: None, axis, mirror_tolerance,
-        collision_conflicts, collision_tolerance, occlusion_conflicts, occlusion_keep, camera_direction, known,
-    };
-    run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, options, progress)
+    let settings: PackingParams = read_settings(py, settings.as_ref(), "pack")?;
+    let settings = PackingParams { fewest: false, time_limit: None, ..settings };
+    let refinements = Refinements { pairs, pin_together, keep_apart, exclude, known };
+    run(py, packing::pack_greedy, neutral, deltas, triangles, names, target_neutral, settings, refinements, progress)
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

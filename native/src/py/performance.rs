@@ -9,6 +9,7 @@ use serde::Serialize;
 use super::arrays;
 use super::errors::py_err;
 use super::run::detached_with_progress;
+use super::settings::settings as read_settings;
 use crate::geometry::mat3::{Mat3, Vec3};
 use crate::invalid;
 use crate::performance::{solve_performance as solve, Camera, Performance, PerformanceParams, Pose, Tracks};
@@ -75,21 +76,21 @@ fn camera_dict(value: &Bound<'_, PyDict>) -> PyResult<Camera> {
     })
 }
 
-/// solve_performance(neutral, deltas, triangles, names, landmarks, tracks, *, camera=None,
-///                   smoothing=1.0, noise_points=1e-3, noise_pixels=1.0, huber=3.0,
-///                   solve_scale=False, iterations=30, rigid_fraction=0.05,
-///                   start_rotation=None, start_translation=None, start_scale=1.0,
+/// solve_performance(neutral, deltas, triangles, names, landmarks, tracks, settings=None, *,
+///                   camera=None, start_rotation=None, start_translation=None, start_scale=1.0,
 ///                   progress=None) -> dict
 ///
+/// `settings`: a dict onto [`PerformanceParams`] (None: `default_settings("performance")`):
+/// smoothing, noise_points, noise_pixels, huber (None: plain least squares), solve_scale,
+/// iterations, rigid_fraction; an unknown key is an InvalidInputError naming it.
 /// `landmarks`: the vertex each track follows; `tracks`: float64 (T, L, 3) positions, or
 /// (T, L, 2) pixels with `camera` (a dict: focal, principal, distortion, rotation,
-/// translation); NaN marks a landmark lost on a frame. `huber=None` is plain least squares.
+/// translation); NaN marks a landmark lost on a frame. The start pose is the head's placement.
 /// `progress(fraction)` is called on the calling thread; returning `False` stops the solve
 /// (`CancelledError`).
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, landmarks, tracks, *, camera=None, smoothing=1.0,
-                    noise_points=1e-3, noise_pixels=1.0, huber=Some(3.0), solve_scale=false, iterations=30,
-                    rigid_fraction=0.05, start_rotation=None, start_translation=None, start_scale=1.0, progress=None))]
+#[pyo3(signature = (neutral, deltas, triangles, names, landmarks, tracks, settings=None, *, camera=None,
+                    start_rotation=None, start_translation=None, start_scale=1.0, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve_performance<'py>(
     py: Python<'py>,
@@ -99,19 +100,14 @@ fn solve_performance<'py>(
     names: Vec<String>,
     landmarks: Vec<i64>,
     tracks: PyReadonlyArray3<'py, f64>,
+    settings: Option<Bound<'py, PyAny>>,
     camera: Option<Bound<'py, PyDict>>,
-    smoothing: f64,
-    noise_points: f64,
-    noise_pixels: f64,
-    huber: Option<f64>,
-    solve_scale: bool,
-    iterations: usize,
-    rigid_fraction: f64,
     start_rotation: Option<Bound<'py, PyAny>>,
     start_translation: Option<[f64; 3]>,
     start_scale: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let settings: PerformanceParams = read_settings(py, settings.as_ref(), "performance")?;
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
@@ -139,16 +135,7 @@ fn solve_performance<'py>(
         translation: start_translation.unwrap_or([0.0; 3]),
         scale: start_scale,
     };
-    let params = PerformanceParams {
-        smoothing,
-        noise_points,
-        noise_pixels,
-        huber,
-        solve_scale,
-        iterations,
-        rigid_fraction,
-        start,
-    };
+    let params = PerformanceParams { start, ..settings };
     let solved = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
         match camera {

@@ -7,24 +7,28 @@ use pyo3::prelude::*;
 use super::arrays;
 use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
+use super::settings::settings as read_settings;
 use crate::geometry::penetration::intersecting_triangles as find_intersecting_triangles;
 use crate::geometry::weld::{Weld, WELD_FRACTION};
 use crate::invalid;
 use crate::transfer::{
-    find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, CollisionParams, PersonaliseParams,
-    RigPenetration, TrainingExpressions, TransferParams, TransferShapesParams, VirtualEdgeParams,
+    find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, RigPenetration, TrainingExpressions,
+    TransferShapesParams, VirtualEdgeParams,
 };
 
-/// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names, *,
-///                 virtual_edges=True, tau_d=0.015, tau_r=4.0, edge_weight=3.0,
-///                 examples=None, example_weights=None, beta_reg=1.0, refine_weights=False,
-///                 compare_plain=False, measure_penetration=True, align_rotation=True,
-///                 collisions=True, collision_margin=0.25, template_penetration=None,
-///                 progress=None)
+/// transfer_shapes(source_neutral, source_deltas, target_neutral, triangles, names,
+///                 settings=None, *, examples=None, example_weights=None,
+///                 template_penetration=None, progress=None)
 ///     -> (deltas float32 (K, N, 3), report dict)
 ///
-/// `collisions` runs the collision-aware pass after each shape's solve, keeping
-/// `collision_margin` (a fraction of the local edge length) from the other surface.
+/// `settings`: a dict onto [`TransferShapesParams`] (None: the defaults,
+/// `default_settings("transfer")`): `transfer` (`virtual_edges`: `tau_d`, `tau_r`,
+/// `max_per_vertex`, or None for none; `edge_weight`, `static_fraction`, `align_rotation`;
+/// `collisions`: `margin`, `min_margin`, `max_iterations`, `stiffness`, or None for no
+/// collision pass), `personalise` (`beta_reg`, `refine_weights`), `compare_plain`,
+/// `measure_penetration`. A key left out keeps its default; an unknown one is an
+/// InvalidInputError naming it. The report's `params` echoes the settings used.
+///
 /// `template_penetration` is `measure_penetration(template_neutral, template_deltas,
 /// triangles)` when already measured (a batch over many targets), else it is measured here.
 ///
@@ -34,10 +38,8 @@ use crate::transfer::{
 /// `examples` are J training expressions of the target, float32 (J, N, 3) positions;
 /// `example_weights` their J x K blend weights (packed expressions are 0/1 rows).
 #[pyfunction]
-#[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, *, virtual_edges=true,
-                    tau_d=0.015, tau_r=4.0, edge_weight=3.0, examples=None, example_weights=None, beta_reg=1.0,
-                    refine_weights=false, compare_plain=false, measure_penetration=true, align_rotation=true,
-                    collisions=true, collision_margin=0.25, template_penetration=None, progress=None))]
+#[pyo3(signature = (source_neutral, source_deltas, target_neutral, triangles, names, settings=None, *, examples=None,
+                    example_weights=None, template_penetration=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn transfer_shapes<'py>(
     py: Python<'py>,
@@ -46,22 +48,13 @@ fn transfer_shapes<'py>(
     target_neutral: PyReadonlyArray2<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
     names: Vec<String>,
-    virtual_edges: bool,
-    tau_d: f64,
-    tau_r: f64,
-    edge_weight: f64,
+    settings: Option<Bound<'py, PyAny>>,
     examples: Option<PyReadonlyArray3<'py, f32>>,
     example_weights: Option<Vec<Vec<f64>>>,
-    beta_reg: f64,
-    refine_weights: bool,
-    compare_plain: bool,
-    measure_penetration: bool,
-    align_rotation: bool,
-    collisions: bool,
-    collision_margin: f64,
     template_penetration: Option<Bound<'py, PyAny>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let params: TransferShapesParams = read_settings(py, settings.as_ref(), "transfer")?;
     let template_penetration: Option<RigPenetration> = match &template_penetration {
         Some(given) => {
             let text: String = py.import("json")?.call_method1("dumps", (given,))?.extract()?;
@@ -97,18 +90,6 @@ fn transfer_shapes<'py>(
         (None, None) => (None, Vec::new()),
         _ => return Err(py_err(py)(invalid!("give both examples and example_weights, or neither"))),
     };
-    let params = TransferShapesParams {
-        transfer: TransferParams {
-            virtual_edges: virtual_edges.then_some(VirtualEdgeParams { tau_d, tau_r, ..Default::default() }),
-            edge_weight,
-            align_rotation,
-            collisions: collisions.then_some(CollisionParams { margin: collision_margin, ..Default::default() }),
-            ..Default::default()
-        },
-        personalise: PersonaliseParams { beta_reg, refine_weights },
-        compare_plain,
-        measure_penetration,
-    };
     let (deltas, report) = detached_with_progress(py, progress.as_ref(), |progress| {
         let training = example_rows.map(|positions| TrainingExpressions { positions, weights: &weights });
         run_transfer(source, delta_rows, target, &tris, &names, training, template_penetration.as_ref(), &params, progress)
@@ -118,19 +99,22 @@ fn transfer_shapes<'py>(
     Ok((array.into_any(), arrays::to_python(py, &report)?))
 }
 
-/// find_virtual_edges(target_neutral, triangles, *, tau_d=0.015, tau_r=4.0) -> int32 (E, 2)
+/// find_virtual_edges(target_neutral, triangles, settings=None) -> int32 (E, 2)
+///
+/// `settings`: a dict onto [`VirtualEdgeParams`] (`tau_d`, `tau_r`, `max_per_vertex`; None:
+/// `default_settings("virtual_edges")`), the transfer settings' `transfer.virtual_edges`.
 #[pyfunction]
-#[pyo3(signature = (target_neutral, triangles, *, tau_d=0.015, tau_r=4.0))]
+#[pyo3(signature = (target_neutral, triangles, settings=None))]
 fn find_virtual_edges<'py>(
     py: Python<'py>,
     target_neutral: PyReadonlyArray2<'py, f32>,
     triangles: PyReadonlyArray2<'py, i32>,
-    tau_d: f64,
-    tau_r: f64,
+    settings: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let params: VirtualEdgeParams = read_settings(py, settings.as_ref(), "virtual_edges")?;
+    let (tau_d, tau_r) = (params.tau_d, params.tau_r);
     let points = arrays::points(&target_neutral, "target_neutral").map_err(py_err(py))?;
     let tris = arrays::triangles(&triangles).map_err(py_err(py))?;
-    let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
     let edges = detached(py, || {
         crate::rig::validate_points(points, "target_neutral")?;
         crate::rig::validate_triangle_indices(points.len(), &tris)?;

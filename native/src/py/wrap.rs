@@ -6,22 +6,23 @@ use pyo3::prelude::*;
 use super::arrays;
 use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
+use super::settings::settings as read_settings;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::to_f64;
-use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, FitParams, PointPairs, TemplateCurve, WrapParams};
+use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
-///               template_points, character_points, *, align_only=False, stiffness=None,
-///               iterations=3, landmark_weight=100.0, max_angle=60.0, max_distance=0.1,
-///               progress=None)
+///               template_points, character_points, settings=None, *, progress=None)
 ///     -> (wrapped float32 (Nt, 3) in the character's space, report dict)
 ///
+/// `settings`: a dict onto [`WrapParams`] (None: `default_settings("wrap")`): `fit`
+/// (stiffness, iterations, landmark_weight, max_angle_degrees, max_distance, rim_weight,
+/// tolerance) and `align_only`; an unknown key is an InvalidInputError naming it.
 /// `template_points`, `character_points`: float32 (P, 3) point pairs in each mesh's own
 /// space (P = 0 for an alignment from the principal axes).
 #[pyfunction]
 #[pyo3(signature = (template_neutral, template_triangles, character_neutral, character_triangles, template_points,
-                    character_points, *, align_only=false, stiffness=None, iterations=3, landmark_weight=100.0,
-                    max_angle=60.0, max_distance=0.1, progress=None))]
+                    character_points, settings=None, *, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn wrap_template<'py>(
     py: Python<'py>,
@@ -31,14 +32,10 @@ fn wrap_template<'py>(
     character_triangles: PyReadonlyArray2<'py, i32>,
     template_points: PyReadonlyArray2<'py, f32>,
     character_points: PyReadonlyArray2<'py, f32>,
-    align_only: bool,
-    stiffness: Option<Vec<f64>>,
-    iterations: usize,
-    landmark_weight: f64,
-    max_angle: f64,
-    max_distance: f64,
+    settings: Option<Bound<'py, PyAny>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let params: WrapParams = read_settings(py, settings.as_ref(), "wrap")?;
     let template = arrays::points(&template_neutral, "template_neutral").map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
@@ -47,19 +44,10 @@ fn wrap_template<'py>(
         template: arrays::points(&template_points, "template_points").map_err(py_err(py))?,
         character: arrays::points(&character_points, "character_points").map_err(py_err(py))?,
     };
-    let defaults = FitParams::default();
-    let fit = FitParams {
-        stiffness: stiffness.unwrap_or(defaults.stiffness),
-        iterations,
-        landmark_weight,
-        max_angle_degrees: max_angle,
-        max_distance,
-        ..defaults
-    };
-    if fit.stiffness.is_empty() || fit.stiffness.iter().any(|&a| !(a > 0.0 && a.is_finite())) || iterations == 0 {
+    let fit = &params.fit;
+    if fit.stiffness.is_empty() || fit.stiffness.iter().any(|&a| !(a > 0.0 && a.is_finite())) || fit.iterations == 0 {
         return Err(py_err(py)(crate::invalid!("stiffness must be a non-empty list of positive numbers and iterations at least 1")));
     }
-    let params = WrapParams { fit, align_only };
     let wrap = detached_with_progress(py, progress.as_ref(), |progress| {
         run_wrap(template, &template_tris, character, &character_tris, pairs, &params, progress)
     })?;
@@ -70,25 +58,26 @@ fn wrap_template<'py>(
 }
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
-///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
-///              template_added=None, template_crossing=None, collisions=True, collision_margin=0.25,
+///              character_triangles, settings=None, *, template_added=None, template_crossing=None,
 ///              progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
+/// `settings`: a dict onto [`CarryParams`] (None: `default_settings("carry")`):
+/// static_fraction, anchor_length, max_angle_degrees, collision_pass, collision_margin,
+/// collision_stiffness, collision_tolerance; an unknown key is an InvalidInputError naming it.
 /// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
 /// the intersection curve the template's own shape adds to the template's neutral and its
 /// whole curve, inside one piece and between pieces, in the character's units: the transfer
 /// report rows' `template_added` and `template_crossing`) have every carried shape judged on
 /// the character (the report's `penetration`: the neutral's and each shape's, and per shape
-/// the `excess` over what the template's allows), and with `collisions` turn on the collision
-/// pass: a carried shape adding more to the character's neutral is held off the surfaces it
-/// goes through (`collision_margin` x the local edge length) and re-solved; the report's
-/// `collisions` has one row per shape.
+/// the `excess` over what the template's allows), and with `collision_pass` turn on the
+/// collision pass: a carried shape adding more to the character's neutral is held off the
+/// surfaces it goes through (`collision_margin` x the local edge length) and re-solved; the
+/// report's `collisions` has one row per shape.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None,
-                    template_crossing=None, collisions=true, collision_margin=0.25, progress=None))]
+#[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles,
+                    settings=None, *, template_added=None, template_crossing=None, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -96,15 +85,12 @@ fn carry_shapes<'py>(
     template_deltas: PyReadonlyArray3<'py, f32>,
     character_neutral: PyReadonlyArray2<'py, f32>,
     character_triangles: PyReadonlyArray2<'py, i32>,
-    static_fraction: f64,
-    anchor_length: f64,
-    max_angle: f64,
+    settings: Option<Bound<'py, PyAny>>,
     template_added: Option<PyReadonlyArray2<'py, f64>>,
     template_crossing: Option<PyReadonlyArray2<'py, f64>>,
-    collisions: bool,
-    collision_margin: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let params: CarryParams = read_settings(py, settings.as_ref(), "carry")?;
     let parts = |array: &PyReadonlyArray2<'py, f64>, name: &str| -> PyResult<Vec<AddedCurve>> {
         let view = array.as_array();
         if view.ncols() != 2 {
@@ -128,14 +114,6 @@ fn carry_shapes<'py>(
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
-    let params = CarryParams {
-        static_fraction,
-        anchor_length,
-        max_angle_degrees: max_angle,
-        collision_pass: collisions,
-        collision_margin,
-        ..CarryParams::default()
-    };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
         run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), &params, progress)
     })?;

@@ -76,7 +76,8 @@ pub use report::{
 pub use virtual_edges::{find_virtual_edges, VirtualEdgeParams};
 
 /// Knobs of [`DeformationTransfer::new`], defaults from SPEC section 3.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct TransferParams {
     /// Virtual edges against penetration; `None` is plain deformation transfer.
     pub virtual_edges: Option<VirtualEdgeParams>,

@@ -69,7 +69,8 @@ use crate::progress::Progress;
 use crate::rig::validate_points;
 
 /// Knobs of [`DeformationTransfer::personalise`].
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PersonaliseParams {
     /// `beta`, the weight of the pull towards the transferred gradients against the training
     /// expressions: the transfer is taken to be wrong by `1 / sqrt(beta)` of a shape's own

@@ -15,8 +15,10 @@ use crate::invalid;
 use crate::rig::bbox_diagonal;
 use crate::progress::{NoProgress, Progress, Stage};
 
-/// Everything [`transfer_shapes`] can be asked to do.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+/// Everything [`transfer_shapes`] can be asked to do: the transfer tool's settings
+/// ([`crate::settings`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct TransferShapesParams {
     pub transfer: TransferParams,
     pub personalise: PersonaliseParams,
@@ -25,6 +27,13 @@ pub struct TransferShapesParams {
     pub compare_plain: bool,
     /// Score the penetration of every shape (template, result, plain) and of the neutral.
     pub measure_penetration: bool,
+}
+
+impl Default for TransferShapesParams {
+    /// With the penetration measured: the add-on's report, panel and worse-shape list read it.
+    fn default() -> Self {
+        Self { transfer: TransferParams::default(), personalise: PersonaliseParams::default(), compare_plain: false, measure_penetration: true }
+    }
 }
 
 /// Training expressions of the target for personalisation.

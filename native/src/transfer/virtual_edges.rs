@@ -27,7 +27,8 @@ use crate::geometry::topology::{connected_components, Adjacency};
 use crate::rig::bbox_diagonal;
 
 /// Knobs of the virtual-edge search; distances are fractions of the target's bbox diagonal.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct VirtualEdgeParams {
     /// Euclidean threshold `tau_d` as a fraction of the bounding-box diagonal.
     pub tau_d: f64,

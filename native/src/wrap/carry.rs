@@ -35,7 +35,8 @@ use crate::geometry::penetration::{Penetration, PenetrationBaseline};
 use super::pieces::ANY_PART;
 
 /// Knobs of [`carry_shapes`].
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct CarryParams {
     /// A template vertex moving less than this fraction of a shape's largest displacement is
     /// static (SPEC section 3's rule, so the carry is static where the transfer was).

@@ -83,7 +83,8 @@ use pieces::{carry_pieces, fit_pieces};
 use rims::rim_targets;
 
 /// Knobs of the non-rigid fit.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct FitParams {
     /// `alpha` per step, decreasing (Amberg et al. step from stiff to loose).
     pub stiffness: Vec<f64>,
@@ -117,8 +118,9 @@ impl Default for FitParams {
     }
 }
 
-/// Knobs of [`wrap_template`].
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+/// Knobs of [`wrap_template`]: the wrap tool's settings ([`crate::settings`]).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct WrapParams {
     pub fit: FitParams,
     /// Stop after the similarity (the Align button): the template moved rigidly and scaled.

@@ -84,7 +84,8 @@ use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct CollisionParams {
     /// Distance kept from the other surface, as a fraction of the mean length of the edges at
     /// the vertex on the target's neutral (SPEC: 25%).
