@@ -319,7 +319,9 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     vertices. Returns a `transfer.Transfer` whose target is the character, ready for
     `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
     started = time.perf_counter()
-    onto_wrapped = transfer_object(template, wrapped_object, joined_target=True, progress=progress, **(transfer_options or {}))
+    # One bar over both solves: the transfer its first half, the carry the second.
+    halves = (None, None) if progress is None else (lambda f: progress(0.5 * f), lambda f: progress(0.5 + 0.5 * f))
+    onto_wrapped = transfer_object(template, wrapped_object, joined_target=True, progress=halves[0], **(transfer_options or {}))
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
@@ -336,7 +338,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
         np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
         character_neutral,
         character_triangles,
-        progress=progress,
+        progress=halves[1],
         **collision_options,
     )
     carried = time.perf_counter()

@@ -4,7 +4,7 @@ antagonists of the active mesh, stored on it for review."""
 import bpy
 
 from ..blender.analysis import analyze_object, store_analysis
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
@@ -21,7 +21,8 @@ class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
         obj = context.active_object
         settings = context.scene.shapesmith
         try:
-            report = analyze_object(obj, axis=int(settings.symmetry_axis), pair_by_name=settings.pair_by_name)
+            with progress_cursor(context, "Analyze Rig"):
+                report = analyze_object(obj, axis=int(settings.symmetry_axis), pair_by_name=settings.pair_by_name)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -27,7 +27,7 @@ class TransferOperator:
         settings = context.scene.shapesmith.transfer
         target = context.active_object
         try:
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Transfer") as progress:
                 transfer = transfer_object(
                     settings.source,
                     target,
@@ -43,9 +43,9 @@ class TransferOperator:
                     collision_margin=settings.collision_margin,
                     progress=progress,
                 )
-            written, skipped, warnings = write_transferred_keys(
-                transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
-            )
+                written, skipped, warnings = write_transferred_keys(
+                    transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+                )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
