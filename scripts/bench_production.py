@@ -18,14 +18,16 @@ seconds, the process's peak resident memory during the tool and the native calls
 above the memory they started from (VmHWM, reset through /proc/self/clear_refs before each),
 and how often the progress advanced (native reports, keys read, keys written). Blender-side costs apart: reading every key
 (`read_rig`, foreach_get), writing every key (the transfer's `write_transferred_keys`,
-foreach_set) and the memory an undo step of the written rig holds. The growth of each cost
-with vertices (at the largest key count) and with keys (at the largest head) is fitted as
+foreach_set) and the memory the undo step of the transfer's written keys holds; the CPU
+seconds and the load average beside the wall seconds, as the machine may be shared. The
+growth of each cost with vertices (at the largest key count) and with keys (at the largest head) is fitted as
 the exponent of a power law between the sizes (1: linear, 2: quadratic).
 """
 
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -113,6 +115,17 @@ class Meter:
         }
 
 
+def cpu_seconds():
+    """User and system seconds of this process's threads: beside the wall seconds, since on a
+    machine shared with other work the wall time also counts the waits for a core."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def load_average():
+    return os.getloadavg()[0]
+
+
 def measure_native(nat, meter):
     for name in dir(nat):
         value = getattr(nat, name)
@@ -153,19 +166,21 @@ def run_tools(shapesmith, path, tools):
         "target_vertices": len(target.data.vertices),
         "character_vertices": len(character.data.vertices),
         "resident_after_open_bytes": resident(),
+        "load_average_at_start": load_average(),
         "tools": {},
     }
 
     def measured(name, run):
         updates[:] = [0, 0, 0]
         meter.start()
-        started = time.perf_counter()
+        cpu, started = cpu_seconds(), time.perf_counter()
         extra = run() or {}
-        row = {"seconds": time.perf_counter() - started, **meter.finish(), "progress_updates": updates[0],
+        row = {"seconds": time.perf_counter() - started, "cpu_seconds": cpu_seconds() - cpu, **meter.finish(),
+               "progress_updates": updates[0],
                "keys_read": updates[1], "keys_written": updates[2], **extra}
         row["python_seconds"] = row["seconds"] - row["native_seconds"]
         result["tools"][name] = row
-        print(f"  {name}: {row['seconds']:.2f} s (native {row['native_seconds']:.2f} s), "
+        print(f"  {name}: {row['seconds']:.2f} s (native {row['native_seconds']:.2f} s, cpu {row['cpu_seconds']:.2f} s), "
               f"peak {row['peak_bytes'] / 2**20:.0f} MiB", flush=True)
 
     def read_keys():
@@ -180,7 +195,12 @@ def run_tools(shapesmith, path, tools):
             options = packing.packing_options(template, axis=0)
             report = packing.pack_object(template, progress=progress, reuse_conflicts=False, **options)
             packing.store_packing(template, report)
-            return {"expressions": len(report["expressions"]), "stages": report["seconds"]}
+            tests = report["poseability"]
+            return {
+                "expressions": len(report["expressions"]), "stages": {**report["seconds"], **tests["seconds"]},
+                "collision_pairs_tested": tests["collision_pairs_tested"],
+                "occlusion_directions_tested": tests["occlusion_directions_tested"],
+            }
 
         measured("pack", pack)
     if "landmarks" in tools:
@@ -207,8 +227,9 @@ def run_tools(shapesmith, path, tools):
                 "stages": solved.report["seconds"],
             }
 
+        undo_push()  # the step before the transfer: what it holds is the file so far
         measured("transfer", transfer_keys)
-        result["undo_step_bytes"] = undo_step_bytes()
+        result["undo_step_bytes"] = undo_push()
     if "wrap" in tools:
         def wrap_keys():
             template_points, character_points = wrap.stored_pairs(character, template)
@@ -221,13 +242,13 @@ def run_tools(shapesmith, path, tools):
             return {"written": len(written), "mean_distance": wrapped.report["mean_distance"], "stages": seconds}
 
         measured("wrap", wrap_keys)
+    result["load_average_at_end"] = load_average()
     result["peak_bytes"] = max(r["peak_bytes"] for r in result["tools"].values())
     return result
 
 
-def undo_step_bytes():
-    """Resident memory an undo step adds after the keys were written (None where Blender
-    keeps no undo stack, as in some background sessions)."""
+def undo_push():
+    """Resident memory an undo step adds (None where Blender keeps no undo stack)."""
     if not bpy.ops.ed.undo_push.poll():
         return None
     before = resident()
@@ -268,12 +289,23 @@ def growth(runs, by, fixed):
 def print_report(result):
     runs = result["runs"]
     tools = list(runs[0]["tools"])
-    print("\n== Seconds per tool (native in brackets) and peak resident memory (MiB)")
-    print("  vertices  keys  " + "  ".join(f"{t:>18s}" for t in tools) + "  peak MiB")
+    print(f"\n== Seconds per tool: wall (CPU of both cores), then the native calls' wall; load average "
+          f"{min(r['load_average_at_start'] for r in runs):.1f}-{max(r['load_average_at_end'] for r in runs):.1f}")
+    print("  vertices  keys  " + "  ".join(f"{t:>22s}" for t in tools) + "  peak MiB")
     for run in runs:
-        cells = [f"{run['tools'][t]['seconds']:8.2f} ({run['tools'][t]['native_seconds']:6.2f})" if t in run["tools"] else " " * 18
-                 for t in tools]
-        print(f"  {run['vertices']:8d}  {run['keys']:4d}  " + "  ".join(f"{c:>18s}" for c in cells) + f"  {run['peak_bytes'] / 2**20:8.0f}")
+        cells = [
+            f"{r['seconds']:6.2f} ({r['cpu_seconds']:6.2f}) {r['native_seconds']:6.2f}" if (r := run["tools"].get(t)) else ""
+            for t in tools
+        ]
+        print(f"  {run['vertices']:8d}  {run['keys']:4d}  " + "  ".join(f"{c:>22s}" for c in cells) + f"  {run['peak_bytes'] / 2**20:8.0f}")
+    for run in runs:
+        stages = "; ".join(
+            f"{t}: " + ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items() if isinstance(v, float) and v >= 0.01)
+            for t, r in run["tools"].items() if r.get("stages")
+        )
+        written = run["tools"].get("transfer", {}).get("write_seconds")
+        print(f"  {run['vertices']} vertices, {run['keys']} keys: {stages}"
+              + (f"; writing the transfer's keys {written:.2f}" if written is not None else ""))
     print("\n== Peak resident memory per tool (MiB; the native calls' own peak above where they started in brackets)")
     for run in runs:
         print(f"  {run['vertices']} vertices, {run['keys']} keys: " + "; ".join(

@@ -47,7 +47,7 @@ def combination_pairs(count, units=52):
 def add_keys(obj, names, positions):
     for name, co in zip(names, positions):
         key = obj.shape_key_add(name=name, from_mix=False)
-        key.data.foreach_set("co", np.ascontiguousarray(co, dtype=np.float32).ravel())
+        key.points.foreach_set("co", np.ascontiguousarray(co, dtype=np.float32).ravel())
         key.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
 
 

@@ -171,7 +171,7 @@ def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
     order = {name: k for k, name in enumerate(transfer.names)}
     for done, name in enumerate(written, start=1):
         block = keys.key_blocks[name]
-        block.data.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
+        block.points.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
         _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
