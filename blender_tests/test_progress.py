@@ -69,6 +69,25 @@ def test_transfer_progress_runs_through_reading_solving_and_writing_keys(sample,
     assert order == sorted(order)
     # Outside an operator nothing listens.
     assert mesh_arrays.key_progress.get() is None
+    # What was written (through ShapeKey.points) is what ShapeKey.data reads back.
+    for k, name in enumerate(solved.names):
+        co = np.empty(len(target.data.vertices) * 3, dtype=np.float32)
+        target.data.shape_keys.key_blocks[name].data.foreach_get("co", co)
+        assert np.abs(co.reshape(-1, 3) - (solved.target_neutral + solved.deltas[k])).max() < 1e-6
+
+
+def test_keys_read_through_points_are_the_keys_data(sample, shapesmith):
+    """The rig read through ShapeKey.points against each key's items read one by one."""
+    mesh_arrays = addon(shapesmith, ".blender.mesh_arrays")
+    template = bpy.data.objects["Template"]
+    rig = mesh_arrays.read_rig(template)
+    blocks = template.data.shape_keys.key_blocks
+    basis = np.array([point.co[:] for point in blocks[0].data], dtype=np.float32)
+    assert np.array_equal(rig.neutral, basis)
+    for k in (0, 17, len(rig.names) - 1):
+        posed = np.array([point.co[:] for point in blocks[rig.names[k]].data], dtype=np.float32)
+        assert np.array_equal(rig.deltas[k], posed - basis)
+        assert np.abs(rig.deltas[k]).max() > 0  # a shape that moves, so the check can fail
 
 
 def test_progress_only_moves_forward_and_stays_in_its_stage(shapesmith):

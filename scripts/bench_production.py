@@ -278,6 +278,7 @@ def growth(runs, by, fixed):
         xs = [r[by] for r in rows]
         out[tool] = {
             "seconds": exponent(xs, [r["tools"][tool]["seconds"] for r in rows]),
+            "cpu_seconds": exponent(xs, [r["tools"][tool]["cpu_seconds"] for r in rows]),
             "native_seconds": exponent(xs, [r["tools"][tool]["native_seconds"] for r in rows]),
             "python_seconds": exponent(xs, [r["tools"][tool]["python_seconds"] for r in rows]),
             "memory": exponent(xs, [r["tools"][tool]["peak_bytes"] - r["resident_after_open_bytes"] for r in rows]),
@@ -313,9 +314,11 @@ def print_report(result):
         if run.get("undo_step_bytes") is not None:
             print(f"    an undo step after the transfer's keys: {run['undo_step_bytes'] / 2**20:.0f} MiB")
     for by, label in (("vertices", "vertices (at the most keys)"), ("keys", "keys (at the largest head)")):
-        print(f"\n== Growth with {label}: exponent of a power law (1 linear, 2 quadratic): wall / native / python / memory")
+        print(f"\n== Growth with {label}: exponent of a power law (1 linear, 2 quadratic): "
+              "wall / CPU / native wall / python wall / memory")
         for tool, g in result["growth"][by].items():
-            cells = [f"{g[k]:.2f}" if g[k] is not None else "-" for k in ("seconds", "native_seconds", "python_seconds", "memory")]
+            cells = [f"{g[k]:.2f}" if g[k] is not None else "-"
+                     for k in ("seconds", "cpu_seconds", "native_seconds", "python_seconds", "memory")]
             print(f"  {tool:10s} {' / '.join(cells)}  over {g['sizes']}")
     largest = max(runs, key=lambda r: (r["vertices"], r["keys"]))
     print(f"\n== Goals at {largest['vertices']} vertices, {largest['keys']} keys")
@@ -336,7 +339,14 @@ def main():
     parser.add_argument("--tools", nargs="+", choices=TOOLS, default=list(TOOLS))
     parser.add_argument("--one", metavar="LEVELS:KEYS", help=argparse.SUPPRESS)  # a child process: one size
     parser.add_argument("--build", metavar="LEVELS:KEYS", help=argparse.SUPPRESS)  # a child process: build one size
+    parser.add_argument("--report", metavar="JSON", help="print the tables of an earlier run's JSON and stop")
     args = parser.parse_args(argv)
+    if args.report:
+        with open(args.report) as f:
+            result = json.load(f)
+        result["growth"] = {"vertices": growth(result["runs"], "vertices", "keys"), "keys": growth(result["runs"], "keys", "vertices")}
+        print_report(result)
+        return
     if args.build:
         level, keys = map(int, args.build.split(":"))
         build_rig(level, keys, cached_rig_path(level, keys))
