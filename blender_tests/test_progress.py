@@ -122,3 +122,20 @@ def test_analyze_and_score_layout_run_with_their_progress(sample, shapesmith):
     score = obj.shapesmith.landmark_score
     assert score.done and score.landmarks == 40 and 0.0 < score.mean_error <= score.max_error
     assert addon(shapesmith, ".blender.mesh_arrays").key_progress.get() is None
+
+
+def test_scoring_a_layout_reports_its_poses_and_stops_when_asked(sample, shapesmith):
+    """Score Layout's native call (seconds on a production-size rig) advances the progress
+    once per test pose, and answering False stops it."""
+    import pytest
+
+    landmarks = addon(shapesmith, ".blender.landmarks")
+    obj = bpy.data.objects["Template"]
+    group = obj.vertex_groups.new(name="Tracked")
+    group.add(np.linspace(0, len(obj.data.vertices) - 1, 40).astype(int).tolist(), 1.0, "REPLACE")
+    seen = []
+    score = landmarks.score_group(obj, "Tracked", progress=seen.append)
+    assert seen == sorted(set(seen)) and seen[-1] == 1.0 and len(seen) > 10
+    assert score == landmarks.score_group(obj, "Tracked")
+    with pytest.raises(shapesmith.native.module().CancelledError):
+        landmarks.score_group(obj, "Tracked", progress=lambda fraction: fraction < 0.5)

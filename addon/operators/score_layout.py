@@ -34,8 +34,8 @@ class SHAPESMITH_OT_score_layout(bpy.types.Operator):
         try:
             if not group:
                 raise MeshDataError("choose the vertex group to score")
-            with progress_cursor(context, "Score Layout"):
-                score = score_group(obj, group)
+            with progress_cursor(context, "Score Layout") as progress:
+                score = score_group(obj, group, progress=progress)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -7,11 +7,11 @@ use serde::Serialize;
 
 use super::arrays;
 use super::errors::py_err;
-use super::run::{detached, detached_with_progress};
+use super::run::detached_with_progress;
 use crate::ilp::SolveStatus;
 use crate::invalid;
 use crate::landmarks::{
-    place_landmarks as place, score_layout as score, Criterion, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
+    place_landmarks as place, score_layout_reporting as score, Criterion, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
 };
 use crate::rig::RigView;
 
@@ -237,12 +237,14 @@ fn place_landmarks<'py>(
 }
 
 /// score_layout(neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
-///              extra_poses=None, random_mixes=50) -> dict with mean, max, poses, landmarks
+///              extra_poses=None, random_mixes=50, progress=None) -> dict with mean, max,
+///              poses, landmarks
 ///
-/// `vertices`: a list or array of vertex indices; `extra_poses`: optional (P, K) float32.
+/// `vertices`: a list or array of vertex indices; `extra_poses`: optional (P, K) float32;
+/// `progress(fraction)` is called as the poses are scored (False stops: CancelledError).
 #[pyfunction]
 #[pyo3(signature = (neutral, deltas, triangles, names, vertices, *, noise=0.002, seed=0,
-                    extra_poses=None, random_mixes=50))]
+                    extra_poses=None, random_mixes=50, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn score_layout<'py>(
     py: Python<'py>,
@@ -255,6 +257,7 @@ fn score_layout<'py>(
     seed: u64,
     extra_poses: Option<PyReadonlyArray2<'py, f32>>,
     random_mixes: usize,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
     let (delta_rows, _) = arrays::deltas(&deltas, points.len()).map_err(py_err(py))?;
@@ -278,9 +281,9 @@ fn score_layout<'py>(
         }
     };
     let params = ScoreParams { noise, seed, extra_poses, random_mixes };
-    let result = detached(py, || {
+    let result = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
-        score(&rig, &landmarks, &params)
+        score(&rig, &landmarks, &params, progress)
     })?;
     arrays::to_python(py, &result)
 }
