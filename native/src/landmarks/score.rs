@@ -2,19 +2,20 @@
 //! poses with tracker noise, solve the blendshape weights by bounded least squares over the
 //! landmark rows, rebuild the dense mesh and compare it with the truth.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::bounded::{solve_bounded, Gram};
 use super::design::{error_weight, predicted_error};
 use crate::error::ShapesmithResult;
-use crate::progress::{NoProgress, Progress};
 use crate::geometry::weld::WeldedRig;
 use crate::invalid;
+use crate::progress::{NoProgress, Progress};
 use crate::rig::RigView;
 
 #[derive(Clone, Debug)]
