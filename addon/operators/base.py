@@ -83,7 +83,7 @@ class PanelProgress:
 
 
 @contextmanager
-def progress_cursor(context, label):
+def progress_cursor(context, label="Shapesmith"):
     """Blender's progress cursor and status text for the length of a long operator; yields
     the callback (fraction in [0, 1]) that the native core calls on this, the main, thread,
     and advances through the keys read and written meanwhile (`mesh_arrays.key_progress`)."""
