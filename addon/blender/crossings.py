@@ -18,7 +18,7 @@ def crossing_faces(obj, shape_name):
     if key is None:
         raise MeshDataError(f"'{obj.name}' has no shape key '{shape_name}'")
     posed = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    key.data.foreach_get("co", posed)
+    key.points.foreach_get("co", posed)
     triangles = read_triangles(obj)
     crossed = native.module().intersecting_triangles(posed.reshape(-1, 3), triangles, rest=read_positions(obj))
     polygon_of_triangle = np.empty(len(mesh.loop_triangles), dtype=np.int32)

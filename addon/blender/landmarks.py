@@ -85,13 +85,15 @@ def packed_poses(obj, names):
     return poses
 
 
-def score_vertices(obj, rig, vertices):
+def score_vertices(obj, rig, vertices, progress=None):
     """Noisy reconstruction score of a layout (SPEC section 2), with the packed expressions
-    among the test poses when the object has them."""
+    among the test poses when the object has them; `progress(fraction)` as the poses are
+    scored (seconds on a 100k-vertex head with 150 keys)."""
     poses = packed_poses(obj, rig.names)
     settings = ScoreSettings()
     score = native.module().score_layout(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, settings.as_native(), extra_poses=poses
+        rig.neutral, rig.deltas, rig.triangles, rig.names, vertices, settings.as_native(), extra_poses=poses,
+        progress=progress,
     )
     return dict(score, noise=settings.noise, packed_expressions=0 if poses is None else len(poses))
 
@@ -142,8 +144,11 @@ def place_landmarks(
     parts_of_mesh = mesh_parts(obj, rig.triangles, rig.neutral)
     comparison = score_group(obj, compare_group) if compare_group else None
     read = time.perf_counter()
+    # One bar over both native calls: the layout 90% of it, its score (a tenth of the time on
+    # a 77k-vertex head with 150 keys) the rest.
+    placing, scoring = (None, None) if progress is None else (lambda f: progress(0.9 * f), lambda f: progress(0.9 + 0.1 * f))
     layout = native.module().place_landmarks(
-        rig.neutral, rig.deltas, rig.triangles, rig.names, settings.as_native(), cameras=cameras, progress=progress,
+        rig.neutral, rig.deltas, rig.triangles, rig.names, settings.as_native(), cameras=cameras, progress=placing,
         allowed=allowed_vertices(face, allowed_parts),
     )
     vertices = [landmark["vertex"] for landmark in layout["landmarks"]]
@@ -153,7 +158,7 @@ def place_landmarks(
             "there is nothing to place landmarks for"
         )
     placed = time.perf_counter()
-    layout["reconstruction"] = score_vertices(obj, rig, vertices)
+    layout["reconstruction"] = score_vertices(obj, rig, vertices, progress=scoring)
     scored = time.perf_counter()
     if comparison is not None:
         layout["comparison"] = comparison
@@ -274,11 +279,11 @@ def comparison_group(obj, name):
     return None
 
 
-def score_group(obj, name):
+def score_group(obj, name, progress=None):
     """Reconstruction error of the layout a vertex group describes (same poses and noise as
     Place Landmarks' own score), relative to the bbox diagonal. Writes nothing."""
     vertices = group_vertices(obj, name)
-    return dict(score_vertices(obj, read_face_rig(face_objects(obj))[0], vertices), group=name)
+    return dict(score_vertices(obj, read_face_rig(face_objects(obj))[0], vertices, progress=progress), group=name)
 
 
 def store_score(obj, score):

@@ -1,9 +1,27 @@
 """Shape keys <-> numpy through `foreach_get`/`foreach_set`: the one place that reads a rig
-out of Blender. Every check that can fail happens before anything is written."""
+out of Blender. Every check that can fail happens before anything is written.
 
+Key positions go through `ShapeKey.points` (Blender 4.1+), not `ShapeKey.data`: `points` holds
+the coordinates alone and copies them in one block, where `data` walks its items one by one
+(150 keys of a 77k-vertex head: 0.013 s against 1.7 s to read, 100x faster to write)."""
+
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
+
+# Called as `(done, total, writing)` after each shape key read or written, so that an
+# operator's progress advances through the Blender side of a big rig (150 keys of a 100k-vertex
+# head take seconds to read and to write) as well as through the native work. A context
+# variable rather than a parameter: keys are read several calls below every tool (face parts,
+# training expressions, a wrap's two transfers), and written by one shared function.
+key_progress = ContextVar("key_progress", default=None)
+
+
+def report_key(done, total, writing=False):
+    callback = key_progress.get()
+    if callback is not None:
+        callback(done, total, writing)
 
 
 class MeshDataError(ValueError):
@@ -63,7 +81,7 @@ def check_topology(obj):
     mesh.loop_triangles.foreach_get("polygon_index", faces)
     positions = read_positions(obj)
     if mesh.shape_keys is not None:  # the rest shape, which the vertex array can lag behind
-        mesh.shape_keys.reference_key.data.foreach_get("co", positions.reshape(-1))
+        mesh.shape_keys.reference_key.points.foreach_get("co", positions.reshape(-1))
     faults = native.module().mesh_faults(positions, triangles)
     name = obj.name
     fault = faults["duplicate_triangles"]
@@ -108,7 +126,7 @@ def rest_positions(obj):
     mesh = obj.data
     co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     if mesh.shape_keys is not None:
-        mesh.shape_keys.reference_key.data.foreach_get("co", co)
+        mesh.shape_keys.reference_key.points.foreach_get("co", co)
     else:
         mesh.vertices.foreach_get("co", co)
     return co.reshape(-1, 3)
@@ -132,7 +150,7 @@ def read_rig(obj):
     reference = keys.reference_key
     n = len(obj.data.vertices)
     neutral = np.empty(n * 3, dtype=np.float32)
-    reference.data.foreach_get("co", neutral)
+    reference.points.foreach_get("co", neutral)
     neutral = neutral.reshape(n, 3)
     baked = {b.name for b in obj.shapesmith.pack.baked}
     blocks = [kb for kb in keys.key_blocks if kb != reference and kb.name not in baked]
@@ -142,8 +160,9 @@ def read_rig(obj):
     warnings = []
     buffer = np.empty(n * 3, dtype=np.float32)
     for k, block in enumerate(blocks):
-        block.data.foreach_get("co", buffer)
-        deltas[k] = buffer.reshape(n, 3) - neutral
+        block.points.foreach_get("co", buffer)
+        np.subtract(buffer.reshape(n, 3), neutral, out=deltas[k])
+        report_key(k + 1, len(blocks))
         if block.relative_key != reference and block.relative_key != block:
             warnings.append(
                 f"shape key '{block.name}' is relative to '{block.relative_key.name}', not '{reference.name}': "

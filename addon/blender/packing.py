@@ -357,7 +357,7 @@ def _baked_shapes(obj, posed):
     keys = obj.data.shape_keys
     n = len(obj.data.vertices)
     neutral = np.empty(n * 3, dtype=np.float32)
-    keys.reference_key.data.foreach_get("co", neutral)
+    keys.reference_key.points.foreach_get("co", neutral)
     previous = {b.name for b in obj.shapesmith.pack.baked}
     sources = {kb.name: kb for kb in _shape_keys(obj) if kb.name not in previous}
     buffer = np.empty(n * 3, dtype=np.float32)
@@ -365,7 +365,7 @@ def _baked_shapes(obj, posed):
     for j, members in enumerate(posed):
         mixed = neutral.copy()
         for name in members & sources.keys():
-            sources[name].data.foreach_get("co", buffer)
+            sources[name].points.foreach_get("co", buffer)
             mixed += buffer - neutral
         shapes.append((expression_label(j), mixed))
     taken = sorted(label for label, _ in shapes if label not in previous and label in keys.key_blocks)
@@ -394,7 +394,7 @@ def bake_expressions(obj):
         baked.clear()
         for label, mixed in shapes:
             block = keys.key_blocks.get(label) or baked_on.shape_key_add(name=label, from_mix=False)
-            block.data.foreach_set("co", mixed)
+            block.points.foreach_set("co", mixed)
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
             baked.add().name = label
         baked_on.data.update()

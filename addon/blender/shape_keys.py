@@ -5,7 +5,7 @@ write."""
 import bpy
 import numpy as np
 
-from .mesh_arrays import MeshDataError
+from .mesh_arrays import MeshDataError, report_key
 
 
 def plan_keys(target, names, overwrite):
@@ -169,12 +169,13 @@ def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
             target.shape_key_add(name=name, from_mix=False)
             created.add(name)
     order = {name: k for k, name in enumerate(transfer.names)}
-    for name in written:
+    for done, name in enumerate(written, start=1):
         block = keys.key_blocks[name]
-        block.data.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
+        block.points.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
         _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
+        report_key(done, len(written), writing=True)
     mapping = {**mapping, **{o.data.shape_keys: keys for o in set(origin.values())}}
     for fcurve in drivers.values():
         warnings += copy_driver(fcurve, keys, mapping)

@@ -323,7 +323,9 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
     started = time.perf_counter()
     transfer_settings = transfer_settings or TransferSettings()
-    onto_wrapped = transfer_object(template, wrapped_object, transfer_settings, joined_target=True, progress=progress)
+    # One bar over both solves: the transfer its first half, the carry the second.
+    halves = (None, None) if progress is None else (lambda f: progress(0.5 * f), lambda f: progress(0.5 + 0.5 * f))
+    onto_wrapped = transfer_object(template, wrapped_object, transfer_settings, joined_target=True, progress=halves[0])
     transferred = time.perf_counter()
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
@@ -341,7 +343,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
         character_neutral,
         character_triangles,
         carry.as_native(),
-        progress=progress,
+        progress=halves[1],
         **template_curve(onto_wrapped.report),
     )
     carried = time.perf_counter()

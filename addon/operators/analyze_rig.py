@@ -5,7 +5,7 @@ import bpy
 
 from ..blender.analysis import analyze_object, store_analysis
 from ..blender.settings import analyze_settings
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
@@ -21,7 +21,8 @@ class SHAPESMITH_OT_analyze_rig(bpy.types.Operator):
     def execute(self, context):
         obj = context.active_object
         try:
-            report = analyze_object(obj, analyze_settings(context.scene))
+            with progress_cursor(context, "Analyze Rig"):
+                report = analyze_object(obj, analyze_settings(context.scene))
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -27,7 +27,7 @@ class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
         time_limit = prefs.solver_time_limit if prefs and prefs.solver_time_limit > 0 else None
         options = packing_options(obj, axis=int(context.scene.shapesmith.symmetry_axis), time_limit=time_limit)
         try:
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Pack Expressions") as progress:
                 report = pack_object(obj, progress=progress, **options)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

@@ -33,7 +33,7 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
         settings = scene.shapesmith.landmarks
         try:
             cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Place Landmarks") as progress:
                 document = place_landmarks(
                     obj, landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis)), cameras=cameras,
                     progress=progress, compare_group=comparison_group(obj, settings.score_group),

@@ -5,7 +5,7 @@ import bpy
 
 from ..blender.landmarks import score_group, store_score
 from ..blender.mesh_arrays import MeshDataError
-from .base import expected_errors, poll_mesh
+from .base import expected_errors, poll_mesh, progress_cursor
 
 
 class SHAPESMITH_OT_score_layout(bpy.types.Operator):
@@ -34,7 +34,8 @@ class SHAPESMITH_OT_score_layout(bpy.types.Operator):
         try:
             if not group:
                 raise MeshDataError("choose the vertex group to score")
-            score = score_group(obj, group)
+            with progress_cursor(context, "Score Layout") as progress:
+                score = score_group(obj, group, progress=progress)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

@@ -52,7 +52,7 @@ class SHAPESMITH_OT_solve_performance(bpy.types.Operator):
         settings = scene.shapesmith_performance
         try:
             tracks = read_tracks(obj, settings, scene)
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Solve Performance") as progress:
                 document = performance.solve(obj, tracks, performance_settings(settings), progress=progress)
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

@@ -40,7 +40,7 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
         template = settings.source
         wrapped_object = character.shapesmith_wrap.wrapped
         try:
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Transfer onto Character") as progress:
                 result = carry_onto_character(
                     template,
                     character,
@@ -48,7 +48,9 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
                     transfer_settings(settings),
                     progress=progress,
                 )
-            written, skipped, warnings = write_transferred_keys(result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers)
+                written, skipped, warnings = write_transferred_keys(
+                    result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+                )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

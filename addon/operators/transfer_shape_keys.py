@@ -28,7 +28,7 @@ class TransferOperator:
         settings = context.scene.shapesmith.transfer
         target = context.active_object
         try:
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Transfer") as progress:
                 transfer = transfer_object(
                     settings.source,
                     target,
@@ -36,9 +36,9 @@ class TransferOperator:
                     training_objects=self.training_objects(settings),
                     progress=progress,
                 )
-            written, skipped, warnings = write_transferred_keys(
-                transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
-            )
+                written, skipped, warnings = write_transferred_keys(
+                    transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+                )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}

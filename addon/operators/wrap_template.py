@@ -28,7 +28,7 @@ class WrapOperator:
         template = context.scene.shapesmith.transfer.source
         try:
             template_points, character_points = stored_pairs(character, template)
-            with progress_cursor(context) as progress:
+            with progress_cursor(context, "Wrap") as progress:
                 wrapped = wrap_object(
                     template, character, template_points, character_points, WrapSettings(align_only=self.align_only),
                     progress=progress,

@@ -54,7 +54,7 @@ pub use design::{Criterion, CurvePoint, DesignStop};
 use visibility::{worst_case_visibility, Need, Sampling, Seen};
 use crate::progress::NoProgress;
 
-pub use score::{score_layout, LayoutScore, ScoreParams};
+pub use score::{score_layout, score_layout_reporting, LayoutScore, ScoreParams};
 
 /// Place Landmarks' settings ([`crate::settings`]); the cameras and the allowed vertices are
 /// the caller's data, `#[serde(skip)]`.

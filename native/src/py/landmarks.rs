@@ -7,12 +7,12 @@ use serde::Serialize;
 
 use super::arrays;
 use super::errors::py_err;
-use super::run::{detached, detached_with_progress};
+use super::run::detached_with_progress;
 use super::settings::settings as read_settings;
 use crate::ilp::SolveStatus;
 use crate::invalid;
 use crate::landmarks::{
-    place_landmarks as place, score_layout as score, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
+    place_landmarks as place, score_layout_reporting as score, CurvePoint, DesignStop, LandmarkLayout, LandmarkParams, ScoreParams,
 };
 use crate::rig::RigView;
 use crate::settings::settings_to_json;
@@ -151,13 +151,14 @@ fn place_landmarks<'py>(
 }
 
 /// score_layout(neutral, deltas, triangles, names, vertices, settings=None, *,
-///              extra_poses=None) -> dict with mean, max, poses, landmarks
+///              extra_poses=None, progress=None) -> dict with mean, max, poses, landmarks
 ///
 /// `settings`: a dict onto [`ScoreParams`] (noise, seed, random_mixes; None:
 /// `default_settings("score")`). `vertices`: a list or array of vertex indices;
-/// `extra_poses`: optional (P, K) float32.
+/// `extra_poses`: optional (P, K) float32; `progress(fraction)` is called as the poses are
+/// scored (False stops: CancelledError).
 #[pyfunction]
-#[pyo3(signature = (neutral, deltas, triangles, names, vertices, settings=None, *, extra_poses=None))]
+#[pyo3(signature = (neutral, deltas, triangles, names, vertices, settings=None, *, extra_poses=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn score_layout<'py>(
     py: Python<'py>,
@@ -168,6 +169,7 @@ fn score_layout<'py>(
     vertices: Vec<i64>,
     settings: Option<Bound<'py, PyAny>>,
     extra_poses: Option<PyReadonlyArray2<'py, f32>>,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings: ScoreParams = read_settings(py, settings.as_ref(), "score")?;
     let points = arrays::points(&neutral, "neutral").map_err(py_err(py))?;
@@ -192,9 +194,9 @@ fn score_layout<'py>(
         }
     };
     let params = ScoreParams { extra_poses, ..settings };
-    let result = detached(py, || {
+    let result = detached_with_progress(py, progress.as_ref(), |progress| {
         let rig = RigView::new(points, delta_rows, &tris, &names)?;
-        score(&rig, &landmarks, &params)
+        score(&rig, &landmarks, &params, progress)
     })?;
     arrays::to_python(py, &result)
 }
