@@ -397,7 +397,9 @@ impl DeformationTransfer {
                 .iter()
                 .flat_map(|&(a, b)| self.triangles[a as usize].into_iter().chain(self.triangles[b as usize]))
                 .map(|v| (v as usize, 0.0))
-                .filter(|&(v, _)| free[v])
+                // A floating piece's springs are not released: with no hold in it, its
+                // translation would be free in the re-solve.
+                .filter(|&(v, _)| free[v] && !shape.pinned[self.piece[v] as usize])
                 .collect();
             let released_before = release.iter().filter(|&&r| r).count();
             self.grow_region(guard, &fold_seeds, free, &mut release);
@@ -522,7 +524,11 @@ struct PlainRound {
 impl PlainRound {
     fn new(dt: &DeformationTransfer, guard: &CollisionGuard, shape: &ShapeSystem<'_>, factor: &RestrictedFactor) -> Self {
         let moved: Vec<bool> = dt.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
-        let free = (0..dt.piece.len()).map(|v| factor.is_kept(v) && !shape.pinned[dt.piece[v] as usize]).collect();
+        // A floating piece (lashes riding on a lid, teeth on the jaw) is placed by the source
+        // piece's motion, not by the skin it rides on, so it crosses what the template's does
+        // not: its vertices are held and re-solved like the skin's (each piece in a region
+        // holds a target, which fixes its translation).
+        let free = (0..dt.piece.len()).map(|v| factor.is_kept(v) || shape.pinned[dt.piece[v] as usize]).collect();
         let mut static_piece = vec![true; shape.pinned.len()];
         for (v, &m) in shape.moving.iter().enumerate() {
             if m {
