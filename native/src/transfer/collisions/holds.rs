@@ -35,7 +35,7 @@ impl DeformationTransfer {
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| attempt.follow || !self.template_crosses(guard, template_positions, u, obstacle, piece))
+            push.filter(|_| attempt.follow || attempt.clear || !self.template_crosses(guard, template_positions, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -495,7 +495,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));

@@ -28,7 +28,9 @@
 //! (lip through lip) the push is `t_u = x_u + (s m_u - h) n` across the other triangle's plane
 //! (`s` the rest side, `h` the signed distance now), half of it when that triangle moves too. A
 //! flood over mesh neighbours reaches the vertices beyond the crossing curve. The margin `m_u`
-//! is `margin` x the mean edge length at `u`, at least `min_margin` x the diagonal.
+//! is `margin` x the mean edge length at `u`, at least `min_margin` x the diagonal. A floating
+//! piece (lashes riding on a lid) is held like the skin: its solve places it by the source
+//! piece's motion, not by the skin it rides on.
 //!
 //! **Local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u = stiffness x A_uu`:
 //! a scalar weight on the diagonal, so x, y and z stay separate systems. Only the free vertices
@@ -42,8 +44,10 @@
 //! **Attempts** (`ATTEMPTS`). A shape still worse is tried again from its plain solve with
 //! other holds: twice the margin, ten times the stiffness, the whole lip contact strip, skin
 //! back to rest against static pieces the template adds no curve to, following the template's
-//! contacts, and last the skin resting across a static piece kept where it rests (kept only
-//! when it clears the shape). The next runs only while the shape is still worse; the plain
+//! contacts, the skin resting across a static piece kept where it rests (kept only when it
+//! clears the shape), and last every vertex that went through held on its rest side, the
+//! template's contacts not followed (a template whose neutral's lips cross presses its shapes'
+//! lips through each other, which the target need not copy). The next runs only while the shape is still worse; the plain
 //! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
 //! run two side by side and are taken in order, so the result is that of a serial run.
 //!
@@ -349,7 +353,7 @@ impl DeformationTransfer {
                     .copied()
                     .filter(|&(a, b)| {
                         let (p, q) = (piece_of(a), piece_of(b));
-                        attempt.follow || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
+                        attempt.follow || attempt.clear || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
                     })
                     .collect(),
                 None => candidates.clone(),
@@ -551,7 +555,8 @@ impl PlainRound {
 /// but nearer than the margin is held at the margin too (the whole contact strip, not only
 /// the vertices that went through); with `embedded`, a corner of a new pair's triangle that
 /// crosses the same static piece at the target's rest goes back to rest, and the attempt is
-/// kept only when it clears the shape.
+/// kept only when it clears the shape; with `clear`, the template's own contacts are not
+/// followed: every vertex of a pair in excess that went through is held on its rest side.
 pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
@@ -559,19 +564,21 @@ pub(super) struct Attempt {
     pub(super) rest: bool,
     pub(super) follow: bool,
     pub(super) embedded: bool,
+    pub(super) clear: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 7] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true },
+const ATTEMPTS: [Attempt; 8] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
