@@ -53,11 +53,8 @@ impl DeformationTransfer {
             }
         };
         // With `attempt.embedded`, the (triangle, piece) pairs crossing at the target's rest.
-        let embedded: HashSet<(u32, u32)> = if attempt.embedded {
-            guard.rest_pairs.iter().flat_map(|&(a, b)| [(a, self.triangle_piece(b)), (b, self.triangle_piece(a))]).collect()
-        } else {
-            HashSet::new()
-        };
+        let no_pairs = HashSet::new();
+        let embedded = if attempt.embedded { guard.embedded(|t| self.triangle_piece(t)) } else { &no_pairs };
         let obstacle_piece = |u: usize, t: u32| {
             let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
@@ -254,7 +251,9 @@ impl DeformationTransfer {
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
     fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32, margin: f64) -> Option<Vec3> {
-        let (rest_height, _, _) = self.piece_side(guard, Neutral::Target, self.target_neutral[u], piece)?;
+        let rest_height = guard.rest_side(Neutral::Target, u, piece, || {
+            self.piece_side(guard, Neutral::Target, self.target_neutral[u], piece).map(|(height, _, _)| height)
+        })?;
         let (height, point, normal) = self.piece_side(guard, Neutral::Target, positions[u], piece)?;
         if rest_height == 0.0 || rest_height * height > 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
             return None;
@@ -273,7 +272,8 @@ impl DeformationTransfer {
         match piece {
             Some(piece) => {
                 let side_at = |q: Vec3| self.piece_side(guard, Neutral::Template, q, piece).map(|(height, _, _)| height);
-                side_at(rest[u]).zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
+                let before = guard.rest_side(Neutral::Template, u, piece, || side_at(rest[u]));
+                before.zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
             }
             None => {
                 let tri = self.triangles[obstacle as usize];

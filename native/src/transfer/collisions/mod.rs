@@ -229,7 +229,7 @@ impl DeformationTransfer {
         attempt: &Attempt,
         dropped: Option<&AtomicBool>,
     ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
-        let PlainRound { moved, free, static_piece, swept_rest, .. } = shared;
+        let PlainRound { moved, free, static_piece, swept_rest, swept_rest_pairs, .. } = shared;
         let mut outcome = CollisionOutcome::default();
         let piece_of = |t: u32| self.triangle_piece(t);
         let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
@@ -311,11 +311,15 @@ impl DeformationTransfer {
             }
             // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
             // the teeth adds curve by sliding deeper along pairs that already cross.
+            // Both lists are sorted: one walk along the rest pairs instead of a search each.
+            let mut at_rest = 0;
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
-                .filter(|&&(a, b, l)| match guard.rest_pairs.binary_search(&(a, b)) {
-                    Err(_) => true,
-                    Ok(i) => l > guard.rest_lengths[i] * (1.0 + REST_GROWTH),
+                .filter(|&&(a, b, l)| {
+                    while at_rest < guard.rest_pairs.len() && guard.rest_pairs[at_rest] < (a, b) {
+                        at_rest += 1;
+                    }
+                    guard.rest_pairs.get(at_rest) != Some(&(a, b)) || l > guard.rest_lengths[at_rest] * (1.0 + REST_GROWTH)
                 })
                 .map(|&(a, b, _)| (a, b))
                 .collect();
@@ -372,8 +376,7 @@ impl DeformationTransfer {
             // grew: skin sliding out of the teeth it rests in while its lids slide into the
             // eyeballs adds between pieces, yet pushing it off the teeth does nothing for the
             // eyeballs and presses the lips into each other (OldMan's mouthClose).
-            let swept_rest_pairs = rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]);
-            let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs, piece_of, 0.5 * tolerance);
+            let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs.iter().copied(), piece_of, 0.5 * tolerance);
             let grew = |&(a, b): &(u32, u32)| grown.contains(&piece_key(piece_of(a), piece_of(b)));
             let acted_on = |pairs: &[(u32, u32)]| -> Vec<(u32, u32)> { pairs.iter().copied().filter(in_excess).filter(grew).collect() };
             let new_pairs = acted_on(&new_pairs);
@@ -511,8 +514,9 @@ struct PlainRound {
     /// neutral has it.
     static_piece: Vec<bool>,
     /// The rest curve the sweeps see again: all of it but the rest pairs whose triangles both
-    /// stay put (those cross exactly as at rest and are not swept).
+    /// stay put (those cross exactly as at rest and are not swept), and those pairs.
     swept_rest: AddedCurve,
+    swept_rest_pairs: Vec<(u32, u32, f64)>,
     /// The plain solve's crossing pairs, and the hierarchy refitted to it (each attempt's
     /// first re-sweep refits it only where the re-solve moved triangles).
     crossing: OnceLock<(Vec<(u32, u32, f64)>, TriangleBvh)>,
@@ -540,12 +544,9 @@ impl PlainRound {
             }
         }
         let rest_pairs = guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
-        let swept_rest = AddedCurve::of(
-            rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]),
-            |t| dt.triangle_piece(t),
-            AddedCurve::default(),
-        );
-        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
+        let swept_rest_pairs: Vec<(u32, u32, f64)> = rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect();
+        let swept_rest = AddedCurve::of(swept_rest_pairs.iter().copied(), |t| dt.triangle_piece(t), AddedCurve::default());
+        Self { moved, free, static_piece, swept_rest, swept_rest_pairs, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
     }
 }
 
