@@ -485,6 +485,30 @@ mod tests {
     }
 
     #[test]
+    fn the_clear_attempt_holds_the_vertices_the_template_takes_through_the_other_lip_too() {
+        // The template presses its lips 0.02 into each other (a template whose neutral's lips
+        // cross presses its shapes' lips through each other): the first attempt follows it and
+        // leaves the middle of the target's crossed lips alone; the clear attempt holds every
+        // vertex that went through, as for a template that crosses nowhere, to the same point.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
+        let free = vec![true; positions.len()];
+        let moved = vec![true; dt.triangles.len()];
+        let held = |amount: f32, attempt: &Attempt| {
+            let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, amount), &moved);
+            dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], attempt, &template)
+        };
+        let clear = ATTEMPTS.iter().find(|a| a.clear).expect("a clear attempt");
+        assert!(!clear.follow && !clear.strip && !clear.rest && !clear.embedded);
+        let (followed, cleared, uncrossed) = (held(0.06, &ATTEMPTS[0]), held(0.06, clear), held(0.045, &ATTEMPTS[0]));
+        assert!(cleared.len() > followed.len(), "{} held against {}", cleared.len(), followed.len());
+        assert_eq!(cleared.len(), uncrossed.len());
+        for (v, target) in &uncrossed {
+            let at = cleared.get(v).unwrap_or_else(|| panic!("vertex {v} is not held"));
+            assert!((0..3).all(|a| (at[a] - target[a]).abs() < 1e-12), "vertex {v}: {at:?} against {target:?}");
+        }
+    }
+
+    #[test]
     fn the_strip_attempt_also_holds_lip_vertices_nearer_than_the_margin() {
         // The target's lips (0.04 apart) closed by 0.02 each where the bump is full: they
         // touch in the middle and cross nowhere else, so near the crossing some vertices are
