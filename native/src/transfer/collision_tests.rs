@@ -147,6 +147,44 @@ fn skin_pressed_onto_static_teeth_stays_outside_and_other_shapes_are_untouched()
 }
 
 #[test]
+fn a_floating_piece_the_transfer_pushes_through_a_static_one_is_held_out_of_it() {
+    // A skin sheet (static in the shape) and an upright plate above it (lashes) that the shape
+    // moves down by 0.08 as a whole, so the solve places it by the template's motion. The
+    // template's plate starts 0.2 above the skin and stays clear; the target's starts 0.04
+    // above and goes 0.04 through. Only the plate's vertices can be held.
+    let w = 11u32;
+    let plate = |height: f32| -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let mut pts: Vec<[f32; 3]> = (0..w * w).map(|v| [(v % w) as f32 / (w - 1) as f32, (v / w) as f32 / (w - 1) as f32, 0.0]).collect();
+        let mut tris = grid_triangles(w, w, 0);
+        let start = pts.len() as u32;
+        pts.extend((0..9).map(|v| [0.42 + 0.1 * (v % 3) as f32, 0.53, height + 0.1 * (v / 3) as f32]));
+        tris.extend(grid_triangles(3, 3, start));
+        (pts, tris)
+    };
+    let (source, tris) = plate(0.2);
+    let (target, _) = plate(0.04);
+    let n = source.len();
+    let skin = (w * w) as usize;
+    let deltas: Vec<[f32; 3]> = (0..n).map(|v| if v < skin { [0.0; 3] } else { [0.0, 0.0, -0.08] }).collect();
+    let names = vec!["lashesDown".to_string()];
+    assert_eq!(measure_penetration(&posed(&source, &deltas), &tris).pairs, 0);
+    let run = |collisions: Option<CollisionParams>| {
+        let params = TransferParams { collisions, ..plain() };
+        DeformationTransfer::new(&source, &target, &tris, &params).unwrap().transfer(&deltas, &names, &NoProgress).unwrap()
+    };
+    let without = run(None);
+    assert!(measure_penetration(&posed(&target, &without.deltas), &tris).pairs > 0, "the plain solve should go through");
+    let with = run(Some(CollisionParams::default()));
+    let result = posed(&target, &with.deltas);
+    assert_eq!(measure_penetration(&result, &tris), Penetration::default());
+    assert!(with.collisions.unwrap()[0].applied);
+    // The skin stays put; the plate still moves down, and rests above the skin.
+    assert!(with.deltas[..skin].iter().all(|d| *d == [0.0; 3]));
+    let lowest = result[skin..].iter().map(|p| p[2]).fold(f32::INFINITY, f32::min);
+    assert!(lowest > 0.0 && lowest < 0.04, "the plate's lowest point {lowest}");
+}
+
+#[test]
 fn self_transfer_stays_exact_with_the_pass_even_where_the_template_crosses_itself() {
     // The template's lips close past each other (0.06 each way across a 0.1 gap): the
     // artist's own crossing is kept, so the template onto itself is still exact.

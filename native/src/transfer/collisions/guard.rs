@@ -2,7 +2,8 @@
 //! hierarchies, the pairs crossing at rest, the pieces and the mesh's rings
 //! ([`CollisionGuard`]), and the closest point of a static piece's surface.
 
-use std::sync::OnceLock;
+use std::collections::{HashMap, HashSet};
+use std::sync::{Mutex, OnceLock};
 
 use super::CollisionParams;
 use crate::geometry::bvh::{RefitLinks, TriangleBvh};
@@ -49,6 +50,12 @@ pub(in crate::transfer) struct CollisionGuard {
     /// triangles, made on the first query against that piece
     /// ([`CollisionGuard::closest_on_piece`]).
     piece_nodes: [Vec<OnceLock<Vec<bool>>>; 2],
+    /// Per neutral, the side of a static piece each vertex rests on (`(vertex, piece)` ->
+    /// its height over the piece's surface, [`CollisionGuard::rest_side`]): the same for every
+    /// shape, round and attempt that asks, so each is found once per transfer.
+    rest_sides: [Mutex<HashMap<(u32, u32), Option<f64>>>; 2],
+    /// The (triangle, piece) pairs crossing at the target's rest, made on first use.
+    embedded: OnceLock<HashSet<(u32, u32)>>,
 }
 
 /// Which of the two neutrals a query reads.
@@ -96,6 +103,8 @@ impl CollisionGuard {
         let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
         Self {
             piece_nodes: [0, 1].map(|_| (0..n_pieces).map(|_| OnceLock::new()).collect()),
+            rest_sides: [0, 1].map(|_| Mutex::new(HashMap::new())),
+            embedded: OnceLock::new(),
             params,
             diagonal,
             written_neutral: written_neutral.to_vec(),
@@ -137,6 +146,26 @@ impl CollisionGuard {
             bvh.nodes_holding(&marked)
         });
         bvh.closest_point_among(query, f64::INFINITY, holding, |t| self.triangle_piece[t as usize] == piece)
+    }
+
+    /// The side of static piece `piece` vertex `u` rests on, on `neutral`: its signed height
+    /// over the piece's surface, `find(u, piece)` computing it the first time it is asked.
+    pub(super) fn rest_side(&self, neutral: Neutral, u: usize, piece: u32, find: impl FnOnce() -> Option<f64>) -> Option<f64> {
+        let key = (u as u32, piece);
+        if let Some(&known) = self.rest_sides[neutral as usize].lock().ok().as_ref().and_then(|m| m.get(&key)) {
+            return known;
+        }
+        let found = find();
+        if let Ok(mut sides) = self.rest_sides[neutral as usize].lock() {
+            sides.insert(key, found);
+        }
+        found
+    }
+
+    /// The (triangle, piece) pairs crossing at the target's rest: each of a rest pair's two
+    /// triangles with the other's piece.
+    pub(super) fn embedded(&self, piece_of: impl Fn(u32) -> u32) -> &HashSet<(u32, u32)> {
+        self.embedded.get_or_init(|| self.rest_pairs.iter().flat_map(|&(a, b)| [(a, piece_of(b)), (b, piece_of(a))]).collect())
     }
 
     /// [`DeformationTransfer::written_positions`] of the vertices `vertices` only, whose

@@ -35,7 +35,7 @@ impl DeformationTransfer {
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| attempt.follow || !self.template_crosses(guard, template_positions, u, obstacle, piece))
+            push.filter(|_| attempt.follow || attempt.clear || !self.template_crosses(guard, template_positions, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -53,11 +53,8 @@ impl DeformationTransfer {
             }
         };
         // With `attempt.embedded`, the (triangle, piece) pairs crossing at the target's rest.
-        let embedded: HashSet<(u32, u32)> = if attempt.embedded {
-            guard.rest_pairs.iter().flat_map(|&(a, b)| [(a, self.triangle_piece(b)), (b, self.triangle_piece(a))]).collect()
-        } else {
-            HashSet::new()
-        };
+        let no_pairs = HashSet::new();
+        let embedded = if attempt.embedded { guard.embedded(|t| self.triangle_piece(t)) } else { &no_pairs };
         let obstacle_piece = |u: usize, t: u32| {
             let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
@@ -254,7 +251,9 @@ impl DeformationTransfer {
     /// point (through its face's normal, or the mean normal around its nearest corner when it
     /// lies on an edge or corner), at rest and now.
     fn push_off_piece(&self, guard: &CollisionGuard, positions: &[Vec3], u: usize, piece: u32, margin: f64) -> Option<Vec3> {
-        let (rest_height, _, _) = self.piece_side(guard, Neutral::Target, self.target_neutral[u], piece)?;
+        let rest_height = guard.rest_side(Neutral::Target, u, piece, || {
+            self.piece_side(guard, Neutral::Target, self.target_neutral[u], piece).map(|(height, _, _)| height)
+        })?;
         let (height, point, normal) = self.piece_side(guard, Neutral::Target, positions[u], piece)?;
         if rest_height == 0.0 || rest_height * height > 0.0 || height.abs() > MAX_DEPTH * guard.edge_length[u] {
             return None;
@@ -273,7 +272,8 @@ impl DeformationTransfer {
         match piece {
             Some(piece) => {
                 let side_at = |q: Vec3| self.piece_side(guard, Neutral::Template, q, piece).map(|(height, _, _)| height);
-                side_at(rest[u]).zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
+                let before = guard.rest_side(Neutral::Template, u, piece, || side_at(rest[u]));
+                before.zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
             }
             None => {
                 let tri = self.triangles[obstacle as usize];
@@ -485,6 +485,30 @@ mod tests {
     }
 
     #[test]
+    fn the_clear_attempt_holds_the_vertices_the_template_takes_through_the_other_lip_too() {
+        // The template presses its lips 0.02 into each other (a template whose neutral's lips
+        // cross presses its shapes' lips through each other): the first attempt follows it and
+        // leaves the middle of the target's crossed lips alone; the clear attempt holds every
+        // vertex that went through, as for a template that crosses nowhere, to the same point.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
+        let free = vec![true; positions.len()];
+        let moved = vec![true; dt.triangles.len()];
+        let held = |amount: f32, attempt: &Attempt| {
+            let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, amount), &moved);
+            dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], attempt, &template)
+        };
+        let clear = ATTEMPTS.iter().find(|a| a.clear).expect("a clear attempt");
+        assert!(!clear.follow && !clear.strip && !clear.rest && !clear.embedded);
+        let (followed, cleared, uncrossed) = (held(0.06, &ATTEMPTS[0]), held(0.06, clear), held(0.045, &ATTEMPTS[0]));
+        assert!(cleared.len() > followed.len(), "{} held against {}", cleared.len(), followed.len());
+        assert_eq!(cleared.len(), uncrossed.len());
+        for (v, target) in &uncrossed {
+            let at = cleared.get(v).unwrap_or_else(|| panic!("vertex {v} is not held"));
+            assert!((0..3).all(|a| (at[a] - target[a]).abs() < 1e-12), "vertex {v}: {at:?} against {target:?}");
+        }
+    }
+
+    #[test]
     fn the_strip_attempt_also_holds_lip_vertices_nearer_than_the_margin() {
         // The target's lips (0.04 apart) closed by 0.02 each where the bump is full: they
         // touch in the middle and cross nowhere else, so near the crossing some vertices are
@@ -495,7 +519,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));

@@ -28,7 +28,9 @@
 //! (lip through lip) the push is `t_u = x_u + (s m_u - h) n` across the other triangle's plane
 //! (`s` the rest side, `h` the signed distance now), half of it when that triangle moves too. A
 //! flood over mesh neighbours reaches the vertices beyond the crossing curve. The margin `m_u`
-//! is `margin` x the mean edge length at `u`, at least `min_margin` x the diagonal.
+//! is `margin` x the mean edge length at `u`, at least `min_margin` x the diagonal. A floating
+//! piece (lashes riding on a lid) is held like the skin: its solve places it by the source
+//! piece's motion, not by the skin it rides on.
 //!
 //! **Local re-solve.** The energy gains `w_u |d_u - (t_u - B0_u)|^2`, `w_u = stiffness x A_uu`:
 //! a scalar weight on the diagonal, so x, y and z stay separate systems. Only the free vertices
@@ -42,8 +44,10 @@
 //! **Attempts** (`ATTEMPTS`). A shape still worse is tried again from its plain solve with
 //! other holds: twice the margin, ten times the stiffness, the whole lip contact strip, skin
 //! back to rest against static pieces the template adds no curve to, following the template's
-//! contacts, and last the skin resting across a static piece kept where it rests (kept only
-//! when it clears the shape). The next runs only while the shape is still worse; the plain
+//! contacts, the skin resting across a static piece kept where it rests (kept only when it
+//! clears the shape), and last every vertex that went through held on its rest side, the
+//! template's contacts not followed (a template whose neutral's lips cross presses its shapes'
+//! lips through each other, which the target need not copy). The next runs only while the shape is still worse; the plain
 //! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
 //! run two side by side and are taken in order, so the result is that of a serial run.
 //!
@@ -226,7 +230,7 @@ impl DeformationTransfer {
         attempt: &Attempt,
         dropped: Option<&AtomicBool>,
     ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
-        let PlainRound { moved, free, static_piece, swept_rest, .. } = shared;
+        let PlainRound { moved, free, static_piece, swept_rest, swept_rest_pairs, .. } = shared;
         let mut outcome = CollisionOutcome::default();
         let piece_of = |t: u32| self.triangle_piece(t);
         let rest_pairs = || guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
@@ -308,11 +312,15 @@ impl DeformationTransfer {
             }
             // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
             // the teeth adds curve by sliding deeper along pairs that already cross.
+            // Both lists are sorted: one walk along the rest pairs instead of a search each.
+            let mut at_rest = 0;
             let candidates: Vec<(u32, u32)> = crossing
                 .iter()
-                .filter(|&&(a, b, l)| match guard.rest_pairs.binary_search(&(a, b)) {
-                    Err(_) => true,
-                    Ok(i) => l > guard.rest_lengths[i] * (1.0 + REST_GROWTH),
+                .filter(|&&(a, b, l)| {
+                    while at_rest < guard.rest_pairs.len() && guard.rest_pairs[at_rest] < (a, b) {
+                        at_rest += 1;
+                    }
+                    guard.rest_pairs.get(at_rest) != Some(&(a, b)) || l > guard.rest_lengths[at_rest] * (1.0 + REST_GROWTH)
                 })
                 .map(|&(a, b, _)| (a, b))
                 .collect();
@@ -350,7 +358,7 @@ impl DeformationTransfer {
                     .copied()
                     .filter(|&(a, b)| {
                         let (p, q) = (piece_of(a), piece_of(b));
-                        attempt.follow || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
+                        attempt.follow || attempt.clear || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
                     })
                     .collect(),
                 None => candidates.clone(),
@@ -369,8 +377,7 @@ impl DeformationTransfer {
             // grew: skin sliding out of the teeth it rests in while its lids slide into the
             // eyeballs adds between pieces, yet pushing it off the teeth does nothing for the
             // eyeballs and presses the lips into each other (OldMan's mouthClose).
-            let swept_rest_pairs = rest_pairs().filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]);
-            let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs, piece_of, 0.5 * tolerance);
+            let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs.iter().copied(), piece_of, 0.5 * tolerance);
             let grew = |&(a, b): &(u32, u32)| grown.contains(&piece_key(piece_of(a), piece_of(b)));
             let acted_on = |pairs: &[(u32, u32)]| -> Vec<(u32, u32)> { pairs.iter().copied().filter(in_excess).filter(grew).collect() };
             let new_pairs = acted_on(&new_pairs);
@@ -398,7 +405,9 @@ impl DeformationTransfer {
                 .iter()
                 .flat_map(|&(a, b)| self.triangles[a as usize].into_iter().chain(self.triangles[b as usize]))
                 .map(|v| (v as usize, 0.0))
-                .filter(|&(v, _)| free[v])
+                // A floating piece's springs are not released: with no hold in it, its
+                // translation would be free in the re-solve.
+                .filter(|&(v, _)| free[v] && !shape.pinned[self.piece[v] as usize])
                 .collect();
             let released_before = release.iter().filter(|&&r| r).count();
             self.grow_region(guard, &fold_seeds, free, &mut release);
@@ -506,8 +515,9 @@ struct PlainRound {
     /// neutral has it.
     static_piece: Vec<bool>,
     /// The rest curve the sweeps see again: all of it but the rest pairs whose triangles both
-    /// stay put (those cross exactly as at rest and are not swept).
+    /// stay put (those cross exactly as at rest and are not swept), and those pairs.
     swept_rest: AddedCurve,
+    swept_rest_pairs: Vec<(u32, u32, f64)>,
     /// The plain solve's crossing pairs, and the hierarchy refitted to it (each attempt's
     /// first re-sweep refits it only where the re-solve moved triangles).
     crossing: OnceLock<(Vec<(u32, u32, f64)>, TriangleBvh)>,
@@ -523,7 +533,11 @@ struct PlainRound {
 impl PlainRound {
     fn new(dt: &DeformationTransfer, guard: &CollisionGuard, shape: &ShapeSystem<'_>, factor: &RestrictedFactor) -> Self {
         let moved: Vec<bool> = dt.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
-        let free = (0..dt.piece.len()).map(|v| factor.is_kept(v) && !shape.pinned[dt.piece[v] as usize]).collect();
+        // A floating piece (lashes riding on a lid, teeth on the jaw) is placed by the source
+        // piece's motion, not by the skin it rides on, so it crosses what the template's does
+        // not: its vertices are held and re-solved like the skin's (each piece in a region
+        // holds a target, which fixes its translation).
+        let free = (0..dt.piece.len()).map(|v| factor.is_kept(v) || shape.pinned[dt.piece[v] as usize]).collect();
         let mut static_piece = vec![true; shape.pinned.len()];
         for (v, &m) in shape.moving.iter().enumerate() {
             if m {
@@ -531,12 +545,9 @@ impl PlainRound {
             }
         }
         let rest_pairs = guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
-        let swept_rest = AddedCurve::of(
-            rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]),
-            |t| dt.triangle_piece(t),
-            AddedCurve::default(),
-        );
-        Self { moved, free, static_piece, swept_rest, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
+        let swept_rest_pairs: Vec<(u32, u32, f64)> = rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect();
+        let swept_rest = AddedCurve::of(swept_rest_pairs.iter().copied(), |t| dt.triangle_piece(t), AddedCurve::default());
+        Self { moved, free, static_piece, swept_rest, swept_rest_pairs, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
     }
 }
 
@@ -546,7 +557,8 @@ impl PlainRound {
 /// but nearer than the margin is held at the margin too (the whole contact strip, not only
 /// the vertices that went through); with `embedded`, a corner of a new pair's triangle that
 /// crosses the same static piece at the target's rest goes back to rest, and the attempt is
-/// kept only when it clears the shape.
+/// kept only when it clears the shape; with `clear`, the template's own contacts are not
+/// followed: every vertex of a pair in excess that went through is held on its rest side.
 pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
@@ -554,19 +566,21 @@ pub(super) struct Attempt {
     pub(super) rest: bool,
     pub(super) follow: bool,
     pub(super) embedded: bool,
+    pub(super) clear: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 7] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true },
+const ATTEMPTS: [Attempt; 8] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
