@@ -12,16 +12,20 @@ On the bundled Template (about 5k vertices) and its 4x denser version:
    the same noisy reconstruction. Target: at M <= 34, a mean error at least 10% below it.
 4. Visibility speed: rays cast and rays/s traced exhaustively and with the savings (reuse
    across poses, pool vertices asked only their threshold; same layout asserted), on both
-   rigs and on a ~25k-vertex head whose face is cut once more (bench_transfer's timing
-   mesh), where visibility + cover + selection should take < 3 s; wall and CPU seconds.
+   rigs, on a ~25k-vertex head whose face is cut once more (bench_transfer's timing mesh),
+   where visibility + cover + selection should take < 3 s, and on its many-piece version
+   (`many_piece_head.py`: eyes, teeth, tongue and lashes grown through the skin, the lashes
+   copied), where the layout should take < 2 s; wall and CPU seconds.
    `--speed-only` runs this section alone. `--stages RIG` runs only the call with the savings
-   on one of those rigs (Template, Template_4x, Template_25k) and prints its seconds per stage,
+   on one of those rigs (Template, Template_4x, Template_25k, Template_many_pieces) and prints
+   its seconds per stage,
    wall and CPU: on a shared machine, run it with two builds alternately to compare them.
 Needs the extension installed (scripts/install_extension.py) in this Blender's user directory.
 """
 
 import argparse
 import json
+from importlib import import_module
 import os
 import sys
 import time
@@ -268,12 +272,14 @@ def speed_row(landmarks, obj, **params):
 
 def speed(results, landmarks, template, dense):
     import bench_transfer  # the 25k timing mesh
+    import many_piece_head
 
     print("\n4. Visibility + cover + selection at M = 34, 64 rays: exhaustive (before) / with the savings (after)")
     print(f"{'rig':<18}{'vertices':>9}{'traced':>9}{'rays before':>12}{'rays after':>12}{'reused':>12}"
           f"{'vis s':>8}{'vis s':>8}{'rays/s':>10}{'rays/s':>10}{'total s':>8}{'total s':>8}{'cpu s':>8}")
     face = bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)
-    results["speed"] = {obj.name: speed_row(landmarks, obj) for obj in (template, dense, face)}
+    many = many_piece_head.build(template, import_module(landmarks.__package__ + ".mesh_arrays"))
+    results["speed"] = {obj.name: speed_row(landmarks, obj) for obj in (template, dense, face, many)}
     results["speed_cores"] = os.cpu_count()
     results["speed_load_average"] = os.getloadavg()
 
@@ -309,12 +315,11 @@ def main():
     parser.add_argument("--design-picture", default=os.path.join(ROOT, "docs", "landmarks_conditioned34.png"))
     parser.add_argument("--curve", default=os.path.join(ROOT, "docs", "landmarks_curve.png"))
     parser.add_argument("--speed-only", action="store_true", help="only the visibility speed table (section 4)")
-    parser.add_argument("--stages", choices=("Template", "Template_4x", "Template_25k"),
+    parser.add_argument("--stages", choices=("Template", "Template_4x", "Template_25k", "Template_many_pieces"),
                         help="only the call with the savings on this rig, seconds per stage")
     args = parser.parse_args(argv)
 
     shapesmith = batch.load_shapesmith()
-    from importlib import import_module
 
     landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
     picture = import_module(shapesmith.__name__ + ".blender.landmark_picture")
@@ -331,9 +336,11 @@ def main():
     documents = {}
     if args.stages:
         import bench_transfer  # the 25k timing mesh
+        import many_piece_head
 
         rigs = {"Template": lambda: template, "Template_4x": lambda: dense,
-                "Template_25k": lambda: bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES)}
+                "Template_25k": lambda: bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES),
+                "Template_many_pieces": lambda: many_piece_head.build(template, import_module(landmarks.__package__ + ".mesh_arrays"))}
         stages(results, landmarks, rigs[args.stages]())
         write_json(args.json, results)
         return

@@ -220,9 +220,18 @@ impl DeformationTransfer {
         }
         let n = self.n_vertices();
         let done = AtomicUsize::new(0);
-        let shapes = (0..names.len())
-            .into_par_iter()
-            .map(|k| {
+        // The largest systems first, one shape a task: on two cores a large shape started last
+        // would otherwise leave one core idle at the end (the 25k head's moving sets range
+        // from 1.6k to 15.5k vertices). Results are placed by shape, so the order changes no
+        // number.
+        let sizes: Vec<usize> =
+            (0..names.len()).into_par_iter().map(|k| self.moving_vertices(&source_deltas[k * n..(k + 1) * n]).iter().filter(|&&m| m).count()).collect();
+        let mut order: Vec<usize> = (0..names.len()).collect();
+        order.sort_by_key(|&k| (std::cmp::Reverse(sizes[k]), k));
+        let solved = order
+            .par_iter()
+            .with_max_len(1)
+            .map(|&k| {
                 let delta = &source_deltas[k * n..(k + 1) * n];
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
@@ -231,9 +240,14 @@ impl DeformationTransfer {
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
-                Ok(solved)
+                Ok((k, solved))
             })
             .collect::<ShapesmithResult<Vec<_>>>()?;
+        let mut shapes: Vec<Option<SolvedShape>> = (0..names.len()).map(|_| None).collect();
+        for (k, shape) in solved {
+            shapes[k] = Some(shape);
+        }
+        let shapes: Vec<SolvedShape> = shapes.into_iter().flatten().collect();
         let wall = start.elapsed().as_secs_f64();
         // Shapes run side by side, so the wall time is split between the plain solves and the
         // collision pass in proportion to the thread-seconds each took.
