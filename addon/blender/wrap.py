@@ -261,7 +261,34 @@ def store_wrap(wrapped, stage):
     result.mean_distance = report["mean_distance"]
     result.max_distance = report["max_distance"]
     result.max_pair_residual = max(report["pair_residuals"], default=0.0)
+    result.symmetric = report["symmetry"]["symmetric"]
+    result.symmetry_note = report["symmetry"]["reason"]
+    result.worst_mirror_miss = -1.0
     result.seconds = sum(wrapped.seconds.values())
+
+
+def named_symmetry(symmetry, names):
+    """The carry's symmetry report with each mirror pair of shapes named (`names`: the keys'),
+    and the worst miss of the carried pairs (`worst`: name and miss, or None)."""
+    shapes = [
+        {**row, "first_name": names[row["first"]], "second_name": names[row["second"]]} for row in symmetry.get("shapes", [])
+    ]
+    worst = max(shapes, key=lambda row: row["carried"], default=None)
+    return {**symmetry, "shapes": shapes, "worst": None if worst is None else {
+        "pair": f"{worst['first_name']}/{worst['second_name']}" if worst["first"] != worst["second"] else worst["first_name"],
+        "carried": worst["carried"],
+        "template": worst["template"],
+    }}
+
+
+def store_symmetry(character, symmetry):
+    """Keeps the carry's symmetry summary on the character (the panel shows it)."""
+    settings = character.shapesmith_wrap
+    settings.symmetric = symmetry["symmetric"]
+    settings.symmetry_note = symmetry["reason"]
+    worst = symmetry["worst"]
+    settings.worst_mirror_miss = -1.0 if worst is None else worst["carried"]
+    settings.worst_mirror_pair = "" if worst is None else worst["pair"]
 
 
 def template_curve(report):
@@ -328,6 +355,9 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     # margin.
     collisions = onto_wrapped.report["params"]["transfer"]["collisions"]
     collision_options = {**template_curve(onto_wrapped.report), "collisions": collisions is not None}
+    # The template's rest gives the carry its mirror map: with a symmetric character each
+    # carried shape is averaged with the mirror of its partner's.
+    template_neutral, _ = read_surface(template, "template")
     if collisions is not None:
         collision_options["collision_margin"] = float(collisions["margin"])
     deltas, carry_report = native.module().carry_shapes(
@@ -336,6 +366,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
         np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
         character_neutral,
         character_triangles,
+        template_neutral=np.ascontiguousarray(template_neutral, dtype=np.float32),
         progress=progress,
         **collision_options,
     )
@@ -349,6 +380,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
     character_penetration = carry_report.pop("penetration")
     report["penetration"] = character_rows(report, character_penetration)
     report["neutral_penetration"] = character_penetration["neutral"]
+    report["symmetry"] = named_symmetry(carry_report.pop("symmetry"), onto_wrapped.names)
     stage_seconds = dict(seconds or {})
     stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
@@ -446,4 +478,12 @@ def summary_lines(wrapped):
             "the others follow the skin"
         )
     lines.append(f"holes (eye and mouth openings) landed on the character's: {report['holes_paired']}")
+    symmetry = report["symmetry"]
+    if symmetry["symmetric"]:
+        lines.append(
+            f"symmetric fit: {100 * symmetry['character_coverage']:.0f}% of the character's skin mirrors onto it, "
+            f"{symmetry['mirrored_pairs']} mirrored point pairs added"
+        )
+    else:
+        lines.append(f"fitted without symmetry: {symmetry['reason']}")
     return lines + [f"warning: {w}" for w in report["warnings"]]

@@ -13,15 +13,16 @@ use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, Ad
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, *, align_only=False, stiffness=None,
 ///               iterations=3, landmark_weight=100.0, max_angle=60.0, max_distance=0.1,
-///               progress=None)
+///               symmetric=True, progress=None)
 ///     -> (wrapped float32 (Nt, 3) in the character's space, report dict)
 ///
 /// `template_points`, `character_points`: float32 (P, 3) point pairs in each mesh's own
-/// space (P = 0 for an alignment from the principal axes).
+/// space (P = 0 for an alignment from the principal axes). `symmetric=False` fits as if the
+/// meshes were not mirror-symmetric; the report's `symmetry` says whether the fit was.
 #[pyfunction]
 #[pyo3(signature = (template_neutral, template_triangles, character_neutral, character_triangles, template_points,
                     character_points, *, align_only=false, stiffness=None, iterations=3, landmark_weight=100.0,
-                    max_angle=60.0, max_distance=0.1, progress=None))]
+                    max_angle=60.0, max_distance=0.1, symmetric=true, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn wrap_template<'py>(
     py: Python<'py>,
@@ -37,6 +38,7 @@ fn wrap_template<'py>(
     landmark_weight: f64,
     max_angle: f64,
     max_distance: f64,
+    symmetric: bool,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let template = arrays::points(&template_neutral, "template_neutral").map_err(py_err(py))?;
@@ -59,7 +61,7 @@ fn wrap_template<'py>(
     if fit.stiffness.is_empty() || fit.stiffness.iter().any(|&a| !(a > 0.0 && a.is_finite())) || iterations == 0 {
         return Err(py_err(py)(crate::invalid!("stiffness must be a non-empty list of positive numbers and iterations at least 1")));
     }
-    let params = WrapParams { fit, align_only };
+    let params = WrapParams { fit, align_only, ignore_symmetry: !symmetric };
     let wrap = detached_with_progress(py, progress.as_ref(), |progress| {
         run_wrap(template, &template_tris, character, &character_tris, pairs, &params, progress)
     })?;
@@ -72,9 +74,13 @@ fn wrap_template<'py>(
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
 ///              template_added=None, template_crossing=None, collisions=True, collision_margin=0.25,
-///              progress=None)
+///              template_neutral=None, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
+/// `template_neutral` (float32 (Nt, 3), the template's rest in the wrapped template's vertex
+/// order) makes the carry symmetric when template and character are: each carried shape is
+/// averaged with the mirror of its partner's before the collision pass; the report's
+/// `symmetry` says whether it was, and per mirror pair of shapes the worst vertex's miss.
 /// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
 /// the intersection curve the template's own shape adds to the template's neutral and its
 /// whole curve, inside one piece and between pieces, in the character's units: the transfer
@@ -88,7 +94,7 @@ fn wrap_template<'py>(
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
                     static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None,
-                    template_crossing=None, collisions=true, collision_margin=0.25, progress=None))]
+                    template_crossing=None, collisions=true, collision_margin=0.25, template_neutral=None, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -103,6 +109,7 @@ fn carry_shapes<'py>(
     template_crossing: Option<PyReadonlyArray2<'py, f64>>,
     collisions: bool,
     collision_margin: f64,
+    template_neutral: Option<PyReadonlyArray2<'py, f32>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let parts = |array: &PyReadonlyArray2<'py, f64>, name: &str| -> PyResult<Vec<AddedCurve>> {
@@ -128,6 +135,7 @@ fn carry_shapes<'py>(
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let template_rest = template_neutral.as_ref().map(|t| arrays::points(t, "template_neutral")).transpose().map_err(py_err(py))?;
     let params = CarryParams {
         static_fraction,
         anchor_length,
@@ -137,7 +145,7 @@ fn carry_shapes<'py>(
         ..CarryParams::default()
     };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
-        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), &params, progress)
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), template_rest, &params, progress)
     })?;
     let nc = character.len();
     let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();

@@ -195,6 +195,15 @@ impl<'a> Guard<'a> {
         self.rest
     }
 
+    /// The excess of `deltas` over what the template's shape allows (`template`, both parts
+    /// summed) and its penetration, as the pass judges a round; whether that is within the
+    /// tolerance (not worse than the template).
+    pub(super) fn judge(&self, deltas: &[[f32; 3]], template: &AddedCurve) -> (f64, bool, Penetration) {
+        let swept = self.sweep(deltas);
+        let excess = swept.added.excess_parts(template).total();
+        (excess, excess <= self.tolerance, swept.penetration)
+    }
+
     /// The positions written for `deltas` (f32 sums, as the keys are measured), the crossing
     /// pairs of the moved triangles and the curve added to the rest.
     fn sweep(&self, deltas: &[[f32; 3]]) -> Swept {
@@ -501,6 +510,7 @@ mod tests {
             &character,
             &character_triangles,
             collisions.then_some(&none[..]),
+            None,
             params,
             &NoProgress,
         )
