@@ -173,8 +173,9 @@ def refresh_markers(character, template):
             marker.location = getattr(pair, f"{side}_co")
 
 
-def wrap_object(template, character, template_points, character_points, *, align_only=False, progress=None):
-    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing."""
+def wrap_object(template, character, template_points, character_points, *, align_only=False, symmetric=True, progress=None):
+    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing. `symmetric=False`
+    fits as if the meshes were not mirror-symmetric (scripts/bench_wrap.py compares)."""
     started = time.perf_counter()
     if character is None or template is None:
         raise MeshDataError("pick a template and make the character the active mesh")
@@ -191,6 +192,7 @@ def wrap_object(template, character, template_points, character_points, *, align
         np.ascontiguousarray(template_points, dtype=np.float32).reshape(-1, 3),
         np.ascontiguousarray(character_points, dtype=np.float32).reshape(-1, 3),
         align_only=align_only,
+        symmetric=symmetric,
         progress=progress,
     )
     seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
@@ -340,11 +342,13 @@ def character_rows(report, character_penetration):
     return rows
 
 
-def carry_onto_character(template, character, wrapped_object, *, transfer_options=None, seconds=None, progress=None):
+def carry_onto_character(template, character, wrapped_object, *, transfer_options=None, seconds=None, symmetric=True, progress=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
     the transfer's virtual edges and options), then carries them onto the character's own
     vertices. Returns a `transfer.Transfer` whose target is the character, ready for
-    `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
+    `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing.
+    `symmetric=False` carries as if the meshes were not mirror-symmetric (the report's
+    `symmetry` still has the mirror misses)."""
     started = time.perf_counter()
     onto_wrapped = transfer_object(template, wrapped_object, joined_target=True, progress=progress, **(transfer_options or {}))
     transferred = time.perf_counter()
@@ -367,6 +371,7 @@ def carry_onto_character(template, character, wrapped_object, *, transfer_option
         character_neutral,
         character_triangles,
         template_neutral=np.ascontiguousarray(template_neutral, dtype=np.float32),
+        symmetric=symmetric,
         progress=progress,
         **collision_options,
     )

@@ -72,15 +72,16 @@ fn wrap_template<'py>(
 }
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
-///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
+///              character_triangles, *, static_fraction=1e-4, anchor_length=1.0, max_angle=60.0,
 ///              template_added=None, template_crossing=None, collisions=True, collision_margin=0.25,
-///              template_neutral=None, progress=None)
+///              template_neutral=None, symmetric=True, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
 /// `template_neutral` (float32 (Nt, 3), the template's rest in the wrapped template's vertex
 /// order) makes the carry symmetric when template and character are: each carried shape is
 /// averaged with the mirror of its partner's before the collision pass; the report's
-/// `symmetry` says whether it was, and per mirror pair of shapes the worst vertex's miss.
+/// `symmetry` says whether it was, and per mirror pair of shapes the worst vertex's miss
+/// (`symmetric=False` only measures them).
 /// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
 /// the intersection curve the template's own shape adds to the template's neutral and its
 /// whole curve, inside one piece and between pieces, in the character's units: the transfer
@@ -93,8 +94,8 @@ fn wrap_template<'py>(
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None,
-                    template_crossing=None, collisions=true, collision_margin=0.25, template_neutral=None, progress=None))]
+                    static_fraction=1e-4, anchor_length=1.0, max_angle=60.0, template_added=None,
+                    template_crossing=None, collisions=true, collision_margin=0.25, template_neutral=None, symmetric=true, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -110,6 +111,7 @@ fn carry_shapes<'py>(
     collisions: bool,
     collision_margin: f64,
     template_neutral: Option<PyReadonlyArray2<'py, f32>>,
+    symmetric: bool,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let parts = |array: &PyReadonlyArray2<'py, f64>, name: &str| -> PyResult<Vec<AddedCurve>> {
@@ -142,6 +144,7 @@ fn carry_shapes<'py>(
         max_angle_degrees: max_angle,
         collision_pass: collisions,
         collision_margin,
+        symmetrize: symmetric,
         ..CarryParams::default()
     };
     let result = detached_with_progress(py, progress.as_ref(), |progress| {

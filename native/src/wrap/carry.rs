@@ -59,18 +59,22 @@ pub struct CarryParams {
     /// A shape is worse than the template when its excess is over this fraction of the
     /// character's bbox diagonal (SPEC 3's criterion as the add-on reads it).
     pub collision_tolerance: f64,
+    /// With the template's rest given and a symmetric character, whether each shape is
+    /// averaged with its mirror partner's (`symmetry`); false only measures the mirror misses.
+    pub symmetrize: bool,
 }
 
 impl Default for CarryParams {
     fn default() -> Self {
         Self {
             static_fraction: 1e-4,
-            anchor_length: 2.0,
+            anchor_length: 1.0,
             max_angle_degrees: 60.0,
             collision_pass: true,
             collision_margin: 0.25,
             collision_stiffness: 100.0,
             collision_tolerance: 1e-3,
+            symmetrize: true,
         }
     }
 }
@@ -239,7 +243,7 @@ pub fn carry_shapes(
             &laplacian,
             &order,
             params,
-            params.anchor_length * edge_length,
+            edge_length,
             diagonal,
         )),
         _ => None,
@@ -255,7 +259,7 @@ pub fn carry_shapes(
     // partner's carry before the pass (`symmetry`).
     let solving = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let steps = if matches!(mirror, Some((_, Some(_)))) { 2 * n_shapes } else { n_shapes };
+    let steps = if params.symmetrize && matches!(mirror, Some((_, Some(_)))) { 2 * n_shapes } else { n_shapes };
     let tick = || {
         let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress.checkpoint(finished as f64 / steps.max(1) as f64)
@@ -290,12 +294,32 @@ pub fn carry_shapes(
         tick()?;
         Ok(result)
     };
+    // The barycentric copy of the wrapped template's shapes measured alike: what the
+    // measure reads on this mesh for shapes as symmetric as the wrapped template's.
+    let copied = |k: usize| -> Vec<Vec3> {
+        let deltas = &template_deltas[k * nt..(k + 1) * nt];
+        vertex_binding
+            .iter()
+            .map(|hit| {
+                let t = template_triangles[hit.triangle as usize];
+                (0..3).fold([0.0; 3], |acc, i| add(acc, scale(to_f64(&deltas[t[i] as usize]), hit.barycentric[i])))
+            })
+            .collect()
+    };
+    let fill = |report: &mut CarrySymmetry, mirror: &SurfaceMirror, plain: &[f64], kept: &[Vec<Vec3>], held_apart: &[(usize, usize)]| {
+        for (row, &plain) in report.shapes.iter_mut().zip(plain) {
+            let (i, j) = (row.first, row.second);
+            row.copied = symmetry::worst_miss(&copied(i), &copied(j), |f, v| mirror.mirrored(f, v));
+            row.plain = plain;
+            row.carried = symmetry::worst_miss(&kept[i], &kept[j], |f, v| mirror.mirrored(f, v));
+            row.held_apart = held_apart.contains(&(i, j));
+        }
+    };
     let (shapes, symmetry): (Vec<CarriedShape>, Option<CarrySymmetry>) = match mirror {
-        Some((mut report, Some(symmetric))) => {
+        Some((mut report, Some(symmetric))) if params.symmetrize => {
             let solved: Vec<Solved> = (0..n_shapes).into_par_iter().map(|k| { let s = solve(k)?; tick()?; Ok(s) }).collect::<ShapesmithResult<_>>()?;
             let (mut deltas, mut static_vertex): (Vec<Vec<Vec3>>, Vec<Vec<bool>>) = solved.into_iter().map(|s| (s.deltas, s.static_vertex)).unzip();
-            let miss = |deltas: &[Vec<Vec3>], (i, j): (usize, usize)| symmetry::worst_miss(&deltas[i], &deltas[j], |f, v| symmetric.mirror.mirrored(f, v));
-            let plain: Vec<f64> = symmetric.pairs.iter().map(|&pair| miss(&deltas, pair)).collect();
+            let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&deltas[i], &deltas[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
             symmetry::average_with_mirror(&mut deltas, &mut static_vertex, &symmetric.pairs, &symmetric.mirror);
             // The averaged shape is the plain solution of its own right-hand side, `A d`, so
             // the pass re-solves around held vertices as it does for any carried shape.
@@ -309,27 +333,22 @@ pub fn carry_shapes(
                 })
                 .collect::<ShapesmithResult<_>>()?;
             let mut shapes = shapes;
+            let mut held_apart = Vec::new();
             if let (Some(guard), Some(curve)) = (&guard, template_curve) {
                 let allowed = |k: usize| curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
-                symmetric_holds(&mut shapes, &symmetric, guard, allowed);
+                held_apart = symmetric_holds(&mut shapes, &symmetric, guard, allowed);
             }
             let kept: Vec<Vec<Vec3>> = shapes.iter().map(|(d, _)| d.iter().map(to_f64).collect()).collect();
-            // The barycentric copy of the wrapped template's shapes measured alike: what the
-            // measure reads on this mesh for shapes as symmetric as the wrapped template's.
-            let copied = |k: usize| -> Vec<Vec3> {
-                let deltas = &template_deltas[k * nt..(k + 1) * nt];
-                vertex_binding
-                    .iter()
-                    .map(|hit| {
-                        let t = template_triangles[hit.triangle as usize];
-                        (0..3).fold([0.0; 3], |acc, i| add(acc, scale(to_f64(&deltas[t[i] as usize]), hit.barycentric[i])))
-                    })
-                    .collect()
-            };
-            for (row, (&(i, j), plain)) in report.shapes.iter_mut().zip(symmetric.pairs.iter().zip(plain)) {
-                row.copied = symmetry::worst_miss(&copied(i), &copied(j), |f, v| symmetric.mirror.mirrored(f, v));
-                (row.plain, row.carried) = (plain, miss(&kept, (i, j)));
-            }
+            fill(&mut report, &symmetric.mirror, &plain, &kept, &held_apart);
+            (shapes, Some(report))
+        }
+        Some((mut report, Some(symmetric))) => {
+            // Symmetry not applied: the carry as without it, its misses measured alike.
+            let shapes: Vec<CarriedShape> = (0..n_shapes).into_par_iter().map(|k| resolve(k, solve(k)?)).collect::<ShapesmithResult<_>>()?;
+            let kept: Vec<Vec<Vec3>> = shapes.iter().map(|(d, _)| d.iter().map(to_f64).collect()).collect();
+            let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&kept[i], &kept[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
+            fill(&mut report, &symmetric.mirror, &plain, &kept, &[]);
+            (report.symmetric, report.reason) = (false, "symmetry not applied (asked); the misses are those of the carry without it".into());
             (shapes, Some(report))
         }
         mirror => {
@@ -367,8 +386,13 @@ pub fn carry_shapes(
 /// with the mirror of the other's (the holds of both sides act on both), Right as the mirror
 /// of Left, Left as the mirror of Right; a self-symmetric shape by its average with its own
 /// mirror. Otherwise the pass's results stay (`symmetry`; the collision rows then describe
-/// what was kept).
-fn symmetric_holds(shapes: &mut [CarriedShape], symmetric: &SymmetricCarry, guard: &Guard, allowed: impl Fn(usize) -> AddedCurve + Sync) {
+/// what was kept). Returns the pairs left as the pass held them.
+fn symmetric_holds(
+    shapes: &mut [CarriedShape],
+    symmetric: &SymmetricCarry,
+    guard: &Guard,
+    allowed: impl Fn(usize) -> AddedCurve + Sync,
+) -> Vec<(usize, usize)> {
     let applied = |k: usize| shapes[k].1.is_some_and(|(outcome, _)| outcome.applied);
     let changed: Vec<(usize, usize)> = symmetric.pairs.iter().copied().filter(|&(i, j)| applied(i) || applied(j)).collect();
     let field = |k: usize| -> Vec<Vec3> { shapes[k].0.iter().map(to_f64).collect() };
@@ -406,11 +430,13 @@ fn symmetric_holds(shapes: &mut [CarriedShape], symmetric: &SymmetricCarry, guar
             Vec::new()
         })
         .collect();
+    let held_apart = changed.iter().zip(&replacements).filter(|(_, r)| r.is_empty()).map(|(pair, _)| *pair).collect();
     for (k, deltas, (excess, _, penetration)) in replacements.into_iter().flatten() {
         if let Some((outcome, _)) = shapes[k].1 {
             shapes[k] = (deltas, Some((CarryCollision { excess, applied: true, ..outcome }, penetration)));
         }
     }
+    held_apart
 }
 
 /// One shape's plain carry (the solve phase): deltas (static vertices zero), the normal
@@ -457,6 +483,9 @@ pub struct MirrorMiss {
     pub copied: f64,
     pub plain: f64,
     pub carried: f64,
+    /// The collision pass held the pair's sides apart differently and no mirrored version of
+    /// the pair met the criterion: the pass's results were kept.
+    pub held_apart: bool,
 }
 
 /// The character's surface mirror and the shapes' mirror pairs, when symmetric.
@@ -489,7 +518,7 @@ fn carry_mirror<'a>(
     let is_character_skin = super::skin_flags(points.len(), triangles);
     let skin_triangles: Vec<[u32; 3]> = triangles.iter().filter(|t| is_character_skin[t[0] as usize]).copied().collect();
     let skin_points: Vec<Vec3> = (0..points.len()).filter(|&v| is_character_skin[v]).map(|v| points[v]).collect();
-    let (plane, coverage) = symmetry::refine_plane(wrapped_plane, &skin_points, &TriangleBvh::build(points, &skin_triangles), diagonal);
+    let (plane, coverage) = symmetry::refine_plane(wrapped_plane, &skin_points, &super::nricp::TargetSurface::new(points, &skin_triangles), diagonal);
     (report.character_coverage, report.plane) = (coverage, Some(plane));
     if coverage < symmetry::MIN_COVERAGE {
         report.reason = format!("{:.0}% of the character's skin vertices mirror onto its surface ({minimum:.0}% needed)", 100.0 * coverage);

@@ -329,7 +329,7 @@ fn wrap_welded(
     let (mut symmetry, mirror) = if params.ignore_symmetry {
         (WrapSymmetry { reason: "symmetry ignored (asked)".into(), ..Default::default() }, None)
     } else {
-        wrap_symmetry(template, &is_skin, &aligned, &character_skin_points, &surface.bvh, diagonal)
+        wrap_symmetry(template, &is_skin, &aligned, &character_skin_points, &surface, diagonal)
     };
     if let Some((partner, plane)) = &mirror {
         let template_plane = MirrorPlane::of_partners(&template_points, partner, &is_skin);
@@ -486,7 +486,7 @@ fn wrap_symmetry(
     is_skin: &[bool],
     aligned: &[Vec3],
     character_skin: &[Vec3],
-    character_surface: &TriangleBvh,
+    character_surface: &TargetSurface,
     diagonal: f64,
 ) -> (WrapSymmetry, Option<(Vec<Option<u32>>, MirrorPlane)>) {
     let found = symmetry::template_mirror(template, is_skin);

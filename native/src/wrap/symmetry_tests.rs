@@ -7,11 +7,13 @@
 use super::tests::{as_f32, rotation};
 use super::*;
 use crate::geometry::closest_point::SurfacePoint;
+use crate::geometry::mat3::dot;
 use crate::progress::NoProgress;
 
-/// How much the template's Right shape misses the mirror of its Left at the worst vertex
-/// (relative to the largest motion; by construction about 5%): the test's bound on the
-/// carried pair is this measured miss times [`MISS_FACTOR`].
+/// The bound on a carried pair's miss: this many times the template's own miss (its Right
+/// misses the mirror of its Left by up to 10% by construction, its Centre 0) plus the
+/// measure's floor on the character (the same keys' image interpolated twice across its
+/// triangles).
 const MISS_FACTOR: f64 = 1.5;
 
 /// A lumpy ellipsoid, `rings` bands by `segments`, the segments turned by `phase`; a lump of
@@ -65,7 +67,8 @@ fn shapes(points: &[Vec3]) -> Vec<[f32; 3]> {
     let left = |p: Vec3| -> Vec3 { [0.1, 0.05, 0.08].map(|x| x * bump(p, [0.9, 0.3, 0.45])) };
     let right = |p: Vec3| -> Vec3 { mirror_x(left(mirror_x(p))).map(|x| x * (1.0 + 0.1 * p[1])) };
     let centre = |p: Vec3| -> Vec3 { [0.1 * p[0], 0.08, 0.05].map(|x| x * bump(p, [0.0, 0.6, 0.5])) };
-    [left as &dyn Fn(Vec3) -> Vec3, &right, &centre].iter().flat_map(|f| points.iter().map(|p| f(*p).map(|x| x as f32))).collect()
+    let fields: [&dyn Fn(Vec3) -> Vec3; 3] = [&left, &right, &centre];
+    fields.iter().flat_map(|f| points.iter().map(move |p| f(*p).map(|x| x as f32))).collect()
 }
 
 /// The template's mirror vertex of each vertex, by brute force.
@@ -89,7 +92,7 @@ struct Chain {
 /// into the character's frame) carried, with the template's rest given to the carry or not.
 fn chain(character_lumps: &[Vec3], symmetric_carry: bool) -> Chain {
     let (template, triangles) = lumpy(16, 32, 0.0, &BOTH_SIDES);
-    let (dense, dense_triangles) = lumpy(23, 47, 0.3, character_lumps);
+    let (dense, dense_triangles) = lumpy(31, 63, 0.3, character_lumps);
     let motion = Similarity { rotation: rotation(1.9, -0.6), scale: 100.0, translation: [5.0, -30.0, 12.0] };
     let character: Vec<Vec3> = dense.iter().map(|p| motion.apply(warp(*p))).collect();
     let picked = [0usize, 40, 77, 130, 200, 260, 300, 401, 455];
@@ -124,24 +127,27 @@ fn chain(character_lumps: &[Vec3], symmetric_carry: bool) -> Chain {
 }
 
 /// The worst vertex's miss between the mirror of carried shape `a` and shape `b` on the
-/// character, across the true plane, each vertex's image at its closest surface point.
-fn carried_miss(chain: &Chain, a: usize, b: usize) -> f64 {
+/// character, across the true plane, each vertex's image at its closest surface point; and the
+/// measure's floor: the worst miss of either shape against its mirror mirrored.
+fn carried_miss(chain: &Chain, a: usize, b: usize) -> (f64, f64) {
     let nc = chain.character.len();
     let bvh = TriangleBvh::build(&chain.character, &chain.character_triangles);
+    let images: Vec<SurfacePoint> = chain.character.iter().map(|p| bvh.closest_point(&chain.plane.reflect(*p), f64::INFINITY).unwrap()).collect();
+    let mirrored = |f: &[Vec3]| -> Vec<Vec3> {
+        images
+            .iter()
+            .map(|hit| {
+                let t = chain.character_triangles[hit.triangle as usize];
+                chain.plane.reflect_vector((0..3).fold([0.0; 3], |acc, i| add(acc, f[t[i] as usize].map(|x| x * hit.barycentric[i]))))
+            })
+            .collect()
+    };
     let field = |k: usize| -> Vec<Vec3> { chain.carried.deltas[k * nc..(k + 1) * nc].iter().map(to_f64).collect() };
     let (a, b) = (field(a), field(b));
     let largest = a.iter().chain(&b).map(|d| length(*d)).fold(0.0, f64::max);
-    let at = |hit: SurfacePoint, f: &[Vec3]| -> Vec3 {
-        let t = chain.character_triangles[hit.triangle as usize];
-        (0..3).fold([0.0; 3], |acc, i| add(acc, f[t[i] as usize].map(|x| x * hit.barycentric[i])))
-    };
-    (0..nc)
-        .map(|v| {
-            let hit = bvh.closest_point(&chain.plane.reflect(chain.character[v]), f64::INFINITY).unwrap();
-            length(sub(chain.plane.reflect_vector(at(hit, &a)), b[v]))
-        })
-        .fold(0.0, f64::max)
-        / largest
+    let worst = |x: &[Vec3], y: &[Vec3]| x.iter().zip(y).map(|(p, q)| length(sub(*p, *q))).fold(0.0, f64::max) / largest;
+    let floor = worst(&mirrored(&mirrored(&a)), &a).max(worst(&mirrored(&mirrored(&b)), &b));
+    (worst(&mirrored(&a), &b), floor)
 }
 
 #[test]
@@ -161,15 +167,14 @@ fn a_symmetric_template_on_a_symmetric_character_of_other_topology_carries_mirro
     assert!(carry.symmetric, "{carry:?}");
     let found: Vec<(usize, usize)> = carry.shapes.iter().map(|m| (m.first, m.second)).collect();
     assert_eq!(found, vec![(0, 1), (2, 2)]);
-    // Measured against the template's own miss (Left/Right 5%, Centre 0): the carried pair and
-    // the self-symmetric shape mirror each other within MISS_FACTOR times it (plus what the
-    // measure's own interpolation on the character's triangles adds, bounded by the floor).
+    // The carried pair and the self-symmetric shape mirror each other within MISS_FACTOR times
+    // the template's own miss plus the measure's floor.
     let plain = chain(&BOTH_SIDES, false);
     for (k, (a, b)) in [(0, 1), (2, 2)].into_iter().enumerate() {
-        let (miss, plain_miss) = (carried_miss(&symmetric, a, b), carried_miss(&plain, a, b));
+        let ((miss, floor), (plain_miss, _)) = (carried_miss(&symmetric, a, b), carried_miss(&plain, a, b));
         let template = symmetric.template_miss[k];
-        println!("shapes {a}/{b}: carried miss {miss:.4}, without the symmetric carry {plain_miss:.4}, template {template:.4}, report {:?}", carry.shapes[k]);
-        assert!(miss <= MISS_FACTOR * template.max(0.02), "shapes {a}/{b}: carried miss {miss}, template {template}");
+        println!("shapes {a}/{b}: carried miss {miss:.4}, without the symmetric carry {plain_miss:.4}, template {template:.4}, floor {floor:.4}, report {:?}", carry.shapes[k]);
+        assert!(miss <= MISS_FACTOR * (template + floor), "shapes {a}/{b}: carried miss {miss}, template {template}, floor {floor}");
     }
 }
 
