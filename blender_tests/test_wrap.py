@@ -264,7 +264,7 @@ def test_buttons_align_wrap_and_transfer_onto_the_character_with_undo(sample, sh
 
 def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_intersection(sample, shapesmith):
     """The template wrapped onto a copy of itself in centimetres, turned and moved: the keys
-    carried onto the copy are the template's own, moved, so each adds to the copy's neutral
+    carried onto the copy are the template's own made symmetric, moved, so each adds to the copy's neutral
     exactly the template shape's intersection curve, x100. The criterion, judged on the
     character's own mesh in its own units, lists none of them (read in metres, the
     template's allowance would be 100 times too small and the collision pass on the wrapped
@@ -284,7 +284,15 @@ def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_int
     report = result.report
     assert report["template_to_target"] == pytest.approx(100.0, rel=1e-4)
     diagonal = report["diagonal"]
-    expected = motion[0] * key_deltas(template, names) @ rotation(motion[1]).T
+    # The copy is symmetric, so each carried key is the template's averaged with the mirror
+    # of its partner's (a self-symmetric key with its own).
+    own = key_deltas(template, names)
+    partner, flip = template_partner(template), np.array([-1.0, 1.0, 1.0])
+    symmetric = own.copy()
+    for row in report["symmetry"]["shapes"]:
+        i, j = names.index(row["first_name"]), names.index(row["second_name"])
+        symmetric[i], symmetric[j] = 0.5 * (own[i] + flip * own[j][partner]), 0.5 * (own[j] + flip * own[i][partner])
+    expected = motion[0] * symmetric @ rotation(motion[1]).T
     error = np.linalg.norm(key_deltas(obj, names) - expected, axis=2).max()
     assert error < 2e-3 * diagonal, error / diagonal
     assert transfer.worse_than_template(report) == [], [(r["name"], r["excess"]) for r in report["penetration"] if sum(r["excess"].values()) > 1e-3 * diagonal]
@@ -563,13 +571,18 @@ def mirror_miss(images, first, second):
     return worst(mirrored(images, first), second), floor
 
 
+def template_partner(template):
+    """Each template vertex's nearest vertex to its image across x = 0 (brute force)."""
+    rest = positions(template)
+    images = rest * np.array([-1.0, 1.0, 1.0])
+    return np.concatenate([np.argmin(((chunk[:, None] - rest[None]) ** 2).sum(-1), axis=1) for chunk in np.array_split(images, 40)])
+
+
 def template_mirror_miss(template, first, second):
     """The template's own miss for two of its key fields: the worst vertex's distance between
     the mirror of `first` (across x = 0, each vertex's nearest vertex to its image, brute
     force) and `second`, relative to the larger largest motion."""
-    rest = positions(template)
-    images = rest * np.array([-1.0, 1.0, 1.0])
-    partner = np.concatenate([np.argmin(((chunk[:, None] - rest[None]) ** 2).sum(-1), axis=1) for chunk in np.array_split(images, 40)])
+    partner = template_partner(template)
     largest = max(np.linalg.norm(first, axis=1).max(), np.linalg.norm(second, axis=1).max())
     return np.linalg.norm(first[partner] * np.array([-1.0, 1.0, 1.0]) - second, axis=1).max() / max(largest, 1e-30)
 

@@ -72,7 +72,7 @@ fn wrap_template<'py>(
 }
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
-///              character_triangles, *, static_fraction=1e-4, anchor_length=1.0, max_angle=60.0,
+///              character_triangles, *, static_fraction=1e-4, anchor_length=2.0, max_angle=60.0,
 ///              template_added=None, template_crossing=None, collisions=True, collision_margin=0.25,
 ///              template_neutral=None, symmetric=True, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
@@ -94,7 +94,7 @@ fn wrap_template<'py>(
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles, *,
-                    static_fraction=1e-4, anchor_length=1.0, max_angle=60.0, template_added=None,
+                    static_fraction=1e-4, anchor_length=2.0, max_angle=60.0, template_added=None,
                     template_crossing=None, collisions=true, collision_margin=0.25, template_neutral=None, symmetric=true, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,

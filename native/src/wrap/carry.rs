@@ -43,7 +43,9 @@ pub struct CarryParams {
     pub static_fraction: f64,
     /// `l`, in mean template edge lengths: the screening term `sum_v m_v / l^2 |d_v - b_v|^2`
     /// holds the carried deltas to the barycentric copy `b` at scales above `l`, the gradients
-    /// shape them below it (0: pure Poisson, the gradients alone).
+    /// shape them below it (0: pure Poisson, the gradients alone). On a character coarser than
+    /// the template, times the square of the ratio of the mean edges (docs/design.md, "Wrap":
+    /// the template's keys on its half-decimated copy).
     pub anchor_length: f64,
     /// A binding (a character vertex or triangle to a template triangle) must have normals
     /// within this angle, so that an upper lip never binds to the lower lip it touches.
@@ -68,7 +70,7 @@ impl Default for CarryParams {
     fn default() -> Self {
         Self {
             static_fraction: 1e-4,
-            anchor_length: 1.0,
+            anchor_length: 2.0,
             max_angle_degrees: 60.0,
             collision_pass: true,
             collision_margin: 0.25,
@@ -212,12 +214,17 @@ pub fn carry_shapes(
         }
     }
     // Screening `m_v / l^2` on the diagonal (lumped mass m_v: a third of the incident area).
-    let edge_length = {
-        let edges = crate::geometry::topology::unique_edges(template_triangles);
-        edges.iter().map(|&(a, b)| length(crate::geometry::mat3::sub(template[a as usize], template[b as usize]))).sum::<f64>()
+    let mean_edge = |points: &[Vec3], triangles: &[[u32; 3]]| {
+        let edges = crate::geometry::topology::unique_edges(triangles);
+        edges.iter().map(|&(a, b)| length(crate::geometry::mat3::sub(points[a as usize], points[b as usize]))).sum::<f64>()
             / edges.len().max(1) as f64
     };
-    let screening = if params.anchor_length > 0.0 { 1.0 / (params.anchor_length * edge_length).powi(2) } else { 0.0 };
+    let edge_length = mean_edge(&template, template_triangles);
+    // A character coarser than the template is screened more, by the square of the edges'
+    // ratio (`CarryParams::anchor_length`).
+    let coarser = (edge_length / mean_edge(&points, character_triangles).max(f64::MIN_POSITIVE)).min(1.0);
+    let screening_length = params.anchor_length * edge_length * coarser * coarser;
+    let screening = if params.anchor_length > 0.0 { 1.0 / screening_length.powi(2) } else { 0.0 };
     let mut mass = vec![0.0; nc];
     for (t, op) in character_triangles.iter().zip(&operators) {
         if let Some(op) = op {

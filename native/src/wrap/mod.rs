@@ -338,6 +338,10 @@ fn wrap_welded(
         landmarks.extend(mirrored);
     }
     let fit_mirror = mirror.as_ref().map(|(partner, plane)| FitMirror { partner, plane: *plane, used: &is_skin });
+    // A symmetric template whose plane did not cover the character before the fit is tried
+    // again on the fitted template (its plane symmetrises the result).
+    let mirror_after_fit = (mirror.is_none() && !params.ignore_symmetry && symmetry.template_coverage >= symmetry::MIN_COVERAGE)
+        .then(|| symmetry::template_mirror(template, &is_skin).partner);
     let (mut template_pieces, mut pieces_fitted, mut rims_paired) = (0, 0, 0);
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
@@ -351,9 +355,19 @@ fn wrap_welded(
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
         (template_pieces, pieces_fitted) = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
+        let every = vec![true; fitted.len()];
         if let Some((partner, plane)) = &mirror {
-            let every = vec![true; fitted.len()];
             symmetry::symmetrize(&mut fitted, partner, &every, plane);
+        } else if let Some(partner) = &mirror_after_fit {
+            // The plane carried by the alignment was too far off (a strongly warped identity):
+            // the fitted template's own plane, refined on the character, may cover it.
+            if let Some(start) = MirrorPlane::of_partners(&fitted, partner, &is_skin) {
+                let (plane, coverage) = symmetry::refine_plane(start, &character_skin_points, &surface, diagonal);
+                if coverage >= symmetry::MIN_COVERAGE {
+                    symmetry::symmetrize(&mut fitted, partner, &every, &plane);
+                    symmetry = WrapSymmetry { symmetric: true, reason: String::new(), character_coverage: coverage, plane: Some(plane), ..symmetry };
+                }
+            }
         }
         (fitted, stats)
     };
