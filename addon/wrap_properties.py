@@ -41,6 +41,12 @@ class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
     mean_distance: bpy.props.FloatProperty(description="Mean distance to the character / bbox diagonal")
     max_distance: bpy.props.FloatProperty(description="Largest distance to the character / bbox diagonal")
     max_pair_residual: bpy.props.FloatProperty(description="Largest pair residual / bbox diagonal")
+    symmetric: bpy.props.BoolProperty(description="Whether the fit and the carry were made mirror-symmetric")
+    symmetry_note: bpy.props.StringProperty(description="Why the wrap is not symmetric (empty when it is)")
+    worst_mirror_miss: bpy.props.FloatProperty(
+        default=-1.0, description="Largest mirror miss of a carried Left/Right pair at its worst vertex / its largest motion (-1: not measured)"
+    )
+    worst_mirror_pair: bpy.props.StringProperty(description="The pair with the largest mirror miss")
     wrapped: bpy.props.PointerProperty(type=bpy.types.Object, description="The wrapped template object")
     written: bpy.props.IntProperty(description="Shape keys written by the last Transfer onto Character")
     seconds: bpy.props.FloatProperty()

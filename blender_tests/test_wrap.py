@@ -270,7 +270,7 @@ def test_buttons_align_wrap_and_transfer_onto_the_character_with_undo(sample, sh
 
 def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_intersection(sample, shapesmith):
     """The template wrapped onto a copy of itself in centimetres, turned and moved: the keys
-    carried onto the copy are the template's own, moved, so each adds to the copy's neutral
+    carried onto the copy are the template's own made symmetric, moved, so each adds to the copy's neutral
     exactly the template shape's intersection curve, x100. The criterion, judged on the
     character's own mesh in its own units, lists none of them (read in metres, the
     template's allowance would be 100 times too small and the collision pass on the wrapped
@@ -290,7 +290,15 @@ def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_int
     report = result.report
     assert report["template_to_target"] == pytest.approx(100.0, rel=1e-4)
     diagonal = report["diagonal"]
-    expected = motion[0] * key_deltas(template, names) @ rotation(motion[1]).T
+    # The copy is symmetric, so each carried key is the template's averaged with the mirror
+    # of its partner's (a self-symmetric key with its own).
+    own = key_deltas(template, names)
+    partner, flip = template_partner(template), np.array([-1.0, 1.0, 1.0])
+    symmetric = own.copy()
+    for row in report["symmetry"]["shapes"]:
+        i, j = names.index(row["first_name"]), names.index(row["second_name"])
+        symmetric[i], symmetric[j] = 0.5 * (own[i] + flip * own[j][partner]), 0.5 * (own[j] + flip * own[i][partner])
+    expected = motion[0] * symmetric @ rotation(motion[1]).T
     error = np.linalg.norm(key_deltas(obj, names) - expected, axis=2).max()
     assert error < 2e-3 * diagonal, error / diagonal
     assert transfer.worse_than_template(report) == [], [(r["name"], r["excess"]) for r in report["penetration"] if sum(r["excess"].values()) > 1e-3 * diagonal]
@@ -512,3 +520,178 @@ def test_a_denser_character_gets_keys_as_smooth_as_the_same_topology_result(samp
     carry, same, stairs = roughness(carried), roughness(reference), roughness(nearest)
     print(f"roughness on {len(dense)} vertices: carry {carry:.2e}, same-topology sampled {same:.2e}, nearest vertex {stairs:.2e}")
     assert carry < 2.0 * same and carry < 0.5 * stairs, (carry, same, stairs)
+
+
+# The bound on a carried mirror pair's miss: this many times the sum of the template's own
+# miss (its keys on its own vertex map) and the measure's floor on the character.
+MIRROR_FACTOR = 1.5
+
+
+def mirror_images(points, triangles, plane_point, plane_normal, native):
+    """Each skin vertex's image across the plane, on the skin (triangle corners, barycentric),
+    whether that triangle faces the mirrored vertex normal's way (a lip's image is not read on
+    the lip it touches) and lies within 0.2% of the diagonal of it, the skin vertices and the
+    plane's unit normal: the measure of `mirror_miss`."""
+    import makehuman  # scripts/ is on the path (conftest)
+
+    normal = np.asarray(plane_normal, dtype=np.float64) / np.linalg.norm(plane_normal)
+    skin = makehuman.largest_piece(len(points), [tuple(t) for t in triangles])
+    on_skin = np.zeros(len(points), dtype=bool)
+    on_skin[skin] = True
+    skin_triangles = triangles[on_skin[triangles[:, 0]]]
+    corners = points[skin_triangles]
+    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    vertex_normals = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(vertex_normals, skin_triangles[:, k], face_normals)
+    unit = lambda v: v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30)  # noqa: E731
+    images = points[skin] - 2.0 * ((points[skin] - np.asarray(plane_point)) @ normal)[:, None] * normal
+    triangle, barycentric, distance = native.bind_to_surface(images.astype(np.float32), points.astype(np.float32), skin_triangles)
+    mirrored_normals = unit(vertex_normals[skin]) - 2.0 * (unit(vertex_normals[skin]) @ normal)[:, None] * normal
+    diagonal = np.linalg.norm(points.max(0) - points.min(0))
+    facing = (np.einsum("vx,vx->v", unit(face_normals[triangle]), mirrored_normals) > 0.5) & (distance < 2e-3 * diagonal)
+    return skin, skin_triangles[triangle], barycentric, facing, normal
+
+
+def mirrored(images, field):
+    """The field mirrored at every skin vertex (zero elsewhere)."""
+    skin, corners, barycentric, _, normal = images
+    out = np.zeros_like(field, dtype=np.float64)
+    values = np.einsum("vc,vcx->vx", barycentric, field[corners])
+    out[skin] = values - 2.0 * (values @ normal)[:, None] * normal
+    return out
+
+
+def mirror_miss(images, first, second):
+    """The worst measured vertex's miss between the mirror of the field `first` and the field
+    `second`, relative to the larger largest motion on the skin (0 when neither moves it),
+    and the measure's floor for them: the worst miss of either field against its mirror
+    mirrored (an image interpolated twice across the character's triangles)."""
+    skin, _, _, facing, _ = images
+    measured = skin[facing]
+    largest = max(np.linalg.norm(first[skin], axis=1).max(), np.linalg.norm(second[skin], axis=1).max())
+    if largest == 0.0:
+        return 0.0, 0.0
+    worst = lambda a, b: np.linalg.norm(a[measured] - b[measured], axis=1).max() / largest  # noqa: E731
+    floor = max(worst(mirrored(images, mirrored(images, f)), f) for f in (first, second))
+    return worst(mirrored(images, first), second), floor
+
+
+def template_partner(template):
+    """Each template vertex's nearest vertex to its image across x = 0 (brute force)."""
+    rest = positions(template)
+    images = rest * np.array([-1.0, 1.0, 1.0])
+    return np.concatenate([np.argmin(((chunk[:, None] - rest[None]) ** 2).sum(-1), axis=1) for chunk in np.array_split(images, 40)])
+
+
+def template_mirror_miss(template, first, second):
+    """The template's own miss for two of its key fields: the worst vertex's distance between
+    the mirror of `first` (across x = 0, each vertex's nearest vertex to its image, brute
+    force) and `second`, relative to the larger largest motion."""
+    partner = template_partner(template)
+    largest = max(np.linalg.norm(first, axis=1).max(), np.linalg.norm(second, axis=1).max())
+    return np.linalg.norm(first[partner] * np.array([-1.0, 1.0, 1.0]) - second, axis=1).max() / max(largest, 1e-30)
+
+
+def template_copy_y_up(name):
+    """The Template collapse-decimated to half its faces, rescaled by 1.3, turned a quarter
+    about X (Y up, still metres) and by 0.4 rad about its new up axis, and moved; with its
+    motion (scale, rotation, shift) and its point pairs (template vertex -> the same point moved)."""
+    import makehuman  # scripts/ is on the path (conftest)
+
+    template = bpy.data.objects["Template"]
+    obj = decimated_copy(template, name)
+    turn = rotation((0.0, 0.4, 0.0)) @ rotation((-np.pi / 2, 0.0, 0.0))
+    motion = (1.3, turn, np.array([0.2, 1.1, -0.3]))
+    move = lambda p: motion[0] * np.asarray(p) @ motion[1].T + motion[2]  # noqa: E731
+    obj.data.vertices.foreach_set("co", move(positions(obj)).astype(np.float32).ravel())
+    obj.data.update()
+    vertices = makehuman.pair_vertices(positions(template), skin_vertices(template))
+    return obj, move, [[int(v), [float(x) for x in q]] for v, q in zip(vertices, move(positions(template)[vertices]))]
+
+
+def test_a_symmetric_template_on_symmetric_characters_carries_mirrored_pairs(sample, shapesmith):
+    """The template onto two mirror-symmetric characters whose triangles are not mirrored:
+    Character_YoungWoman (another identity, centimetres, Y up) and the template decimated,
+    rescaled, turned (Y up, metres). Fit and carry report symmetric; each carried Left/Right
+    pair and each self-symmetric key mirrors within MIRROR_FACTOR times the template's own
+    miss (its keys on its vertex map) plus the measure's floor on the character (what
+    interpolating an image twice across the character's triangles costs the same keys), a
+    bound the chain without symmetry breaks, but for the pairs the report lists as held apart
+    by the collision pass. No key carried onto Character_YoungWoman is worse than the
+    template, and onto the copy no more than without symmetry."""
+    native = module(shapesmith, "native").module()
+    triangles_of = module(shapesmith, "blender.mesh_arrays").read_triangles
+    template = bpy.data.objects["Template"]
+    copy, move, copy_entries = template_copy_y_up("Character_TemplateCopy")
+    young = bpy.data.objects["Character_YoungWoman"]
+    young_entries = json.loads(young["shapesmith_wrap_pairs"])
+    names = [block.name for block in template.data.shape_keys.key_blocks[1:]]
+    own_keys = key_deltas(template, names)
+    for obj, entries, plane in (
+        (young, young_entries, ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))),
+        (copy, copy_entries, (move(np.zeros((1, 3)))[0], np.array([1.0, 0.0, 0.0]) @ copy_motion_linear(move).T)),
+    ):
+        written, wrapped, result = wrap_and_carry(shapesmith, obj, entries)
+        fit_symmetry, carry_symmetry = wrapped.report["symmetry"], result.report["symmetry"]
+        assert fit_symmetry["symmetric"] and carry_symmetry["symmetric"], (fit_symmetry, carry_symmetry["reason"])
+        pairs = [(row["first_name"], row["second_name"]) for row in carry_symmetry["shapes"]]
+        assert ("eyeBlinkLeft", "eyeBlinkRight") in pairs and ("jawLeft", "jawRight") in pairs and ("jawOpen", "jawOpen") in pairs, pairs
+        assert len(pairs) >= 28, pairs
+        images = mirror_images(positions(obj), triangles_of(obj), *plane, native)
+        assert images[3].mean() > 0.8, images[3].mean()
+        carried = key_deltas(obj, written)
+        # The same chain fitted and carried as if nothing were symmetric, measured alike: the
+        # bound must be one it breaks.
+        wrap = module(shapesmith, "blender.wrap")
+        template_points, character_points = wrap.pairs_from_list(entries, template, obj)
+        unsymmetric = wrap.wrap_object(template, obj, template_points, character_points,
+                                       module(shapesmith, "blender.settings").WrapSettings(ignore_symmetry=True))
+        plain_result = wrap.carry_onto_character(template, obj, wrap.show_wrapped(unsymmetric), symmetric=False)
+        plain = plain_result.deltas
+        rows = []
+        for first, second in pairs:
+            miss, floor = mirror_miss(images, carried[written.index(first)], carried[written.index(second)])
+            plain_miss, _ = mirror_miss(images, plain[written.index(first)], plain[written.index(second)])
+            own = template_mirror_miss(template, own_keys[names.index(first)], own_keys[names.index(second)])
+            rows.append((first, second, miss, plain_miss, own, floor))
+        print(obj.name + ": " + ", ".join(f"{a}/{b} {100 * m:.1f}% (without symmetry {100 * p:.1f}%, template {100 * t:.1f}%, floor {100 * f:.1f}%)" for a, b, m, p, t, f in rows))
+        broken = [row[:2] for row in rows if row[3] > MIRROR_FACTOR * (row[4] + row[5])]
+        assert len(broken) >= 5, rows
+        # A pair the collision pass held apart differently, with no mirrored version meeting the
+        # criterion, keeps the pass's results (the report says which): at most two here.
+        held_apart = {(row["first_name"], row["second_name"]) for row in carry_symmetry["shapes"] if row["held_apart"]}
+        assert len(held_apart) <= 2, held_apart
+        for first, second, miss, _, own, floor in rows:
+            if (first, second) not in held_apart:
+                assert miss <= MIRROR_FACTOR * (own + floor), (obj.name, first, second, miss, own, floor)
+        worse_than_template = module(shapesmith, "blender.transfer").worse_than_template
+        worse, plain_worse = worse_than_template(result.report), worse_than_template(plain_result.report)
+        print(f"{obj.name}: worse than the template {worse}, without symmetry {plain_worse}")
+        # Measured: Character_YoungWoman none (one without symmetry); the half-decimated copy's
+        # coarse lips keep mouthClose, mouthLeft/Right, mouthPucker and mouthRollUpper.
+        assert worse == [] if obj == young else len(worse) <= len(plain_worse), (worse, plain_worse)
+
+
+def copy_motion_linear(move):
+    """The linear part of an affine `move` (points (N, 3) -> (N, 3))."""
+    origin = move(np.zeros((1, 3)))[0]
+    return np.stack([move(np.eye(3)[k][None])[0] - origin for k in range(3)], axis=1)
+
+
+def test_an_asymmetric_character_is_wrapped_without_symmetry_and_says_why(sample, shapesmith):
+    """Character_YoungWoman with its left half widened by 8%: no longer mirror-symmetric, it is
+    fitted and carried as without symmetry, every key written, and the report says why."""
+    obj = bpy.data.objects["Character_YoungWoman"]
+    entries = json.loads(obj["shapesmith_wrap_pairs"])
+    points = positions(obj)
+    points[:, 0] = np.where(points[:, 0] > 0.0, 1.08 * points[:, 0], points[:, 0])
+    obj.data.vertices.foreach_set("co", points.astype(np.float32).ravel())
+    obj.data.update()
+    written, wrapped, result = wrap_and_carry(shapesmith, obj, entries)
+    assert len(written) == 52 and wrapped.report["mean_distance"] < 2e-3
+    fit, carry = wrapped.report["symmetry"], result.report["symmetry"]
+    assert not fit["symmetric"] and "character is not mirror-symmetric" in fit["reason"], fit
+    assert not carry["symmetric"] and carry["shapes"] == [] and carry["worst"] is None, carry
+    wrap = module(shapesmith, "blender.wrap")
+    assert any("fitted without symmetry" in line for line in wrap.summary_lines(wrapped))

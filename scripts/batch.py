@@ -603,7 +603,7 @@ def run_wrap(args):
     wrapped = wrap.wrap_object(template, character, template_points, character_points)
     wrapped.seconds["io"] += opened - started
     wrapped_object = wrap.show_wrapped(wrapped)
-    written, skipped, warnings, penetration, worse = [], [], [], None, None
+    written, skipped, warnings, penetration, worse, symmetry = [], [], [], None, None, None
     seconds = dict(wrapped.seconds)
     try:
         if not args.no_transfer:
@@ -620,6 +620,7 @@ def run_wrap(args):
             seconds["io"] += time.perf_counter() - writing
             penetration = {"neutral": result.report["neutral_penetration"], "shapes": result.report["penetration"]}
             worse = transfer.worse_than_template(result.report)
+            symmetry = result.report["symmetry"]
             transfer.store_transfer(result, written, skipped)
             warnings = result.warnings + warnings
     finally:
@@ -627,8 +628,15 @@ def run_wrap(args):
             wrap.remove_object(wrapped_object)
     wrap.store_wrap(wrapped, "WRAP")
     character.shapesmith_wrap.written = len(written)
+    if symmetry is not None:
+        wrap.store_symmetry(character, symmetry)
     for line in wrap.summary_lines(wrapped):
         print(line)
+    if symmetry is not None and symmetry["worst"] is not None:
+        worst = symmetry["worst"]
+        print(f"symmetric carry: worst mirror miss {100 * worst['carried']:.1f}% ({worst['pair']}; {100 * worst['template']:.1f}% on the wrapped template)")
+    elif symmetry is not None:
+        print(f"carried without symmetry: {symmetry['reason']}")
     if not args.no_transfer:
         print(f"{len(written)} shape keys written onto '{character.name}'" + (f", {len(skipped)} kept" if skipped else ""))
         print(f"adding more intersection on the character than on the template: {len(worse)}" + (f" ({', '.join(worse)})" if worse else ""))
@@ -648,6 +656,7 @@ def run_wrap(args):
             "skipped": skipped,
             "penetration": penetration,
             "worse_than_template": worse,
+            "symmetry": symmetry,
             "warnings": warnings + wrapped.report["warnings"],
             "seconds": seconds,
         },

@@ -18,6 +18,20 @@ diagonal); and the shapes of the carried keys that add more intersection curve t
 character's neutral than the template's shape allows (SPEC 3's criterion, excess over 1e-3
 of the diagonal), with the carry's collision pass (the chain's default) and
 without it (the plain carry of the same wrapped keys, timed in the same run).
+
+Symmetry (the identity is mirror-symmetric across x = 0, so the characters are across the
+image of that plane): per mirror pair of shapes (as the carry paired them), the worst vertex's
+miss between the mirror of one carried key and the other, in % of the larger one's largest
+motion, each vertex's image at its closest point on the character (`mirror_misses`), beside
+the same measure of the barycentric copy of the wrapped template's keys (what it reads for
+keys as symmetric as the wrapped template's on a mesh whose triangles are not mirrored), and
+for the chain fitted and carried as if nothing were symmetric (`symmetric=False`), with its
+shapes worse and its error.
+
+Perfect alignment (`run_perfect`): the template collapse-decimated to half its faces, in the
+character frame, the template itself placed exactly on it as the wrapped template and its own
+keys carried: the carry's error against the template's keys sampled at the character's
+vertices, beside the nearest-vertex copy's (no fit error in either).
 """
 
 import argparse
@@ -88,12 +102,38 @@ def roughness(deltas, edges, reference, diagonal):
     return float(np.mean(values))
 
 
+def mirror_misses(nat, points, triangles, keys, names, pairs):
+    """Per pair (first, second) of `names`, the worst skin vertex's miss between the mirror of
+    key `first` and key `second` (`keys`: (K, N, 3) on `points`), / the larger largest motion
+    on the skin; mirrored across the character frame's image of x = 0, each skin vertex's image
+    at its closest point on the skin (barycentric; the skin only, so that a lid's image never
+    lands on an eyeball)."""
+    normal = np.array([1.0, 0.0, 0.0])
+    skin = makehuman.largest_piece(len(points), [tuple(t) for t in triangles])
+    on_skin = np.zeros(len(points), dtype=bool)
+    on_skin[skin] = True
+    skin_triangles = triangles[on_skin[triangles[:, 0]]]
+    images = points[skin] - 2.0 * ((points[skin] - SHIFT) @ normal)[:, None] * normal
+    triangle, barycentric, _ = nat.bind_to_surface(
+        np.ascontiguousarray(images, dtype=np.float32), np.ascontiguousarray(points, dtype=np.float32), skin_triangles
+    )
+    misses = {}
+    for first, second in pairs:
+        a, b = keys[names.index(first)], keys[names.index(second)]
+        mirrored = np.einsum("vc,vcx->vx", barycentric, a[skin_triangles[triangle]])
+        mirrored -= 2.0 * (mirrored @ normal)[:, None] * normal
+        largest = max(np.linalg.norm(a[skin], axis=1).max(), np.linalg.norm(b[skin], axis=1).max())
+        misses[first if first == second else f"{first}/{second}"] = float(np.linalg.norm(mirrored - b[skin], axis=1).max() / max(largest, 1e-30))
+    return misses
+
+
 def run_size(shapesmith, label, vertices, truth):
     from importlib import import_module
 
     wrap = import_module(shapesmith.__name__ + ".blender.wrap")
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
+    settings = import_module(shapesmith.__name__ + ".blender.settings")
     nat = shapesmith.native.module()
     template, identity = bpy.data.objects["Template"], bpy.data.objects[IDENTITY]
     character = build_character(identity, f"Character_{label}", vertices)
@@ -160,11 +200,114 @@ def run_size(shapesmith, label, vertices, truth):
     plain_rows = wrap.character_rows(plain_report, plain_carry["penetration"])
     row["worse"] = {name: worse_than_template(rows, diagonal) for name, rows in (("carry", result.report["penetration"]), ("plain carry", plain_rows))}
     row["carry_seconds"] = {"carry": seconds["carry"], "plain carry": plain_seconds}
+    # Symmetry: the chain's keys and the barycentric copy, then the chain as if nothing were
+    # symmetric, each measured alike.
+    names = list(result.names)
+    symmetry = result.report["symmetry"]
+    pairs = [(r["first_name"], r["second_name"]) for r in symmetry["shapes"]]
+    triangles = mesh_arrays.read_triangles(character)
+    misses = {
+        "carry": mirror_misses(nat, points, triangles, copies["carry"], names, pairs),
+        "barycentric": mirror_misses(nat, points, triangles, copies["barycentric"], names, pairs),
+    }
+    wrap.remove_object(wrapped_object)
+    unsymmetric = wrap.wrap_object(template, character, template_points, character_points,
+                                   settings.WrapSettings(ignore_symmetry=True))
+    unsymmetric_object = wrap.show_wrapped(unsymmetric)
+    unsymmetric_result = wrap.carry_onto_character(template, character, unsymmetric_object, symmetric=False)
+    misses["carry without symmetry"] = mirror_misses(nat, points, triangles, unsymmetric_result.deltas.astype(np.float64), names, pairs)
+    row["symmetry"] = {
+        "fit": wrapped.report["symmetry"],
+        "carry": symmetry,
+        "misses": misses,
+        "worse without symmetry": worse_than_template(unsymmetric_result.report["penetration"], diagonal),
+        "error without symmetry": moving_error(unsymmetric_result.deltas.astype(np.float64), reference, diagonal),
+    }
+    wrapped_object = unsymmetric_object
     # What the carry's collision pass did to each shape it acted on.
     names = [r["name"] for r in result.report["penetration"]]
     row["carry_collisions"] = {n: c for n, c in zip(names, result.report["carry"].get("collisions", [])) if c["plain_excess"] > 0}
     wrap.remove_object(wrapped_object)
     return row
+
+
+def run_sample(shapesmith):
+    """The sample's Character_YoungWoman (Target_YoungWoman decimated to 45%, centimetres, Y
+    up, its stored pairs): shapes worse with the chain's defaults, without the carry's pass and
+    without symmetry; the mirror misses as the carry reports them; the keys' error against the
+    same-topology transfer onto Target_YoungWoman sampled at its vertices."""
+    from importlib import import_module
+
+    wrap = import_module(shapesmith.__name__ + ".blender.wrap")
+    mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
+    transfer = import_module(shapesmith.__name__ + ".blender.transfer")
+    settings = import_module(shapesmith.__name__ + ".blender.settings")
+    nat = shapesmith.native.module()
+    template, character, identity = (bpy.data.objects[n] for n in ("Template", "Character_YoungWoman", "Target_YoungWoman"))
+    truth = transfer.transfer_object(template, identity).deltas.astype(np.float64)
+    points = positions(character)
+    back = points / 100.0
+    back = np.stack([back[:, 0], -back[:, 2], back[:, 1]], axis=1)
+    reference = barycentric_copy(nat, back, positions(identity), mesh_arrays.read_triangles(identity), truth)
+    reference = np.stack([makehuman.character_frame(r, 100.0) for r in reference])
+    row = {}
+    for label, symmetric in (("symmetric", True), ("without symmetry", False)):
+        template_points, character_points = wrap.stored_pairs(character, template)
+        wrapped = wrap.wrap_object(template, character, template_points, character_points,
+                                   settings.WrapSettings(ignore_symmetry=not symmetric))
+        wrapped_object = wrap.show_wrapped(wrapped)
+        result = wrap.carry_onto_character(template, character, wrapped_object, symmetric=symmetric)
+        diagonal = wrapped.report["diagonal"]
+        row[label] = {
+            "worse": worse_than_template(result.report["penetration"], diagonal),
+            "error": moving_error(result.deltas.astype(np.float64), reference, diagonal),
+            "nearest vertex error": moving_error(
+                nearest_vertex_copy(positions(wrapped_object), transfer.transfer_object(template, wrapped_object).deltas, points), reference, diagonal
+            ),
+            "symmetry": result.report["symmetry"],
+        }
+        wrap.remove_object(wrapped_object)
+    return row
+
+
+def run_perfect(shapesmith):
+    """The template's own keys carried onto its collapse-decimated copy (half the faces, in the
+    character frame) from the template itself placed exactly there: the carry's error against
+    the keys sampled at the copy's vertices (barycentric at the closest point), beside the
+    nearest-vertex copy's."""
+    from importlib import import_module
+
+    mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
+    nat = shapesmith.native.module()
+    template = bpy.data.objects["Template"]
+    rest = positions(template)
+    names = [block.name for block in template.data.shape_keys.key_blocks[1:]]
+    keys = np.stack([makehuman.character_frame(block_positions(template, name) - rest, SCALE) for name in names])
+    copy = template.copy()
+    copy.data = template.data.copy()
+    bpy.context.scene.collection.objects.link(copy)
+    copy.shape_key_clear()
+    copy.modifiers.new("Decimate", "DECIMATE").ratio = 0.5
+    decimated = bpy.data.meshes.new_from_object(copy.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    copy.modifiers.clear()
+    copy.data = decimated
+    points = to_character(positions(copy))
+    placed = to_character(rest)
+    triangles, copy_triangles = mesh_arrays.read_triangles(template), mesh_arrays.read_triangles(copy)
+    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
+    carried, _ = nat.carry_shapes(
+        np.ascontiguousarray(placed, dtype=np.float32), triangles, np.ascontiguousarray(keys, dtype=np.float32),
+        np.ascontiguousarray(points, dtype=np.float32), copy_triangles,
+    )
+    reference = barycentric_copy(nat, points, placed, triangles, keys)
+    copies = {"carry": carried.astype(np.float64), "nearest vertex": nearest_vertex_copy(placed, keys, points)}
+    return {"vertices": len(points), "error": {name: moving_error(d, reference, diagonal) for name, d in copies.items()}}
+
+
+def block_positions(obj, name):
+    co = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.shape_keys.key_blocks[name].data.foreach_get("co", co)
+    return co.reshape(-1, 3).astype(np.float64)
 
 
 def worse_than_template(rows, diagonal):
@@ -187,6 +330,8 @@ def main():
     bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
     truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY]).deltas.astype(np.float64)
     result = {label: run_size(shapesmith, label, vertices, truth) for label, vertices in SIZES.items()}
+    perfect = run_perfect(shapesmith)
+    sample = run_sample(shapesmith)
     print("\n== Wrap + transfer + carry onto a character of other topology (seconds, one run, 2 cores)")
     for label, row in result.items():
         s = row["seconds"]
@@ -207,6 +352,25 @@ def main():
                 f"    {name}: {len(worse)} shapes worse than the template, excess {sum(worse.values()):.4f} of the diagonal, "
                 f"{row['carry_seconds'][name]:.3f} s: " + ", ".join(f"{k} {v:.4f}" for k, v in sorted(worse.items()))
             )
+        misses = row["symmetry"]["misses"]
+        print(f"    symmetry: fit {row['symmetry']['fit']['symmetric']}, carry {row['symmetry']['carry']['symmetric']}; "
+              "worst-vertex mirror miss, % of the largest motion (carry / barycentric copy / carry without symmetry):")
+        for pair in misses["carry"]:
+            print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in ("carry", "barycentric", "carry without symmetry")))
+        print(f"    without symmetry: {len(row['symmetry']['worse without symmetry'])} shapes worse "
+              f"({', '.join(sorted(row['symmetry']['worse without symmetry']))}), error {row['symmetry']['error without symmetry']:.2e}")
+    print(f"\n== Perfect alignment: the template's keys carried onto its decimated copy ({perfect['vertices']} vertices)")
+    print("  error vs the template's keys sampled there: " + ", ".join(f"{k} {v:.2e}" for k, v in perfect["error"].items()))
+    result["perfect alignment"] = perfect
+    print("\n== Character_YoungWoman (the sample)")
+    for label, row in sample.items():
+        print(f"  {label}: {len(row['worse'])} shapes worse ({', '.join(sorted(row['worse']))}), error {row['error']:.2e} "
+              f"(nearest vertex {row['nearest vertex error']:.2e}); symmetric {row['symmetry']['symmetric']}")
+        for miss in row["symmetry"].get("shapes", []):
+            print(f"    {miss['first_name']}/{miss['second_name']}: worst-vertex mirror miss {100 * miss['carried']:.1f}% "
+                  f"(plain {100 * miss['plain']:.1f}%, barycentric copy {100 * miss['copied']:.1f}%, wrapped template {100 * miss['template']:.1f}%)"
+                  + (" held apart" if miss["held_apart"] else ""))
+    result["Character_YoungWoman"] = sample
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
         json.dump(result, f, indent=2)

@@ -168,6 +168,7 @@ class FitSettings(NativeSettings):
 class WrapSettings(NativeSettings):
     fit: FitSettings = field(default_factory=FitSettings)
     align_only: bool = False
+    ignore_symmetry: bool = False
 
 
 @dataclass
@@ -179,6 +180,7 @@ class CarrySettings(NativeSettings):
     collision_margin: float = 0.25
     collision_stiffness: float = 100.0
     collision_tolerance: float = 1e-3
+    symmetrize: bool = True
 
 
 # --- Solve Performance: `PerformanceParams` (the start pose is the head's placement, data) ---

@@ -176,7 +176,8 @@ def refresh_markers(character, template):
 
 def wrap_object(template, character, template_points, character_points, settings=None, *, progress=None):
     """Validates and runs the native wrap with `settings` (a `settings.WrapSettings`; None:
-    the defaults); returns a `Wrapped`. Writes nothing."""
+    the defaults; its `ignore_symmetry` fits as if the meshes were not mirror-symmetric, which
+    scripts/bench_wrap.py compares); returns a `Wrapped`. Writes nothing."""
     settings = settings or WrapSettings()
     started = time.perf_counter()
     if character is None or template is None:
@@ -264,7 +265,34 @@ def store_wrap(wrapped, stage):
     result.mean_distance = report["mean_distance"]
     result.max_distance = report["max_distance"]
     result.max_pair_residual = max(report["pair_residuals"], default=0.0)
+    result.symmetric = report["symmetry"]["symmetric"]
+    result.symmetry_note = report["symmetry"]["reason"]
+    result.worst_mirror_miss = -1.0
     result.seconds = sum(wrapped.seconds.values())
+
+
+def named_symmetry(symmetry, names):
+    """The carry's symmetry report with each mirror pair of shapes named (`names`: the keys'),
+    and the worst miss of the carried pairs (`worst`: name and miss, or None)."""
+    shapes = [
+        {**row, "first_name": names[row["first"]], "second_name": names[row["second"]]} for row in symmetry.get("shapes", [])
+    ]
+    worst = max(shapes, key=lambda row: row["carried"], default=None)
+    return {**symmetry, "shapes": shapes, "worst": None if worst is None else {
+        "pair": f"{worst['first_name']}/{worst['second_name']}" if worst["first"] != worst["second"] else worst["first_name"],
+        "carried": worst["carried"],
+        "template": worst["template"],
+    }}
+
+
+def store_symmetry(character, symmetry):
+    """Keeps the carry's symmetry summary on the character (the panel shows it)."""
+    settings = character.shapesmith_wrap
+    settings.symmetric = symmetry["symmetric"]
+    settings.symmetry_note = symmetry["reason"]
+    worst = symmetry["worst"]
+    settings.worst_mirror_miss = -1.0 if worst is None else worst["carried"]
+    settings.worst_mirror_pair = "" if worst is None else worst["pair"]
 
 
 def template_curve(report):
@@ -316,11 +344,14 @@ def character_rows(report, character_penetration):
     return rows
 
 
-def carry_onto_character(template, character, wrapped_object, transfer_settings=None, *, seconds=None, progress=None):
+def carry_onto_character(template, character, wrapped_object, transfer_settings=None, *, seconds=None, symmetric=True,
+                         progress=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
     `transfer_settings`, a `settings.TransferSettings`; None: the defaults), then carries
-    them onto the character's own vertices. Returns a `transfer.Transfer` whose target is the character, ready for
-    `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`; writes nothing."""
+    them onto the character's own vertices. Returns a `transfer.Transfer` whose target is the
+    character, ready for `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`;
+    writes nothing. `symmetric=False` carries as if the meshes were not mirror-symmetric (the
+    report's `symmetry` still has the mirror misses)."""
     started = time.perf_counter()
     transfer_settings = transfer_settings or TransferSettings()
     # One bar over both solves: the transfer its first half, the carry the second.
@@ -333,7 +364,10 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     # used; with the transfer's collision pass on, the carry's holds them to it, with the same
     # margin.
     collisions = transfer_settings.transfer.collisions
-    carry = CarrySettings(collision_pass=collisions is not None)
+    carry = CarrySettings(collision_pass=collisions is not None, symmetrize=symmetric)
+    # The template's rest gives the carry its mirror map: with a symmetric character each
+    # carried shape is averaged with the mirror of its partner's.
+    template_neutral, _ = read_surface(template, "template")
     if collisions is not None:
         carry.collision_margin = collisions.margin
     deltas, carry_report = native.module().carry_shapes(
@@ -343,6 +377,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
         character_neutral,
         character_triangles,
         carry.as_native(),
+        template_neutral=np.ascontiguousarray(template_neutral, dtype=np.float32),
         progress=halves[1],
         **template_curve(onto_wrapped.report),
     )
@@ -356,6 +391,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     character_penetration = carry_report.pop("penetration")
     report["penetration"] = character_rows(report, character_penetration)
     report["neutral_penetration"] = character_penetration["neutral"]
+    report["symmetry"] = named_symmetry(carry_report.pop("symmetry"), onto_wrapped.names)
     stage_seconds = dict(seconds or {})
     stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
@@ -453,4 +489,12 @@ def summary_lines(wrapped):
             "the others follow the skin"
         )
     lines.append(f"holes (eye and mouth openings) landed on the character's: {report['holes_paired']}")
+    symmetry = report["symmetry"]
+    if symmetry["symmetric"]:
+        lines.append(
+            f"symmetric fit: {100 * symmetry['character_coverage']:.0f}% of the character's skin mirrors onto it, "
+            f"{symmetry['mirrored_pairs']} mirrored point pairs added"
+        )
+    else:
+        lines.append(f"fitted without symmetry: {symmetry['reason']}")
     return lines + [f"warning: {w}" for w in report["warnings"]]

@@ -7,7 +7,7 @@ import bpy
 from ..blender.settings import transfer_settings
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
-from ..blender.wrap import carry_onto_character
+from ..blender.wrap import carry_onto_character, store_symmetry
 from .base import expected_errors, poll_mesh, progress_cursor
 
 
@@ -55,6 +55,7 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         character.shapesmith_wrap.written = len(written)
+        store_symmetry(character, result.report["symmetry"])
         # The per-shape penetration on the character, listed by the Transfer panel with it active.
         store_transfer(result, written, skipped)
         for warning in result.warnings + warnings:

@@ -60,6 +60,12 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
             box.label(text=f"Mean distance: {100 * settings.mean_distance:.3f}% of the diagonal")
             box.label(text=f"Max distance: {100 * settings.max_distance:.2f}%")
             box.label(text=f"Largest pair residual: {100 * settings.max_pair_residual:.3f}%")
+            if settings.symmetric:
+                box.label(text="Symmetric: fit and carry mirrored", icon="MOD_MIRROR")
+            else:
+                box.label(text=f"Not symmetric: {settings.symmetry_note}", icon="INFO")
+            if settings.worst_mirror_miss >= 0.0:
+                box.label(text=f"Worst mirror miss: {100 * settings.worst_mirror_miss:.1f}% ({settings.worst_mirror_pair})")
             if settings.written:
                 box.label(text=f"Shape keys written: {settings.written}", icon="CHECKMARK")
                 result = obj.shapesmith.transfer

@@ -17,7 +17,9 @@ use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, Ad
 ///
 /// `settings`: a dict onto [`WrapParams`] (None: `default_settings("wrap")`): `fit`
 /// (stiffness, iterations, landmark_weight, max_angle_degrees, max_distance, rim_weight,
-/// tolerance) and `align_only`; an unknown key is an InvalidInputError naming it.
+/// tolerance), `align_only` and `ignore_symmetry` (fit as if the meshes were not
+/// mirror-symmetric; the report's `symmetry` says whether the fit was); an unknown key is an
+/// InvalidInputError naming it.
 /// `template_points`, `character_points`: float32 (P, 3) point pairs in each mesh's own
 /// space (P = 0 for an alignment from the principal axes).
 #[pyfunction]
@@ -59,12 +61,18 @@ fn wrap_template<'py>(
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, settings=None, *, template_added=None, template_crossing=None,
-///              progress=None)
+///              template_neutral=None, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
 /// `settings`: a dict onto [`CarryParams`] (None: `default_settings("carry")`):
 /// static_fraction, anchor_length, max_angle_degrees, collision_pass, collision_margin,
-/// collision_stiffness, collision_tolerance; an unknown key is an InvalidInputError naming it.
+/// collision_stiffness, collision_tolerance, symmetrize; an unknown key is an
+/// InvalidInputError naming it.
+/// `template_neutral` (float32 (Nt, 3), the template's rest in the wrapped template's vertex
+/// order) makes the carry symmetric when template and character are: each carried shape is
+/// averaged with the mirror of its partner's before the collision pass; the report's
+/// `symmetry` says whether it was, and per mirror pair of shapes the worst vertex's miss
+/// (`symmetrize: false` only measures them).
 /// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
 /// the intersection curve the template's own shape adds to the template's neutral and its
 /// whole curve, inside one piece and between pieces, in the character's units: the transfer
@@ -77,7 +85,7 @@ fn wrap_template<'py>(
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles,
-                    settings=None, *, template_added=None, template_crossing=None, progress=None))]
+                    settings=None, *, template_added=None, template_crossing=None, template_neutral=None, progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -88,6 +96,7 @@ fn carry_shapes<'py>(
     settings: Option<Bound<'py, PyAny>>,
     template_added: Option<PyReadonlyArray2<'py, f64>>,
     template_crossing: Option<PyReadonlyArray2<'py, f64>>,
+    template_neutral: Option<PyReadonlyArray2<'py, f32>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let params: CarryParams = read_settings(py, settings.as_ref(), "carry")?;
@@ -114,8 +123,9 @@ fn carry_shapes<'py>(
     let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let template_rest = template_neutral.as_ref().map(|t| arrays::points(t, "template_neutral")).transpose().map_err(py_err(py))?;
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
-        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), &params, progress)
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), template_rest, &params, progress)
     })?;
     let nc = character.len();
     let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();

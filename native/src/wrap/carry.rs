@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::closest_point::SurfacePoint;
-use crate::geometry::mat3::{add, edge_frame, inverse, length, mat_mul, mat_vec, to_f64, HatGradients, Mat3, Vec3, IDENTITY};
+use crate::geometry::mat3::{add, edge_frame, inverse, length, mat_mul, mat_vec, scale, to_f64, HatGradients, Mat3, Vec3, IDENTITY};
 use crate::geometry::topology::connected_components;
 use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
@@ -33,6 +33,7 @@ use crate::sparse::SymmetricMatrix;
 use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard, TemplateCurve};
 use crate::geometry::penetration::{Penetration, PenetrationBaseline};
 use super::pieces::ANY_PART;
+use super::symmetry::{self, MirrorPlane, SurfaceMirror};
 
 /// Knobs of [`carry_shapes`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -43,7 +44,9 @@ pub struct CarryParams {
     pub static_fraction: f64,
     /// `l`, in mean template edge lengths: the screening term `sum_v m_v / l^2 |d_v - b_v|^2`
     /// holds the carried deltas to the barycentric copy `b` at scales above `l`, the gradients
-    /// shape them below it (0: pure Poisson, the gradients alone).
+    /// shape them below it (0: pure Poisson, the gradients alone). On a character coarser than
+    /// the template, times the square of the ratio of the mean edges (docs/design.md, "Wrap":
+    /// the template's keys on its half-decimated copy).
     pub anchor_length: f64,
     /// A binding (a character vertex or triangle to a template triangle) must have normals
     /// within this angle, so that an upper lip never binds to the lower lip it touches.
@@ -59,6 +62,9 @@ pub struct CarryParams {
     /// A shape is worse than the template when its excess is over this fraction of the
     /// character's bbox diagonal (SPEC 3's criterion as the add-on reads it).
     pub collision_tolerance: f64,
+    /// With the template's rest given and a symmetric character, whether each shape is
+    /// averaged with its mirror partner's (`symmetry`); false only measures the mirror misses.
+    pub symmetrize: bool,
 }
 
 impl Default for CarryParams {
@@ -71,6 +77,7 @@ impl Default for CarryParams {
             collision_margin: 0.25,
             collision_stiffness: 100.0,
             collision_tolerance: 1e-3,
+            symmetrize: true,
         }
     }
 }
@@ -93,7 +100,18 @@ pub struct CarryResult {
     /// The carried keys' penetration on the character and SPEC 3's criterion on it (when
     /// the template's curve is given).
     pub penetration: Option<CarryPenetration>,
+    /// Whether the carry was made symmetric and the mirror misses (when the template's rest
+    /// is given).
+    pub symmetry: Option<CarrySymmetry>,
 }
+
+/// Where each character triangle samples the wrapped template's deformation (barycentric):
+/// its centroid and a point towards each corner; the mean of the sampled gradients is the
+/// triangle's target. A character triangle spanning several template triangles (a coarser
+/// character) so gets their mean gradient, which a centroid alone would miss (docs/design.md,
+/// "Wrap": the error on a decimated template under a perfect alignment); a triangle within
+/// one template triangle (a denser character) gets that triangle's, as with one sample.
+const TRIANGLE_SAMPLES: [[f64; 3]; 4] = [[1.0 / 3.0; 3], [4.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 1.0 / 6.0, 4.0 / 6.0]];
 
 /// Each point's closest point on a surface (rayon across points).
 pub fn bind(points: &[Vec3], surface: &TriangleBvh) -> Vec<SurfacePoint> {
@@ -148,8 +166,10 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 /// the template's own shape's curve, in the character's units), every carried shape is
 /// judged by SPEC 3's criterion ([`TemplateCurve::allowed`]) on the character's own mesh,
 /// and with [`CarryParams::collision_pass`] each one worse than the template is re-solved by
-/// the collision pass ([`super::collisions`]; screened carry only). Inputs are validated by
-/// the caller (`wrap::carry_shapes`).
+/// the collision pass ([`super::collisions`]; screened carry only). With `template_neutral`
+/// (the template's rest, its vertex mirror map's source) and a symmetric character, each shape
+/// is averaged with the mirror of its partner's before the pass (`symmetry`). Inputs are
+/// validated by the caller (`wrap::carry_shapes`).
 #[allow(clippy::too_many_arguments)]
 pub fn carry_shapes(
     wrapped: &[[f32; 3]],
@@ -158,6 +178,7 @@ pub fn carry_shapes(
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
+    template_neutral: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -173,14 +194,16 @@ pub fn carry_shapes(
     let vertex_normals = crate::geometry::mat3::vertex_normals(&points, character_triangles);
     let parts = super::pieces::parts(&template, template_triangles, &points, character_triangles);
     let vertex_binding = bind_facing(&points, &vertex_normals, &parts.character_vertex, &surface, &template_normals, &parts.template_triangle, cos_max_angle);
-    let centroids: Vec<Vec3> =
-        character_triangles.iter().map(|t| t.iter().fold([0.0; 3], |acc, &v| add(acc, points[v as usize].map(|x| x / 3.0)))).collect();
-    let character_normals = triangle_normals(&points, character_triangles);
-    let triangle_binding: Vec<u32> =
-        bind_facing(&centroids, &character_normals, &parts.character_triangle, &surface, &template_normals, &parts.template_triangle, cos_max_angle)
-            .iter()
-            .map(|hit| hit.triangle)
-            .collect();
+    let samples: Vec<Vec3> = character_triangles
+        .iter()
+        .flat_map(|t| TRIANGLE_SAMPLES.map(|b| (0..3).fold([0.0; 3], |acc, i| add(acc, points[t[i] as usize].map(|x| x * b[i])))))
+        .collect();
+    let repeat = |per_triangle: Vec<Vec3>| -> Vec<Vec3> { per_triangle.into_iter().flat_map(|x| [x; TRIANGLE_SAMPLES.len()]).collect() };
+    let repeat_part = |per_triangle: &[u32]| -> Vec<u32> { per_triangle.iter().flat_map(|&x| [x; TRIANGLE_SAMPLES.len()]).collect() };
+    let character_normals = repeat(triangle_normals(&points, character_triangles));
+    let sampled = bind_facing(&samples, &character_normals, &repeat_part(&parts.character_triangle), &surface, &template_normals, &parts.template_triangle, cos_max_angle);
+    let triangle_binding: Vec<[u32; TRIANGLE_SAMPLES.len()]> =
+        sampled.chunks(TRIANGLE_SAMPLES.len()).map(|hits| std::array::from_fn(|i| hits[i].triangle)).collect();
     let operators: Vec<Option<HatGradients>> = character_triangles.iter().map(|t| HatGradients::new(t.map(|v| points[v as usize]))).collect();
     let mut entries = Vec::with_capacity(6 * character_triangles.len() + nc);
     for (t, op) in character_triangles.iter().zip(&operators) {
@@ -192,12 +215,17 @@ pub fn carry_shapes(
         }
     }
     // Screening `m_v / l^2` on the diagonal (lumped mass m_v: a third of the incident area).
-    let edge_length = {
-        let edges = crate::geometry::topology::unique_edges(template_triangles);
-        edges.iter().map(|&(a, b)| length(crate::geometry::mat3::sub(template[a as usize], template[b as usize]))).sum::<f64>()
+    let mean_edge = |points: &[Vec3], triangles: &[[u32; 3]]| {
+        let edges = crate::geometry::topology::unique_edges(triangles);
+        edges.iter().map(|&(a, b)| length(crate::geometry::mat3::sub(points[a as usize], points[b as usize]))).sum::<f64>()
             / edges.len().max(1) as f64
     };
-    let screening = if params.anchor_length > 0.0 { 1.0 / (params.anchor_length * edge_length).powi(2) } else { 0.0 };
+    let edge_length = mean_edge(&template, template_triangles);
+    // A character coarser than the template is screened more, by the square of the edges'
+    // ratio (`CarryParams::anchor_length`).
+    let coarser = (edge_length / mean_edge(&points, character_triangles).max(f64::MIN_POSITIVE)).min(1.0);
+    let screening_length = params.anchor_length * edge_length * coarser * coarser;
+    let screening = if params.anchor_length > 0.0 { 1.0 / screening_length.powi(2) } else { 0.0 };
     let mut mass = vec![0.0; nc];
     for (t, op) in character_triangles.iter().zip(&operators) {
         if let Some(op) = op {
@@ -223,46 +251,119 @@ pub fn carry_shapes(
             &laplacian,
             &order,
             params,
-            params.anchor_length * edge_length,
+            edge_length,
             diagonal,
         )),
         _ => None,
     };
+    let mirror = template_neutral.map(|neutral| {
+        let character = (&points[..], character_triangles, &vertex_normals[..], &parts.character_vertex[..], &parts.character_triangle[..]);
+        carry_mirror(neutral, &template, template_triangles, template_deltas, character, cos_max_angle, diagonal)
+    });
     let setup_seconds = started.elapsed().as_secs_f64();
 
+    // Solve phase: each shape's plain carry. Resolve phase: the collision pass on it. With a
+    // symmetric character every shape is solved first, and averaged with the mirror of its
+    // partner's carry before the pass (`symmetry`).
     let solving = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let shapes: Vec<CarriedShape> = (0..n_shapes)
-        .into_par_iter()
-        .map(|k| {
-            let deltas = &template_deltas[k * nt..(k + 1) * nt];
-            let shape = Shape { deltas, template: &template, template_triangles, rest_inverse: &rest_inverse };
-            let (solved, rhs, static_vertex) = shape.carry(
-                &points,
-                character_triangles,
-                &operators,
-                &vertex_binding,
-                &triangle_binding,
-                &laplacian,
-                &order,
-                whole.as_ref(),
-                &anchor,
-                (&piece, n_pieces),
-                params.static_fraction,
-            )?;
-            let result = match (&guard, template_curve) {
-                (Some(guard), Some(curve)) => {
-                    let allowed = curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
-                    let (deltas, outcome, penetration) = guard.resolve(&solved, &rhs, &static_vertex, &allowed, &laplacian)?;
-                    (deltas, Some((outcome, penetration)))
-                }
-                _ => (solved.iter().map(|d| d.map(|x| x as f32)).collect(), None),
-            };
-            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress.checkpoint(finished as f64 / n_shapes.max(1) as f64)?;
-            Ok(result)
-        })
-        .collect::<ShapesmithResult<_>>()?;
+    let steps = if params.symmetrize && matches!(mirror, Some((_, Some(_)))) { 2 * n_shapes } else { n_shapes };
+    let tick = || {
+        let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress.checkpoint(finished as f64 / steps.max(1) as f64)
+    };
+    let solve = |k: usize| -> ShapesmithResult<Solved> {
+        let deltas = &template_deltas[k * nt..(k + 1) * nt];
+        let shape = Shape { deltas, template: &template, template_triangles, rest_inverse: &rest_inverse };
+        let (deltas, rhs, static_vertex) = shape.carry(
+            &points,
+            character_triangles,
+            &operators,
+            &vertex_binding,
+            &triangle_binding,
+            &laplacian,
+            &order,
+            whole.as_ref(),
+            &anchor,
+            (&piece, n_pieces),
+            params.static_fraction,
+        )?;
+        Ok(Solved { deltas, rhs, static_vertex })
+    };
+    let resolve = |k: usize, solved: Solved| -> ShapesmithResult<CarriedShape> {
+        let result = match (&guard, template_curve) {
+            (Some(guard), Some(curve)) => {
+                let allowed = curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
+                let (deltas, outcome, penetration) = guard.resolve(&solved.deltas, &solved.rhs, &solved.static_vertex, &allowed, &laplacian)?;
+                (deltas, Some((outcome, penetration)))
+            }
+            _ => (solved.deltas.iter().map(|d| d.map(|x| x as f32)).collect(), None),
+        };
+        tick()?;
+        Ok(result)
+    };
+    // The barycentric copy of the wrapped template's shapes measured alike: what the
+    // measure reads on this mesh for shapes as symmetric as the wrapped template's.
+    let copied = |k: usize| -> Vec<Vec3> {
+        let deltas = &template_deltas[k * nt..(k + 1) * nt];
+        vertex_binding
+            .iter()
+            .map(|hit| {
+                let t = template_triangles[hit.triangle as usize];
+                (0..3).fold([0.0; 3], |acc, i| add(acc, scale(to_f64(&deltas[t[i] as usize]), hit.barycentric[i])))
+            })
+            .collect()
+    };
+    let fill = |report: &mut CarrySymmetry, mirror: &SurfaceMirror, plain: &[f64], kept: &[Vec<Vec3>], held_apart: &[(usize, usize)]| {
+        for (row, &plain) in report.shapes.iter_mut().zip(plain) {
+            let (i, j) = (row.first, row.second);
+            row.copied = symmetry::worst_miss(&copied(i), &copied(j), |f, v| mirror.mirrored(f, v));
+            row.plain = plain;
+            row.carried = symmetry::worst_miss(&kept[i], &kept[j], |f, v| mirror.mirrored(f, v));
+            row.held_apart = held_apart.contains(&(i, j));
+        }
+    };
+    let (shapes, symmetry): (Vec<CarriedShape>, Option<CarrySymmetry>) = match mirror {
+        Some((mut report, Some(symmetric))) if params.symmetrize => {
+            let solved: Vec<Solved> = (0..n_shapes).into_par_iter().map(|k| { let s = solve(k)?; tick()?; Ok(s) }).collect::<ShapesmithResult<_>>()?;
+            let (mut deltas, mut static_vertex): (Vec<Vec<Vec3>>, Vec<Vec<bool>>) = solved.into_iter().map(|s| (s.deltas, s.static_vertex)).unzip();
+            let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&deltas[i], &deltas[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
+            symmetry::average_with_mirror(&mut deltas, &mut static_vertex, &symmetric.pairs, &symmetric.mirror);
+            // The averaged shape is the plain solution of its own right-hand side, `A d`, so
+            // the pass re-solves around held vertices as it does for any carried shape.
+            let shapes: Vec<CarriedShape> = deltas
+                .into_par_iter()
+                .zip(static_vertex)
+                .enumerate()
+                .map(|(k, (deltas, static_vertex))| {
+                    let rhs = if guard.is_some() { apply_points(&laplacian, &deltas) } else { Vec::new() };
+                    resolve(k, Solved { deltas, rhs, static_vertex })
+                })
+                .collect::<ShapesmithResult<_>>()?;
+            let mut shapes = shapes;
+            let mut held_apart = Vec::new();
+            if let (Some(guard), Some(curve)) = (&guard, template_curve) {
+                let allowed = |k: usize| curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
+                held_apart = symmetric_holds(&mut shapes, &symmetric, guard, allowed);
+            }
+            let kept: Vec<Vec<Vec3>> = shapes.iter().map(|(d, _)| d.iter().map(to_f64).collect()).collect();
+            fill(&mut report, &symmetric.mirror, &plain, &kept, &held_apart);
+            (shapes, Some(report))
+        }
+        Some((mut report, Some(symmetric))) => {
+            // Symmetry not applied: the carry as without it, its misses measured alike.
+            let shapes: Vec<CarriedShape> = (0..n_shapes).into_par_iter().map(|k| resolve(k, solve(k)?)).collect::<ShapesmithResult<_>>()?;
+            let kept: Vec<Vec<Vec3>> = shapes.iter().map(|(d, _)| d.iter().map(to_f64).collect()).collect();
+            let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&kept[i], &kept[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
+            fill(&mut report, &symmetric.mirror, &plain, &kept, &[]);
+            (report.symmetric, report.reason) = (false, "symmetry not applied (asked); the misses are those of the carry without it".into());
+            (shapes, Some(report))
+        }
+        mirror => {
+            let shapes = (0..n_shapes).into_par_iter().map(|k| resolve(k, solve(k)?)).collect::<ShapesmithResult<_>>()?;
+            (shapes, mirror.map(|(report, _)| report))
+        }
+    };
     let collisions = shapes.iter().filter_map(|(_, outcome)| outcome.map(|o| o.0)).collect();
     // The pass measured the shapes it kept; without it they are swept here, so that the
     // criterion is always read on the character's own mesh.
@@ -283,7 +384,177 @@ pub fn carry_shapes(
         max_binding_distance,
         collisions,
         penetration,
+        symmetry,
     })
+}
+
+/// The collision pass made symmetric: the pass holds each shape on its own, so for a mirror
+/// pair of shapes it changed (either one) the pair is replaced by the first of these whose
+/// every side meets the criterion or adds no more than the pass's own result: each averaged
+/// with the mirror of the other's (the holds of both sides act on both), Right as the mirror
+/// of Left, Left as the mirror of Right; a self-symmetric shape by its average with its own
+/// mirror. Otherwise the pass's results stay (`symmetry`; the collision rows then describe
+/// what was kept). Returns the pairs left as the pass held them.
+fn symmetric_holds(
+    shapes: &mut [CarriedShape],
+    symmetric: &SymmetricCarry,
+    guard: &Guard,
+    allowed: impl Fn(usize) -> AddedCurve + Sync,
+) -> Vec<(usize, usize)> {
+    let applied = |k: usize| shapes[k].1.is_some_and(|(outcome, _)| outcome.applied);
+    let changed: Vec<(usize, usize)> = symmetric.pairs.iter().copied().filter(|&(i, j)| applied(i) || applied(j)).collect();
+    let field = |k: usize| -> Vec<Vec3> { shapes[k].0.iter().map(to_f64).collect() };
+    let mirror = &symmetric.mirror;
+    let mirrored = |other: &[Vec3], own: &[Vec3]| -> Vec<[f32; 3]> {
+        (0..own.len()).map(|v| mirror.mirrored(other, v).unwrap_or(own[v]).map(|x| x as f32)).collect()
+    };
+    let averaged = |own: &[Vec3], other: &[Vec3]| -> Vec<[f32; 3]> {
+        (0..own.len()).map(|v| mirror.mirrored(other, v).map_or(own[v], |image| scale(add(own[v], image), 0.5)).map(|x| x as f32)).collect()
+    };
+    let current = |k: usize| shapes[k].1.map_or(0.0, |(outcome, _)| outcome.excess);
+    let replacements: Vec<Vec<(usize, Vec<[f32; 3]>, (f64, bool, Penetration))>> = changed
+        .par_iter()
+        .map(|&(i, j)| {
+            let (di, dj) = (field(i), field(j));
+            let candidates: Vec<Vec<(usize, Vec<[f32; 3]>)>> = if i == j {
+                vec![vec![(i, averaged(&di, &di))]]
+            } else {
+                vec![vec![(i, averaged(&di, &dj)), (j, averaged(&dj, &di))], vec![(j, mirrored(&di, &dj))], vec![(i, mirrored(&dj, &di))]]
+            };
+            for candidate in candidates {
+                let mut judged = Vec::new();
+                for (k, deltas) in candidate {
+                    let verdict = guard.judge(&deltas, &allowed(k));
+                    if !(verdict.1 || verdict.0 <= current(k)) {
+                        judged.clear();
+                        break;
+                    }
+                    judged.push((k, deltas, verdict));
+                }
+                if !judged.is_empty() {
+                    return judged;
+                }
+            }
+            Vec::new()
+        })
+        .collect();
+    let held_apart = changed.iter().zip(&replacements).filter(|(_, r)| r.is_empty()).map(|(pair, _)| *pair).collect();
+    for (k, deltas, (excess, _, penetration)) in replacements.into_iter().flatten() {
+        if let Some((outcome, _)) = shapes[k].1 {
+            shapes[k] = (deltas, Some((CarryCollision { excess, applied: true, ..outcome }, penetration)));
+        }
+    }
+    held_apart
+}
+
+/// One shape's plain carry (the solve phase): deltas (static vertices zero), the normal
+/// equations' right-hand side (empty without screening) and the static vertices.
+struct Solved {
+    deltas: Vec<Vec3>,
+    rhs: Vec<Vec3>,
+    static_vertex: Vec<bool>,
+}
+
+/// `A d` per coordinate.
+fn apply_points(matrix: &SymmetricMatrix, deltas: &[Vec3]) -> Vec<Vec3> {
+    let columns: Vec<Vec<f64>> = (0..3).map(|a| matrix.apply(&deltas.iter().map(|d| d[a]).collect::<Vec<_>>())).collect();
+    (0..deltas.len()).map(|v| [columns[0][v], columns[1][v], columns[2][v]]).collect()
+}
+
+/// What the carry's symmetry did (`symmetry`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CarrySymmetry {
+    pub symmetric: bool,
+    /// Why the carry is not symmetric (empty when it is).
+    pub reason: String,
+    pub template_coverage: f64,
+    pub character_coverage: f64,
+    /// The character's mirror plane.
+    pub plane: Option<MirrorPlane>,
+    /// Per mirror pair of shapes (`first == second` for a self-symmetric shape), the worst
+    /// vertex's mirror miss in % of the shapes' largest motion / 100.
+    pub shapes: Vec<MirrorMiss>,
+}
+
+/// The worst vertex's miss between the mirror of shape `first` and shape `second`, relative to
+/// their largest motion: on the wrapped template by its vertex map (its keys' own asymmetry,
+/// the template's carried by the transfer); on the character by its surface mirror, for the
+/// barycentric copy of the wrapped template's shapes (what the measure reads on this mesh
+/// for shapes that symmetric: on a character whose topology is not mirrored, the image
+/// interpolated across a coarse triangle at a lid or lip margin), for the plain carry, and as
+/// carried.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct MirrorMiss {
+    pub first: usize,
+    pub second: usize,
+    pub template: f64,
+    pub copied: f64,
+    pub plain: f64,
+    pub carried: f64,
+    /// The collision pass held the pair's sides apart differently and no mirrored version of
+    /// the pair met the criterion: the pass's results were kept.
+    pub held_apart: bool,
+}
+
+/// The character's surface mirror and the shapes' mirror pairs, when symmetric.
+struct SymmetricCarry<'a> {
+    mirror: SurfaceMirror<'a>,
+    pairs: Vec<(usize, usize)>,
+}
+
+/// The carry's symmetry: the template's vertex map (from its rest, `template_neutral`), the
+/// wrapped template's plane through it, refined on the character's skin; the shapes' pairs on
+/// the wrapped template and their misses there.
+#[allow(clippy::type_complexity)]
+fn carry_mirror<'a>(
+    template_neutral: &[[f32; 3]],
+    wrapped: &[Vec3],
+    template_triangles: &[[u32; 3]],
+    template_deltas: &[[f32; 3]],
+    (points, triangles, normals, vertex_part, triangle_part): (&[Vec3], &'a [[u32; 3]], &[Vec3], &[u32], &[u32]),
+    cos_max_angle: f64,
+    diagonal: f64,
+) -> (CarrySymmetry, Option<SymmetricCarry<'a>>) {
+    let is_skin = super::skin_flags(wrapped.len(), template_triangles);
+    let found = symmetry::template_mirror(template_neutral, &is_skin);
+    let mut report = CarrySymmetry { template_coverage: found.coverage, ..Default::default() };
+    let minimum = 100.0 * symmetry::MIN_COVERAGE;
+    let Some(wrapped_plane) = MirrorPlane::of_partners(wrapped, &found.partner, &is_skin).filter(|_| found.coverage >= symmetry::MIN_COVERAGE) else {
+        report.reason = format!("the template's mirror map covers {:.0}% of its skin ({minimum:.0}% needed)", 100.0 * found.coverage);
+        return (report, None);
+    };
+    let is_character_skin = super::skin_flags(points.len(), triangles);
+    let skin_triangles: Vec<[u32; 3]> = triangles.iter().filter(|t| is_character_skin[t[0] as usize]).copied().collect();
+    let skin_points: Vec<Vec3> = (0..points.len()).filter(|&v| is_character_skin[v]).map(|v| points[v]).collect();
+    let (plane, coverage) = symmetry::refine_plane(wrapped_plane, &skin_points, &super::nricp::TargetSurface::new(points, &skin_triangles), diagonal);
+    (report.character_coverage, report.plane) = (coverage, Some(plane));
+    if coverage < symmetry::MIN_COVERAGE {
+        report.reason = format!("{:.0}% of the character's skin vertices mirror onto its surface ({minimum:.0}% needed)", 100.0 * coverage);
+        return (report, None);
+    }
+    report.symmetric = true;
+    let nt = wrapped.len();
+    let pairs = symmetry::shape_partners(template_deltas, nt, &found.partner, &wrapped_plane);
+    let field = |k: usize| -> Vec<Vec3> { template_deltas[k * nt..(k + 1) * nt].iter().map(to_f64).collect() };
+    report.shapes = pairs
+        .iter()
+        .map(|&(i, j)| {
+            let template = symmetry::worst_miss(&field(i), &field(j), |f, v| found.partner[v].map(|m| wrapped_plane.reflect_vector(f[m as usize])));
+            MirrorMiss { first: i, second: j, template, ..Default::default() }
+        })
+        .collect();
+    // Each character vertex's image on its own surface: skin onto skin, a piece onto any
+    // piece (the left eye's image is on the right eye), facing the reflected normal's way.
+    let bvh = TriangleBvh::build(points, triangles);
+    let images: Vec<Vec3> = points.iter().map(|p| plane.reflect(*p)).collect();
+    let image_normals: Vec<Vec3> = normals.iter().map(|n| plane.reflect_vector(*n)).collect();
+    let image_part: Vec<u32> = vertex_part.iter().map(|&p| if p == 0 { 0 } else { ANY_PART }).collect();
+    let tolerance = (symmetry::SURFACE_TOLERANCE * diagonal).powi(2);
+    let images = bind_facing(&images, &image_normals, &image_part, &bvh, &triangle_normals(points, triangles), triangle_part, cos_max_angle)
+        .into_iter()
+        .map(|hit| (hit.distance_squared <= tolerance).then_some(hit))
+        .collect();
+    (report, Some(SymmetricCarry { mirror: SurfaceMirror { plane, images, triangles }, pairs }))
 }
 
 /// A carried shape's deltas, and with the collision pass what it did and the kept result's
@@ -312,6 +583,16 @@ impl Shape<'_> {
         std::array::from_fn(|r| std::array::from_fn(|c| gradient[r][c] - IDENTITY[r][c]))
     }
 
+    /// The mean of the delta gradients of the template triangles a character triangle samples.
+    fn mean_delta_gradient(&self, bound: &[u32], is_static: &[bool]) -> Mat3 {
+        let mut sum = [[0.0; 3]; 3];
+        for &s in bound {
+            let h = self.delta_gradient(s as usize, is_static);
+            (0..3).for_each(|r| (0..3).for_each(|c| sum[r][c] += h[r][c] / bound.len() as f64));
+        }
+        sum
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn carry(
         &self,
@@ -319,7 +600,7 @@ impl Shape<'_> {
         triangles: &[[u32; 3]],
         operators: &[Option<HatGradients>],
         vertex_binding: &[SurfacePoint],
-        triangle_binding: &[u32],
+        triangle_binding: &[[u32; TRIANGLE_SAMPLES.len()]],
         laplacian: &SymmetricMatrix,
         order: &[usize],
         whole: Option<&crate::sparse::Cholesky>,
@@ -370,9 +651,9 @@ impl Shape<'_> {
         let mut whole_rhs = Vec::new();
         if kept > 0 {
             let mut rhs = vec![[0.0; 3]; kept];
-            for ((t, op), &s) in triangles.iter().zip(operators).zip(triangle_binding) {
+            for ((t, op), bound) in triangles.iter().zip(operators).zip(triangle_binding) {
                 let Some(op) = op else { continue };
-                let h = self.delta_gradient(s as usize, &is_static);
+                let h = self.mean_delta_gradient(bound, &is_static);
                 if h == [[0.0; 3]; 3] {
                     continue;
                 }

@@ -30,7 +30,7 @@
 //!
 //! **Re-solve.** The energy gains `w_u |d_u - (t_u - x_u^0)|^2`, `w_u = stiffness x A_uu`
 //! (a scalar weight: the diagonal of the x, y and z systems, so one factor serves the three).
-//! Only the free vertices within reach of a held vertex (`REACH` screening lengths, or three
+//! Only the free vertices within reach of a held vertex (`REACH` template edges, or three
 //! times its push) are unknowns; the rest of the shape stays as the plain carry solved it
 //! (Dirichlet), so a round factorises a small principal submatrix plus the diagonal
 //! (`SymmetricMatrix::factor_subset_plus_diagonal`) instead of the character's matrix.
@@ -107,8 +107,8 @@ const ATTEMPTS: [bool; 2] = [true, false];
 /// Re-solved rounds per attempt at most.
 const ROUNDS: usize = 4;
 
-/// The re-solve's region: free vertices within this many screening lengths of a held vertex.
-const REACH: f64 = 1.5;
+/// The re-solve's region: free vertices within this many mean template edges of a held vertex.
+const REACH: f64 = 3.0;
 
 /// A shape's positions, crossing pairs (those with a moved triangle), moved triangles and
 /// added curve.
@@ -143,7 +143,7 @@ pub(super) struct Guard<'a> {
     margin: Vec<f64>,
     stiffness: f64,
     tolerance: f64,
-    /// Radius of a held vertex's region (`REACH` screening lengths).
+    /// Radius of a held vertex's region (`REACH` template edges).
     reach: f64,
 }
 
@@ -157,7 +157,7 @@ impl<'a> Guard<'a> {
         matrix: &SymmetricMatrix,
         order: &[usize],
         params: &super::CarryParams,
-        screening_length: f64,
+        template_edge: f64,
         diagonal: f64,
     ) -> Self {
         let bvh = TriangleBvh::build(points, triangles);
@@ -186,13 +186,22 @@ impl<'a> Guard<'a> {
             margin,
             stiffness: params.collision_stiffness,
             tolerance: params.collision_tolerance * diagonal,
-            reach: REACH * screening_length,
+            reach: REACH * template_edge,
         }
     }
 
     /// The character's own penetration at rest.
     pub(super) fn rest(&self) -> Penetration {
         self.rest
+    }
+
+    /// The excess of `deltas` over what the template's shape allows (`template`, both parts
+    /// summed) and its penetration, as the pass judges a round; whether that is within the
+    /// tolerance (not worse than the template).
+    pub(super) fn judge(&self, deltas: &[[f32; 3]], template: &AddedCurve) -> (f64, bool, Penetration) {
+        let swept = self.sweep(deltas);
+        let excess = swept.added.excess_parts(template).total();
+        (excess, excess <= self.tolerance, swept.penetration)
     }
 
     /// The positions written for `deltas` (f32 sums, as the keys are measured), the crossing
@@ -501,6 +510,7 @@ mod tests {
             &character,
             &character_triangles,
             collisions.then_some(&none[..]),
+            None,
             params,
             &NoProgress,
         )

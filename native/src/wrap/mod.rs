@@ -60,15 +60,19 @@ mod collisions;
 mod nricp;
 mod pieces;
 mod rims;
+mod symmetry;
 #[cfg(test)]
 pub(crate) mod tests;
+#[cfg(test)]
+mod symmetry_tests;
 
 use std::time::Instant;
 
 pub use align::{similarity_from_pairs, similarity_from_principal_axes, Similarity, MIN_PAIRS};
-pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult};
+pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult, CarrySymmetry, MirrorMiss};
 pub use collisions::{AddedCurve, CarryCollision, TemplateCurve};
 pub use nricp::FitStats;
+pub use symmetry::MirrorPlane;
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -78,7 +82,7 @@ use crate::geometry::weld::Weld;
 use crate::invalid;
 use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
-use nricp::{fit_skin, Landmark, TargetSurface};
+use nricp::{fit_skin, FitMirror, Landmark, TargetSurface};
 use pieces::{carry_pieces, fit_pieces};
 use rims::rim_targets;
 
@@ -125,6 +129,25 @@ pub struct WrapParams {
     pub fit: FitParams,
     /// Stop after the similarity (the Align button): the template moved rigidly and scaled.
     pub align_only: bool,
+    /// Fit as if the meshes were not symmetric (no mirrored pairs, no symmetric fit).
+    pub ignore_symmetry: bool,
+}
+
+/// Whether the fit was made symmetric (`symmetry`), and why not.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct WrapSymmetry {
+    pub symmetric: bool,
+    /// Why the fit is not symmetric (empty when it is).
+    pub reason: String,
+    /// The template's mirror axis (0 = X) and the share of its skin its vertex map covers.
+    pub template_axis: usize,
+    pub template_coverage: f64,
+    /// The share of the character's skin vertices whose mirror image lies on its surface.
+    pub character_coverage: f64,
+    /// The character's mirror plane (character space).
+    pub plane: Option<MirrorPlane>,
+    /// Point pairs added as the mirror images of the given ones.
+    pub mirrored_pairs: usize,
 }
 
 /// Point pairs, each a point on the template and one on the character, in each mesh's own
@@ -160,6 +183,7 @@ pub struct WrapReport {
     /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
     /// rims the fit lands on the character's (`rims`).
     pub holes_paired: usize,
+    pub symmetry: WrapSymmetry,
     /// Character bbox diagonal (character units).
     pub diagonal: f64,
     pub template_vertices: usize,
@@ -294,7 +318,7 @@ fn wrap_welded(
     let fitting = Instant::now();
     let mut is_skin = vec![false; template.len()];
     template_skin.iter().for_each(|&v| is_skin[v as usize] = true);
-    let landmarks: Vec<Landmark> = on_template
+    let mut landmarks: Vec<Landmark> = on_template
         .iter()
         .zip(&pair_character)
         .filter_map(|(hit, q)| {
@@ -302,6 +326,24 @@ fn wrap_welded(
             corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: hit.barycentric, target: *q })
         })
         .collect();
+    let user_landmarks = landmarks.len();
+    let character_skin_points: Vec<Vec3> = character_skin.iter().map(|&v| character_points[v as usize]).collect();
+    let (mut symmetry, mirror) = if params.ignore_symmetry {
+        (WrapSymmetry { reason: "symmetry ignored (asked)".into(), ..Default::default() }, None)
+    } else {
+        wrap_symmetry(template, &is_skin, &aligned, &character_skin_points, &surface, diagonal)
+    };
+    if let Some((partner, plane)) = &mirror {
+        let template_plane = MirrorPlane::of_partners(&template_points, partner, &is_skin);
+        let mirrored = mirrored_landmarks(&on_template, &pair_character, template_plane, plane, &template_bvh, &character_bvh, template_triangles, &is_skin, template_diagonal);
+        symmetry.mirrored_pairs = mirrored.len();
+        landmarks.extend(mirrored);
+    }
+    let fit_mirror = mirror.as_ref().map(|(partner, plane)| FitMirror { partner, plane: *plane, used: &is_skin });
+    // A symmetric template whose plane did not cover the character before the fit is tried
+    // again on the fitted template (its plane symmetrises the result).
+    let mirror_after_fit = (mirror.is_none() && !params.ignore_symmetry && symmetry.template_coverage >= symmetry::MIN_COVERAGE)
+        .then(|| symmetry::template_mirror(template, &is_skin).partner);
     let (mut template_pieces, mut pieces_fitted, mut rims_paired) = (0, 0, 0);
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
@@ -309,11 +351,26 @@ fn wrap_welded(
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
         let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
         rims_paired = holes;
-        let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, &stage)?;
+        let (mut fitted, stats) =
+            fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, fit_mirror.as_ref(), &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
         (template_pieces, pieces_fitted) = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
+        let every = vec![true; fitted.len()];
+        if let Some((partner, plane)) = &mirror {
+            symmetry::symmetrize(&mut fitted, partner, &every, plane);
+        } else if let Some(partner) = &mirror_after_fit {
+            // The plane carried by the alignment was too far off (a strongly warped identity):
+            // the fitted template's own plane, refined on the character, may cover it.
+            if let Some(start) = MirrorPlane::of_partners(&fitted, partner, &is_skin) {
+                let (plane, coverage) = symmetry::refine_plane(start, &character_skin_points, &surface, diagonal);
+                if coverage >= symmetry::MIN_COVERAGE {
+                    symmetry::symmetrize(&mut fitted, partner, &every, &plane);
+                    symmetry = WrapSymmetry { symmetric: true, reason: String::new(), character_coverage: coverage, plane: Some(plane), ..symmetry };
+                }
+            }
+        }
         (fitted, stats)
     };
     let distances: Vec<f64> = template_skin
@@ -324,7 +381,7 @@ fn wrap_welded(
         alignment: alignment.into(),
         similarity,
         pairs: pairs.template.len(),
-        landmarks: landmarks.len(),
+        landmarks: user_landmarks,
         mean_distance: distances.iter().sum::<f64>() / distances.len().max(1) as f64,
         max_distance: distances.iter().copied().fold(0.0, f64::max),
         aligned_pair_residuals,
@@ -333,6 +390,7 @@ fn wrap_welded(
         pieces: template_pieces,
         pieces_fitted,
         holes_paired: rims_paired,
+        symmetry,
         diagonal,
         template_vertices: template.len(),
         skin_vertices: template_skin.len(),
@@ -352,6 +410,10 @@ fn wrap_welded(
 /// and with [`CarryParams::collision_pass`] the pass holds those worse than that
 /// (`collisions`).
 ///
+/// With `template_neutral` (the template's rest, template vertex order) the carry is
+/// symmetric when template and character are (`symmetry`; the result's `symmetry` says which
+/// was done and the mirror misses).
+///
 /// Carried between the welded surfaces: the wrapped template's ([`Weld::of_rig`], as the
 /// transfer welds it) and the character's own (its UV seams), so that every copy of a
 /// character seam vertex gets the same delta, bit for bit.
@@ -363,11 +425,12 @@ pub fn carry_shapes(
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
+    template_neutral: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
-    if wrapped.is_empty() || !template_deltas.len().is_multiple_of(wrapped.len()) {
-        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, params, progress);
+    if wrapped.is_empty() || !template_deltas.len().is_multiple_of(wrapped.len()) || template_neutral.is_some_and(|t| t.len() != wrapped.len()) {
+        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, params, progress);
     }
     let template_weld = Weld::of_rig(wrapped, template_deltas, template_triangles);
     let character_weld = Weld::new(character, character_triangles);
@@ -378,6 +441,7 @@ pub fn carry_shapes(
         &character_weld.gather(character),
         &character_weld.triangles,
         template_curve,
+        template_neutral.map(|neutral| template_weld.gather(neutral)).as_deref(),
         params,
         progress,
     )?;
@@ -393,6 +457,7 @@ fn carry_welded(
     character: &[[f32; 3]],
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
+    template_neutral: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -421,7 +486,84 @@ fn carry_welded(
     if !collision.iter().all(|x| x.is_finite() && *x >= 0.0) || params.collision_stiffness <= 0.0 {
         return Err(invalid!("collision margin and tolerance must be at least 0 and the stiffness positive"));
     }
-    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, params, progress)
+    if let Some(neutral) = template_neutral {
+        if neutral.len() != wrapped.len() {
+            return Err(invalid!("the template's rest has {} vertices but the wrapped template {}", neutral.len(), wrapped.len()));
+        }
+        validate_points(neutral, "template neutral")?;
+    }
+    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, params, progress)
+}
+
+/// The symmetry of template and character (`symmetry`): the template's vertex map and the
+/// character's plane when both cover [`symmetry::MIN_COVERAGE`] of their skin, else why not.
+fn wrap_symmetry(
+    template: &[[f32; 3]],
+    is_skin: &[bool],
+    aligned: &[Vec3],
+    character_skin: &[Vec3],
+    character_surface: &TargetSurface,
+    diagonal: f64,
+) -> (WrapSymmetry, Option<(Vec<Option<u32>>, MirrorPlane)>) {
+    let found = symmetry::template_mirror(template, is_skin);
+    let mut report = WrapSymmetry { template_axis: found.axis, template_coverage: found.coverage, ..Default::default() };
+    let minimum = 100.0 * symmetry::MIN_COVERAGE;
+    if found.coverage < symmetry::MIN_COVERAGE {
+        report.reason = format!(
+            "the template is not mirror-symmetric across X, Y or Z = 0 (its best mirror map covers {:.0}% of its skin, {minimum:.0}% needed)",
+            100.0 * found.coverage
+        );
+        return (report, None);
+    }
+    let Some(start) = MirrorPlane::of_partners(aligned, &found.partner, is_skin) else {
+        report.reason = "the template's mirror map pairs no vertices apart".into();
+        return (report, None);
+    };
+    let (plane, coverage) = symmetry::refine_plane(start, character_skin, character_surface, diagonal);
+    report.character_coverage = coverage;
+    report.plane = Some(plane);
+    if coverage < symmetry::MIN_COVERAGE {
+        report.reason = format!(
+            "the character is not mirror-symmetric: {:.0}% of its skin's vertices mirror onto its surface ({minimum:.0}% needed)",
+            100.0 * coverage
+        );
+        return (report, None);
+    }
+    report.symmetric = true;
+    (report, Some((found.partner, plane)))
+}
+
+/// The mirror images of the point pairs as landmarks: each template point reflected across
+/// the template's plane and snapped onto its surface, tied to its character point reflected
+/// across the character's plane and snapped onto its surface. Pairs on the plane (their image
+/// is themselves) and images off the skin are left out.
+#[allow(clippy::too_many_arguments)]
+fn mirrored_landmarks(
+    on_template: &[crate::geometry::closest_point::SurfacePoint],
+    pair_character: &[Vec3],
+    template_plane: Option<MirrorPlane>,
+    character_plane: &MirrorPlane,
+    template_bvh: &TriangleBvh,
+    character_bvh: &TriangleBvh,
+    template_triangles: &[[u32; 3]],
+    is_skin: &[bool],
+    template_diagonal: f64,
+) -> Vec<Landmark> {
+    let Some(template_plane) = template_plane else { return Vec::new() };
+    on_template
+        .iter()
+        .zip(pair_character)
+        .filter_map(|(hit, q)| {
+            let image = template_plane.reflect(hit.point);
+            if length(sub(image, hit.point)) < 1e-3 * template_diagonal {
+                return None;
+            }
+            let on = template_bvh.closest_point(&image, 0.02 * template_diagonal)?;
+            let corners = template_triangles[on.triangle as usize];
+            let target = character_bvh.closest_point(&character_plane.reflect(*q), f64::INFINITY)?.point;
+            corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: on.barycentric, target })
+        })
+        .collect()
 }
 
 fn validate_mesh(points: &[[f32; 3]], triangles: &[[u32; 3]], what: &str) -> ShapesmithResult<()> {

@@ -25,7 +25,16 @@ use crate::progress::Progress;
 use crate::sparse::SymmetricMatrix;
 
 use super::rims::RimTarget;
+use super::symmetry::{symmetrize, MirrorPlane};
 use super::FitParams;
+
+/// A symmetric fit's mirror: the template's vertex map, the character's plane, and the
+/// vertices it averages (the skin).
+pub struct FitMirror<'a> {
+    pub partner: &'a [Option<u32>],
+    pub plane: MirrorPlane,
+    pub used: &'a [bool],
+}
 
 /// A template point tied to a character point: barycentric on a template skin triangle.
 #[derive(Clone, Copy, Debug)]
@@ -94,7 +103,10 @@ pub struct FitStats {
 
 /// Fits the skin vertices `skin` (sorted) of the template at `rest` (already aligned) onto
 /// `surface`; returns every vertex's fitted position (non-skin vertices as at rest).
-/// `skin_triangles` are the template triangles among skin vertices.
+/// `skin_triangles` are the template triangles among skin vertices. With `mirror`, the
+/// positions are averaged with their mirror after every solve (`symmetry`), so that both
+/// sides see alike closest points and the fit comes out symmetric.
+#[allow(clippy::too_many_arguments)]
 pub fn fit_skin(
     rest: &[Vec3],
     skin: &[u32],
@@ -104,6 +116,7 @@ pub fn fit_skin(
     surface: &TargetSurface,
     params: &FitParams,
     diagonal: f64,
+    mirror: Option<&FitMirror>,
     progress: &dyn Progress,
 ) -> ShapesmithResult<(Vec<Vec3>, FitStats)> {
     let n = skin.len();
@@ -185,6 +198,9 @@ pub fn fit_skin(
                 let moved = add(rest[v], *d);
                 largest_move = largest_move.max(length(sub(moved, positions[v])));
                 positions[v] = moved;
+            }
+            if let Some(mirror) = mirror {
+                symmetrize(&mut positions, mirror.partner, mirror.used, &mirror.plane);
             }
             if largest_move < params.tolerance * diagonal {
                 break;

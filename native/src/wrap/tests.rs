@@ -42,7 +42,7 @@ pub(crate) fn lumpy_box(rings: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     (points, triangles)
 }
 
-fn as_f32(points: &[Vec3]) -> Vec<[f32; 3]> {
+pub(super) fn as_f32(points: &[Vec3]) -> Vec<[f32; 3]> {
     points.iter().map(|p| p.map(|x| x as f32)).collect()
 }
 
@@ -51,7 +51,7 @@ fn warp(p: Vec3) -> Vec3 {
     [p[0] * (1.0 + 0.1 * p[1]), 1.15 * p[1] + 0.1 * p[0] * p[0], 0.9 * p[2] + 0.08 * (2.0 * p[0]).sin()]
 }
 
-fn rotation(a: f64, b: f64) -> Mat3 {
+pub(super) fn rotation(a: f64, b: f64) -> Mat3 {
     let rz: Mat3 = [[a.cos(), -a.sin(), 0.0], [a.sin(), a.cos(), 0.0], [0.0, 0.0, 1.0]];
     let rx: Mat3 = [[1.0, 0.0, 0.0], [0.0, b.cos(), -b.sin()], [0.0, b.sin(), b.cos()]];
     mat_mul(&rz, &rx)
@@ -122,6 +122,7 @@ fn carry_reproduces_a_smooth_deformation_far_better_than_nearest_vertex() {
         &deltas,
         &as_f32(&character),
         &character_triangles,
+        None,
         None,
         &CarryParams::default(),
         &NoProgress,
