@@ -43,9 +43,13 @@
 //! - **Only the character's largest piece is fitted to by the skin**: its eyes, teeth or
 //!   lashes would otherwise catch the template's eyelids and lips.
 //! - **The carry is screened towards the barycentric copy**, `m_v / l^2 |d_v - c_v|^2` with
-//!   `l` = 2 template edges (the copy sets the shape above that scale, the gradients below
-//!   it), and each character triangle binds to a template triangle whose normal agrees, on
-//!   the matching part. `anchor_length = 0` is SPEC's pure Poisson solve.
+//!   `l` = 2 template edges, less on a coarser character (the copy sets the shape above that
+//!   scale, the gradients below it), and each character triangle samples the template
+//!   triangles whose normals agree, on the matching part, at four points.
+//!   `anchor_length = 0` is SPEC's pure Poisson solve.
+//! - **Symmetric in, symmetric out** (`symmetry`, beyond SPEC): with a symmetric template and
+//!   character the fit gains mirrored pairs and is averaged with its mirror, and each carried
+//!   shape is averaged with the mirror of its partner's before the collision pass.
 //! - **Static vertices are zeroed after the solve.** Screened, the system is definite, so it
 //!   is factorised once for all shapes and each shape is one back-substitution; the vertices
 //!   bound to static template vertices are then set to exactly zero. With
