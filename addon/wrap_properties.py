@@ -41,6 +41,8 @@ class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
     mean_distance: bpy.props.FloatProperty(description="Mean distance to the character / bbox diagonal")
     max_distance: bpy.props.FloatProperty(description="Largest distance to the character / bbox diagonal")
     max_pair_residual: bpy.props.FloatProperty(description="Largest pair residual / bbox diagonal")
+    pieces: bpy.props.StringProperty(description="How many template pieces were fitted onto the character's, openings landed")
+    matches: bpy.props.StringProperty(description="Per template piece and opening, what it landed on (one per line)")
     wrapped: bpy.props.PointerProperty(type=bpy.types.Object, description="The wrapped template object")
     written: bpy.props.IntProperty(description="Shape keys written by the last Transfer onto Character")
     seconds: bpy.props.FloatProperty()

@@ -31,7 +31,8 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
         layout.label(text=f"Template: {template.name if template else 'none (pick it above)'}", icon="MESH_DATA")
         layout.label(text=f"Character: {obj.name}", icon="USER")
         settings = obj.shapesmith_wrap
-        layout.label(text=f"Point pairs: {len(settings.pairs)} (at least 4; none = rough guess)")
+        layout.label(text=f"Point pairs: {len(settings.pairs)} (none: Wrap proposes them)")
+        layout.operator("shapesmith.propose_point_pairs", icon="AUTOMERGE_ON")
         if not len(settings.pairs) and PAIRS_PROPERTY in obj.keys():
             layout.label(text="Pairs stored by a script: Show Markers or Align lists them", icon="INFO")
         row = layout.row()
@@ -60,6 +61,10 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
             box.label(text=f"Mean distance: {100 * settings.mean_distance:.3f}% of the diagonal")
             box.label(text=f"Max distance: {100 * settings.max_distance:.2f}%")
             box.label(text=f"Largest pair residual: {100 * settings.max_pair_residual:.3f}%")
+            if settings.pieces:
+                box.label(text=f"Pieces: {settings.pieces}")
+                for line in settings.matches.splitlines():
+                    box.label(text=line, icon="CHECKMARK" if " fitted onto " in line or " landed on " in line else "INFO")
             if settings.written:
                 box.label(text=f"Shape keys written: {settings.written}", icon="CHECKMARK")
                 result = obj.shapesmith.transfer

@@ -59,6 +59,7 @@ mod carry;
 mod collisions;
 mod nricp;
 mod pieces;
+mod propose;
 mod rims;
 #[cfg(test)]
 pub(crate) mod tests;
@@ -69,6 +70,7 @@ pub use align::{similarity_from_pairs, similarity_from_principal_axes, Similarit
 pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult};
 pub use collisions::{AddedCurve, CarryCollision, TemplateCurve};
 pub use nricp::FitStats;
+pub use propose::{propose_pairs, Proposal, ProposedPair};
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -80,7 +82,9 @@ use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
 use nricp::{fit_skin, Landmark, TargetSurface};
 use pieces::{carry_pieces, fit_pieces};
+pub use pieces::PieceMatch;
 use rims::rim_targets;
+pub use rims::HoleMatch;
 
 /// Knobs of the non-rigid fit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -152,12 +156,14 @@ pub struct WrapReport {
     pub fit: FitStats,
     /// Template pieces other than the skin (eyes, teeth, tongue, lashes), and how many of them
     /// were fitted onto a character piece of the same place and size (the others follow the
-    /// skin around them).
+    /// skin around them); per piece, what it matched (`pieces::PieceMatch`).
     pub pieces: usize,
     pub pieces_fitted: usize,
+    pub piece_matches: Vec<PieceMatch>,
     /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
-    /// rims the fit lands on the character's (`rims`).
+    /// rims the fit lands on the character's (`rims`), and which.
     pub holes_paired: usize,
+    pub hole_matches: Vec<HoleMatch>,
     /// Character bbox diagonal (character units).
     pub diagonal: f64,
     pub template_vertices: usize,
@@ -201,7 +207,16 @@ pub fn wrap_template(
         params,
         progress,
     )?;
-    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), ..wrap })
+    let mut report = wrap.report;
+    for row in &mut report.piece_matches {
+        row.template_vertex = template_weld.vertex(row.template_vertex);
+        row.character_vertex = row.character_vertex.map(|c| character_weld.vertex(c));
+    }
+    for row in &mut report.hole_matches {
+        row.template_vertex = template_weld.vertex(row.template_vertex);
+        row.character_vertex = character_weld.vertex(row.character_vertex);
+    }
+    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), report })
 }
 
 fn wrap_welded(
@@ -300,18 +315,18 @@ fn wrap_welded(
             corners.iter().all(|&v| is_skin[v as usize]).then_some(Landmark { corners, barycentric: hit.barycentric, target: *q })
         })
         .collect();
-    let (mut template_pieces, mut pieces_fitted, mut rims_paired) = (0, 0, 0);
+    let (mut piece_matches, mut hole_matches) = (Vec::new(), Vec::new());
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
     } else {
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
         let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
-        rims_paired = holes;
+        hole_matches = holes;
         let (mut fitted, stats) = fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
-        (template_pieces, pieces_fitted) = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
+        piece_matches = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
         (fitted, stats)
     };
     let distances: Vec<f64> = template_skin
@@ -328,9 +343,11 @@ fn wrap_welded(
         aligned_pair_residuals,
         pair_residuals: residual(&fitted),
         fit,
-        pieces: template_pieces,
-        pieces_fitted,
-        holes_paired: rims_paired,
+        pieces: piece_matches.len(),
+        pieces_fitted: piece_matches.iter().filter(|m| m.fitted).count(),
+        piece_matches,
+        holes_paired: hole_matches.len(),
+        hole_matches,
         diagonal,
         template_vertices: template.len(),
         skin_vertices: template_skin.len(),
