@@ -326,7 +326,7 @@ fn wrap_welded(
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
-        piece_matches = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
+        piece_matches = fit_pieces(&aligned, &mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
         (fitted, stats)
     };
     let distances: Vec<f64> = template_skin

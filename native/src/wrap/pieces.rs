@@ -150,8 +150,13 @@ pub struct PieceMatch {
 
 /// Fits each non-skin template piece (at `fitted`, already carried with the skin) onto the
 /// non-skin character piece it matches (one to one, the closest in place and size first);
-/// returns one row per template piece (welded vertex numbering).
+/// returns one row per template piece (welded vertex numbering). A piece is matched from where
+/// the skin carried it or from where the alignment put it (`aligned`), whichever lies nearer
+/// a character piece of its size, and fitted from there: where the character's skin differs
+/// around a piece (an eye socket cut open at the lids, as avatars have them), the skin fit
+/// there says little about where the piece belongs.
 pub fn fit_pieces(
+    aligned: &[Vec3],
     fitted: &mut [Vec3],
     triangles: &[[u32; 3]],
     is_skin: &[bool],
@@ -161,8 +166,23 @@ pub fn fit_pieces(
 ) -> Vec<PieceMatch> {
     let template_pieces = pieces(fitted.len(), triangles, |v| is_skin[v]);
     let character_pieces = pieces(character.len(), character_triangles, |v| is_character_skin[v]);
-    let template_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(fitted, t)).collect();
+    let carried_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(fitted, t)).collect();
+    let aligned_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(aligned, t)).collect();
     let character_moments: Vec<Option<Moments>> = character_pieces.iter().map(|(_, t)| moments(character, t)).collect();
+    // Per piece, the placement nearer its best character piece.
+    let nearest = |m: &Option<Moments>| -> f64 {
+        m.map_or(f64::INFINITY, |a| {
+            character_moments.iter().flatten().filter(|b| (b.radius / a.radius).ln().abs() < MATCH_SIZE.ln()).map(|b| length(sub(a.centre, b.centre)) / a.radius).fold(f64::INFINITY, f64::min)
+        })
+    };
+    let from_aligned: Vec<bool> = carried_moments.iter().zip(&aligned_moments).map(|(c, a)| nearest(a) < nearest(c)).collect();
+    for ((members, _), &use_aligned) in template_pieces.iter().zip(&from_aligned) {
+        if use_aligned {
+            members.iter().for_each(|&v| fitted[v] = aligned[v]);
+        }
+    }
+    let template_moments: Vec<Option<Moments>> =
+        carried_moments.iter().zip(&aligned_moments).zip(&from_aligned).map(|((c, a), &use_aligned)| if use_aligned { *a } else { *c }).collect();
     let mut rows: Vec<PieceMatch> = template_pieces
         .iter()
         .map(|(members, _)| PieceMatch {

@@ -1,6 +1,7 @@
-//! Point pairs proposed, not clicked: the same named features (eye corners and lid centres,
-//! mouth corners and lip centres, nose tip and wings, chin, brows) found on the template and
-//! on the character, so that Wrap works on a new character with no click.
+//! Point pairs proposed, not clicked: the same named features (eye and mouth corners, nose tip
+//! and wings, chin) found on the template and on the character, so that Wrap works on a new
+//! character with no click. Lid and lip centres and brows are not proposed: found the same way
+//! they made the carried keys worse (docs/design.md, "Proposed pairs").
 //!
 //! How (geometry only on the character; the template's rig only tells where its face is):
 //! 1. **The template's frame.** Front and up from the rig ([`find_front`]: where its shapes
@@ -18,14 +19,13 @@
 //! 3. **The same rule on both meshes.** An *opening* (eye, mouth) is where the skin seen from
 //!    the front ends: the *margin*, skin vertices facing the front that a ray towards it leaves
 //!    free, whose neighbour is hidden (by the lid, the lips, the eyeball; or turned away, as
-//!    the inner side of a parted lip) or which lie on an open boundary (a lid or lip hole). Around each opening's seed (on the character: where the aligned
-//!    template's opening is) the margin's widest connected run is the opening: its lateral
-//!    extremes the corners, its top and bottom at a quarter, half and three quarters of the
-//!    way across points on the lids or lips (on both, and their centres, the middle). The nose
-//!    tip is the most frontal skin on the symmetry plane between the mouth and the eyes; the
-//!    chin the bulge of the midline profile below the lower lip past the hollow under it, a
-//!    brow the bulge above its eye past the lid's crease; a nose wing the skin farthest out
-//!    to the side and front between the lip and the tip.
+//!    the inner side of a parted lip) or which lie on an open boundary (a lid or lip hole).
+//!    Around each opening's seed (on the character: where the aligned template's opening is)
+//!    the margin's widest connected run is the opening, its lateral extremes the corners. The
+//!    nose tip is the most frontal skin on the symmetry plane between the upper lip and the
+//!    eyes; the chin the bulge of the midline profile below the mouth past the hollow under
+//!    the lower lip; a nose wing the skin farthest out to the side and front between the lip
+//!    and the tip.
 //! 4. A feature found on both meshes is a pair (template vertex, character vertex); one
 //!    missing on either (a closed scan without openings) is left out and named.
 
@@ -52,14 +52,12 @@ const SCREEN_ITERATIONS: usize = 4;
 /// The turns about the character's symmetry-plane normal tried as starts, in degrees.
 const TURN_STEP_DEGREES: f64 = 15.0;
 const REFINE_ITERATIONS: usize = 30;
+/// The screened starts refined further, the closest first.
+const REFINED_STARTS: usize = 4;
 /// Search radii around an opening's seed, fractions of the skin's bbox diagonal (an eye is
 /// about 0.08 of a head's diagonal wide, a mouth 0.13).
 const EYE_RADIUS: f64 = 0.1;
 const MOUTH_RADIUS: f64 = 0.12;
-/// An opening's lid or lip points lie within this fraction of its width above or below the
-/// line through its corners (an open upper lid's centre rises about 0.4 of the eye's width
-/// above its corners on the sample character).
-const OPENING_HEIGHT: f64 = 0.6;
 /// A skin vertex faces the front when its normal's front component is over this.
 const FACING: f64 = 0.1;
 /// A piece is round (an eyeball) when its vertices' distances from its centre have a standard
@@ -409,26 +407,12 @@ fn rig_seeds(rig: &RigView, frame: &Frame) -> Seeds {
     Seeds { eyes: [centroid(&EYE_NAMES, Some(1.0)), centroid(&EYE_NAMES, Some(-1.0))], mouth: centroid(&MOUTH_NAMES, None) }
 }
 
-/// An opening's points (welded vertices): its corners (inner then outer for an eye, right
-/// then left for the mouth) and, at a quarter, half and three quarters of the way from the
-/// first corner to the second, the upper and the lower margin.
+/// An opening's corners (welded vertices): inner then outer for an eye, right then left for
+/// the mouth.
 #[derive(Clone, Copy, Debug, Default)]
 struct Opening {
     corners: [u32; 2],
-    upper: [u32; 3],
-    lower: [u32; 3],
 }
-
-impl Opening {
-    fn reversed(self) -> Self {
-        let flip = |a: [u32; 3]| [a[2], a[1], a[0]];
-        Opening { corners: [self.corners[1], self.corners[0]], upper: flip(self.upper), lower: flip(self.lower) }
-    }
-}
-
-/// Where along an opening its margin points lie (fractions of the way between the corners),
-/// and the names they go by.
-const ARC_FRACTIONS: [f64; 3] = [0.25, 0.5, 0.75];
 
 #[derive(Debug, Default)]
 struct Features {
@@ -437,7 +421,6 @@ struct Features {
     nose_tip: Option<u32>,
     nose_wings: [Option<u32>; 2],
     chin: Option<u32>,
-    brows: [Option<u32>; 2],
 }
 
 const SIDES: [&str; 2] = ["left", "right"];
@@ -448,37 +431,23 @@ impl Features {
     }
 
     fn mouth_centre(&self, mesh: &Mesh) -> Option<Vec3> {
-        self.mouth.map(|m| scale(add(mesh.points[m.upper[1] as usize], mesh.points[m.lower[1] as usize]), 0.5))
+        self.mouth.map(|m| scale(add(mesh.points[m.corners[0] as usize], mesh.points[m.corners[1] as usize]), 0.5))
     }
 
     /// Every feature by name, found or not, in one order for both meshes.
     fn named(&self) -> Vec<(String, Option<u32>)> {
         let mut out = Vec::new();
         for (s, side) in SIDES.iter().enumerate() {
-            let eye = self.eyes[s];
-            out.push((format!("eye corner inner {side}"), eye.map(|e| e.corners[0])));
-            out.push((format!("eye corner outer {side}"), eye.map(|e| e.corners[1])));
-            for (lid, arc) in [("upper", 0), ("lower", 1)] {
-                for (k, place) in ["inner ", "", "outer "].iter().enumerate() {
-                    out.push((format!("{lid} lid {place}{side}"), eye.map(|e| [e.upper, e.lower][arc][k])));
-                }
-            }
+            out.push((format!("eye corner inner {side}"), self.eyes[s].map(|e| e.corners[0])));
+            out.push((format!("eye corner outer {side}"), self.eyes[s].map(|e| e.corners[1])));
         }
         out.push(("mouth corner left".into(), self.mouth.map(|m| m.corners[1])));
         out.push(("mouth corner right".into(), self.mouth.map(|m| m.corners[0])));
-        for (lip, arc) in [("upper", 0), ("lower", 1)] {
-            for (k, place) in ["right", "centre", "left"].iter().enumerate() {
-                out.push((format!("{lip} lip {place}"), self.mouth.map(|m| [m.upper, m.lower][arc][k])));
-            }
-        }
         out.push(("nose tip".into(), self.nose_tip));
         for (s, side) in SIDES.iter().enumerate() {
             out.push((format!("nose wing {side}"), self.nose_wings[s]));
         }
         out.push(("chin".into(), self.chin));
-        for (s, side) in SIDES.iter().enumerate() {
-            out.push((format!("brow {side}"), self.brows[s]));
-        }
         out
     }
 }
@@ -493,43 +462,40 @@ fn find_features(mesh: &Mesh, frame: &Frame, seeds: &Seeds) -> Features {
         features.eyes[s] = seeds.eyes[s].and_then(|seed| {
             let near: Vec<u32> = candidates(mesh, &margin, seed, EYE_RADIUS).into_iter().filter(|&v| sign * local[v as usize][0] > 0.0).collect();
             // Inner corner first: the one nearer the symmetry plane.
-            opening(mesh, &local, &near).map(|o| if sign > 0.0 { o } else { o.reversed() })
+            opening(mesh, &local, &near).map(|o| if sign > 0.0 { o } else { Opening { corners: [o.corners[1], o.corners[0]] } })
         });
     }
     features.mouth = seeds.mouth.and_then(|seed| opening(mesh, &local, &candidates(mesh, &margin, seed, MOUTH_RADIUS)));
     let (Some(mouth), Some(left), Some(right)) = (features.mouth, features.eyes[0], features.eyes[1]) else { return features };
     let y = |v: u32| local[v as usize][1];
+    let mouth_y = 0.5 * (y(mouth.corners[0]) + y(mouth.corners[1]));
     let eye_y = 0.25 * (y(left.corners[0]) + y(left.corners[1]) + y(right.corners[0]) + y(right.corners[1]));
     let width = local[mouth.corners[1] as usize][0] - local[mouth.corners[0] as usize][0];
     let band = PLANE_BAND * mesh.diagonal;
     let best = |keep: &dyn Fn(Vec3) -> bool, score: &dyn Fn(Vec3) -> f64| -> Option<u32> {
         mesh.skin.iter().copied().filter(|&v| keep(local[v as usize])).max_by(|&a, &b| score(local[a as usize]).total_cmp(&score(local[b as usize])))
     };
-    features.nose_tip = best(&|p| p[0].abs() < band && p[1] > y(mouth.upper[1]) && p[1] < eye_y, &|p| p[2]);
+    // Above the upper lip (a fifth of the mouth's width over its corners) and below the eyes.
+    let lip = mouth_y + 0.2 * width;
+    features.nose_tip = best(&|p| p[0].abs() < band && p[1] > lip && p[1] < eye_y, &|p| p[2]);
+    features.chin = profile_peak(mesh, &local, &|p| p[0].abs() < band, mouth_y, -1.0, 1.8 * width, 0.05 * width);
     let Some(tip) = features.nose_tip else { return features };
     let tip = local[tip as usize];
-    features.chin = profile_peak(mesh, &local, &|p| p[0].abs() < band, y(mouth.lower[1]), -1.0, 1.6 * width, 0.05 * width);
     for s in 0..2 {
         let sign = if s == 0 { 1.0 } else { -1.0 };
-        let lip = y(mouth.upper[1]);
         features.nose_wings[s] = best(
             &|p| sign * p[0] > 0.0 && sign * p[0] < 0.45 * width && p[1] > lip + 0.25 * (tip[1] - lip) && p[1] < tip[1],
             &|p| sign * p[0] + p[2],
         );
-        let eye = [left, right][s];
-        let (inner, outer) = (local[eye.corners[0] as usize], local[eye.corners[1] as usize]);
-        let (centre, eye_width) = (0.5 * (inner[0] + outer[0]), (outer[0] - inner[0]).abs());
-        let lid = y(eye.upper[1]);
-        features.brows[s] = profile_peak(mesh, &local, &|p| (p[0] - centre).abs() < 0.25 * eye_width, lid, 1.0, 1.2 * eye_width, 0.08 * eye_width);
     }
     features
 }
 
 /// The second bulge of a profile: from `start` (height `y`) along `direction` (+1 up, -1
 /// down) for `reach`, the most frontal skin vertex kept by `keep` in each `bin` of height; past
-/// the first hollow (a bin less frontal than both neighbours), the first bulge (more frontal
-/// than both). Below the lower lip: the lip, the hollow under it, the chin; above an upper
-/// lid: the lid over the eye, its crease, the brow.
+/// the first bulge (a bin more frontal than both neighbours) and the hollow after it (less
+/// frontal than both), the next bulge. Down from the mouth's corners: the lower lip, the
+/// hollow under it, the chin.
 fn profile_peak(mesh: &Mesh, local: &[Vec3], keep: &dyn Fn(Vec3) -> bool, start: f64, direction: f64, reach: f64, bin: f64) -> Option<u32> {
     let count = (reach / bin).ceil() as usize;
     let mut front: Vec<Option<u32>> = vec![None; count];
@@ -546,8 +512,11 @@ fn profile_peak(mesh: &Mesh, local: &[Vec3], keep: &dyn Fn(Vec3) -> bool, start:
     }
     let profile: Vec<u32> = front.into_iter().flatten().collect();
     let z = |i: usize| local[profile[i] as usize][2];
-    let hollow = (1..profile.len().saturating_sub(1)).find(|&i| z(i) < z(i - 1) && z(i) <= z(i + 1))?;
-    (hollow + 1..profile.len().saturating_sub(1)).find(|&i| z(i) >= z(i - 1) && z(i) > z(i + 1)).map(|i| profile[i])
+    let last = profile.len().saturating_sub(1);
+    let bulge = |from: usize| (from.max(1)..last).find(|&i| z(i) >= z(i - 1) && z(i) > z(i + 1));
+    let hollow = |from: usize| (from.max(1)..last).find(|&i| z(i) < z(i - 1) && z(i) <= z(i + 1));
+    let lip = bulge(0)?;
+    bulge(hollow(lip + 1)? + 1).map(|i| profile[i])
 }
 
 /// Margin vertices within `radius` (of the diagonal) of `seed`.
@@ -556,19 +525,21 @@ fn candidates(mesh: &Mesh, margin: &[bool], seed: Vec3, radius: f64) -> Vec<u32>
     mesh.skin.iter().copied().filter(|&v| margin[v as usize] && length(sub(mesh.points[v as usize], seed)) < reach).collect()
 }
 
-/// The opening among `near` margin vertices: their connected run (through skin edges) of
-/// widest lateral extent; its lateral extremes (lowest `x` first), and at each of
-/// [`ARC_FRACTIONS`] of the way between them (within an eighth of its width across, and within
-/// [`OPENING_HEIGHT`] of its width above or below the corners' line, and not behind the
-/// corners) its highest and lowest vertices.
+/// The opening among `near` margin vertices: their connected run (through paths of one or two
+/// skin edges) of widest lateral extent, and its lateral extremes (lowest `x` first).
 fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32]) -> Option<Opening> {
     if near.len() < 3 {
         return None;
     }
     let index: std::collections::HashMap<u32, u32> = near.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    // Joined through two-edge paths: on a coarse mesh the upper and lower margins of an eye
+    // may meet at the corners only through a vertex that is on neither.
     let mut edges: Vec<[u32; 3]> = Vec::new();
     for (i, &v) in near.iter().enumerate() {
-        edges.extend(mesh.adjacency.neighbours(v as usize).iter().filter_map(|w| index.get(w).map(|&j| [i as u32, j, j])));
+        for &w in mesh.adjacency.neighbours(v as usize) {
+            let two_ring = std::iter::once(w).chain(mesh.adjacency.neighbours(w as usize).iter().copied());
+            edges.extend(two_ring.filter_map(|u| index.get(&u).map(|&j| [i as u32, j, j])));
+        }
     }
     let (label, count) = connected_components(near.len(), &edges);
     let extent = |l: u32| -> (f64, f64) {
@@ -581,31 +552,9 @@ fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32]) -> Option<Opening> {
     })?;
     let run: Vec<u32> = near.iter().zip(&label).filter(|(_, &m)| m == widest).map(|(&v, _)| v).collect();
     let x = |v: &u32| local[*v as usize][0];
-    let y = |v: &u32| local[*v as usize][1];
     let low = *run.iter().min_by(|a, b| x(a).total_cmp(&x(b)))?;
     let high = *run.iter().max_by(|a, b| x(a).total_cmp(&x(b)))?;
-    let span = x(&high) - x(&low);
-    if span <= 0.0 {
-        return None;
-    }
-    // The line through the corners; each margin point is looked for near it (see
-    // OPENING_HEIGHT), in a band across the opening at its fraction.
-    let level = |v: &u32| y(v) - (y(&low) + (x(v) - x(&low)) / span * (y(&high) - y(&low)));
-    let mut upper = [0; 3];
-    let mut lower = [0; 3];
-    for (k, fraction) in ARC_FRACTIONS.iter().enumerate() {
-        let at = x(&low) + fraction * span;
-        // Not deeper than the corners: skin inside a parted mouth seen through the gap.
-        let depth = local[low as usize][2].min(local[high as usize][2]) - 0.05 * span;
-        let band: Vec<u32> = run
-            .iter()
-            .copied()
-            .filter(|v| (x(v) - at).abs() < 0.12 * span && level(v).abs() < OPENING_HEIGHT * span && local[*v as usize][2] >= depth)
-            .collect();
-        upper[k] = *band.iter().max_by(|a, b| level(a).total_cmp(&level(b)))?;
-        lower[k] = *band.iter().min_by(|a, b| level(a).total_cmp(&level(b)))?;
-    }
-    Some(Opening { corners: [low, high], upper, lower })
+    (x(&high) > x(&low)).then_some(Opening { corners: [low, high] })
 }
 
 /// The similarity taking the template's skin (its symmetry plane `template_frame`) onto the
@@ -613,7 +562,8 @@ fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32]) -> Option<Opening> {
 /// diagonal): the character's symmetry plane first (of the planes normal to its principal
 /// axes, refined, the one its skin mirrors best onto itself), then every turn of the
 /// template's frame about that plane's normal in [`TURN_STEP_DEGREES`] steps, both ways
-/// round, each followed by a few ICP steps; the closest refined further.
+/// round, each followed by a few ICP steps; the [`REFINED_STARTS`] closest refined further,
+/// the closest after that kept.
 fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progress: &dyn Progress) -> ShapesmithResult<(Similarity, f64)> {
     let (character_centre, character_size, character_axes) = moments(character)?;
     let (_, template_size, _) = moments(template)?;
@@ -632,7 +582,7 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
     let helper = if normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
     let (f, u, l) = (template_frame.front, template_frame.up, template_frame.lateral);
     let steps = (360.0 / TURN_STEP_DEGREES).round() as usize;
-    let mut best: Option<(f64, Similarity)> = None;
+    let mut screened: Vec<(Similarity, f64)> = Vec::new();
     for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
         let lateral = scale(normal, sign);
         let b1 = unit(cross(lateral, helper)).unwrap_or(helper);
@@ -644,15 +594,21 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
             // R = [up front lateral] [u f l]^T: the template's frame onto this one.
             let rotation: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| up[r] * u[c] + front[r] * f[c] + lateral[r] * l[c]));
             let start = Similarity { rotation, scale: s, translation: sub(origin, scale(mat_vec(&rotation, template_frame.origin), s)) };
-            let (motion, distance) = trimmed_icp(template, &template_samples, &character_samples, &target, start, SCREEN_ITERATIONS);
-            if best.as_ref().is_none_or(|(d, _)| distance < *d) {
-                best = Some((distance, motion));
-            }
-            progress.checkpoint(0.3 + 0.5 * (k * steps + step + 1) as f64 / (2 * steps) as f64)?;
+            screened.push(trimmed_icp(template, &template_samples, &character_samples, &target, start, SCREEN_ITERATIONS));
+            progress.checkpoint(0.3 + 0.4 * (k * steps + step + 1) as f64 / (2 * steps) as f64)?;
         }
     }
-    let (_, start) = best.ok_or_else(|| invalid!("the template's skin could not be aligned with the character's"))?;
-    let (motion, distance) = trimmed_icp(template, &template_samples, &character_samples, &target, start, REFINE_ITERATIONS);
+    // The few closest screened starts refined: a few steps rank the turns only roughly.
+    screened.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut best: Option<(Similarity, f64)> = None;
+    for (start, _) in screened.into_iter().take(REFINED_STARTS) {
+        let (motion, distance) = trimmed_icp(template, &template_samples, &character_samples, &target, start, REFINE_ITERATIONS);
+        if best.as_ref().is_none_or(|(_, d)| distance < *d) {
+            best = Some((motion, distance));
+        }
+    }
+    progress.checkpoint(0.8)?;
+    let (motion, distance) = best.ok_or_else(|| invalid!("the template's skin could not be aligned with the character's"))?;
     Ok((motion, distance / character.diagonal))
 }
 

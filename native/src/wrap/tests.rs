@@ -226,7 +226,7 @@ fn a_piece_lands_on_the_characters_piece_of_its_place_and_size() {
     let mut fitted = template.clone();
     let is_skin: Vec<bool> = (0..template.len()).map(|v| v < skin.len()).collect();
     let is_character_skin: Vec<bool> = (0..character.len()).map(|v| v < skin.len()).collect();
-    let rows = pieces::fit_pieces(&mut fitted, &triangles, &is_skin, &character, &character_triangles, &is_character_skin);
+    let rows = pieces::fit_pieces(&template, &mut fitted, &triangles, &is_skin, &character, &character_triangles, &is_character_skin);
     assert_eq!(rows.len(), 1);
     assert!(rows[0].fitted && rows[0].character_vertex == Some(skin.len() as u32), "{rows:?}");
     // Each template eye vertex lies on the true eye's surface, and the eye's centre and size
