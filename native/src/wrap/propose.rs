@@ -692,3 +692,61 @@ fn unit(v: Vec3) -> Option<Vec3> {
     let n = length(v);
     (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::NoProgress;
+    use crate::wrap::tests::lumpy_box;
+
+    fn turn(a: f64, b: f64) -> [[f64; 3]; 3] {
+        let rz = [[a.cos(), -a.sin(), 0.0], [a.sin(), a.cos(), 0.0], [0.0, 0.0, 1.0]];
+        let rx = [[1.0, 0.0, 0.0], [0.0, b.cos(), -b.sin()], [0.0, b.sin(), b.cos()]];
+        crate::geometry::mat3::mat_mul(&rz, &rx)
+    }
+
+    /// An ellipsoid with two lumps mirrored across x = 0 (and none across y or z), moved.
+    fn mirrored(rings: usize, motion: &Similarity) -> Mesh {
+        let (points, triangles) = lumpy_box(rings);
+        let bumped: Vec<Vec3> = points
+            .iter()
+            .map(|p| {
+                let lump = |centre: Vec3| (-length(sub(*p, centre)).powi(2) / 0.1).exp();
+                let r = 1.0 + 0.3 * (lump([0.6, 0.5, 0.3]) + lump([-0.6, 0.5, 0.3])) + 0.2 * lump([0.0, -0.8, -0.2]);
+                let plain = [p[0] / 1.5, p[1], p[2] / 0.7];
+                let n = length(plain);
+                motion.apply([1.2 * r * plain[0] / n, r * plain[1] / n, 0.8 * r * plain[2] / n])
+            })
+            .collect();
+        Mesh::new(bumped, &triangles)
+    }
+
+    #[test]
+    fn the_symmetry_plane_of_a_moved_mirrored_shape_is_found_from_a_rough_guess() {
+        let motion = Similarity { rotation: turn(0.7, -0.4), scale: 30.0, translation: [4.0, -2.0, 9.0] };
+        let mesh = mirrored(24, &motion);
+        let truth = mat_vec(&motion.rotation, [1.0, 0.0, 0.0]);
+        // 6 degrees off and a tenth of the size off-centre.
+        let guess = unit(add(truth, scale(mat_vec(&motion.rotation, [0.0, 0.08, 0.06]), 1.0))).unwrap();
+        let (normal, origin) = symmetry_plane(&mesh, guess, add(motion.translation, [3.0, 0.0, 0.0]));
+        // Measured: 2.1 degrees off (the re-fit of the pairs' differences crawls: the closest
+        // points slide along the surface towards the guess), the origin on the plane.
+        let degrees = dot(normal, truth).abs().min(1.0).acos().to_degrees();
+        assert!(degrees < 3.0, "normal {normal:?} is {degrees} degrees from {truth:?}");
+        let offset = dot(sub(origin, motion.translation), truth).abs();
+        assert!(offset < 0.02 * motion.scale, "origin {offset} off the plane");
+    }
+
+    #[test]
+    fn the_skins_align_whatever_the_characters_turn_scale_and_place() {
+        let identity = Similarity::IDENTITY;
+        let template = mirrored(20, &identity);
+        let motion = Similarity { rotation: turn(2.4, 1.9), scale: 0.01, translation: [0.5, 1.6, -0.2] };
+        let character = mirrored(29, &motion);
+        let frame = Frame::new([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        let (found, distance) = align_skins(&template, &frame, &character, &NoProgress).unwrap();
+        let worst = template.points.iter().map(|p| length(sub(found.apply(*p), motion.apply(*p)))).fold(0.0, f64::max);
+        assert!(worst < 0.02 * character.diagonal, "worst {worst} of diagonal {}", character.diagonal);
+        assert!(distance < 5e-3, "{distance}");
+    }
+}
