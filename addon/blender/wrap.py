@@ -222,9 +222,8 @@ def refresh_markers(character, template):
             marker.location = getattr(pair, f"{side}_co")
 
 
-def wrap_object(template, character, template_points, character_points, *, align_only=False, landmark_weight=None, progress=None):
-    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing. `landmark_weight`
-    (the native default without it) weighs the pairs against the closest points."""
+def wrap_object(template, character, template_points, character_points, *, align_only=False, progress=None):
+    """Validates and runs the native wrap; returns a `Wrapped`. Writes nothing."""
     started = time.perf_counter()
     if character is None or template is None:
         raise MeshDataError("pick a template and make the character the active mesh")
@@ -242,7 +241,6 @@ def wrap_object(template, character, template_points, character_points, *, align
         np.ascontiguousarray(character_points, dtype=np.float32).reshape(-1, 3),
         align_only=align_only,
         progress=progress,
-        **({} if landmark_weight is None else {"landmark_weight": float(landmark_weight)}),
     )
     seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
     name_matches(report, template, character)
