@@ -26,6 +26,7 @@ _MODULE_NAMES = (
     "operators.transfer_shape_keys",
     "operators.show_crossings",
     "operators.wrap_pairs",
+    "operators.propose_pairs",
     "operators.wrap_template",
     "operators.transfer_onto_character",
     "operators.solve_performance",

@@ -47,6 +47,8 @@ class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
         default=-1.0, description="Largest mirror miss of a carried Left/Right pair at its worst vertex / its largest motion (-1: not measured)"
     )
     worst_mirror_pair: bpy.props.StringProperty(description="The pair with the largest mirror miss")
+    pieces: bpy.props.StringProperty(description="How many template pieces were fitted onto the character's, openings landed")
+    matches: bpy.props.StringProperty(description="Per template piece and opening, what it landed on (one per line)")
     wrapped: bpy.props.PointerProperty(type=bpy.types.Object, description="The wrapped template object")
     written: bpy.props.IntProperty(description="Shape keys written by the last Transfer onto Character")
     seconds: bpy.props.FloatProperty()

@@ -563,7 +563,12 @@ def add_wrap_args(parser, settings):
     parser.add_argument(
         "--pairs",
         help="point pairs JSON: [[template_vertex, character_vertex], ...] or [[[x,y,z],[x,y,z]], ...] in each "
-        "object's local space (default: the pairs stored on the character; none: a rough guess from the principal axes)",
+        "object's local space (default: the pairs stored on the character; none stored: proposed as --propose-pairs)",
+    )
+    parser.add_argument(
+        "--propose-pairs", action="store_true",
+        help="propose the pairs (eye and mouth corners, lids, lips, nose, chin, brows found on both heads), store "
+        "them on the character, use them, and write them to the JSON (proposed_pairs)",
     )
     parser.add_argument("--no-transfer", action="store_true", help="wrap only: keep the wrapped template, write no keys")
     parser.add_argument("--keep-wrapped", action="store_true", help="keep the wrapped template object in the output")
@@ -593,12 +598,21 @@ def run_wrap(args):
     for obj in (template, character):
         if obj.type != "MESH":
             raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
+    proposal = None
+    if args.pairs and args.propose_pairs:
+        raise BatchError("give --pairs or --propose-pairs, not both")
     if args.pairs:
         if not os.path.isfile(args.pairs):
             raise BatchError(f"point pairs file not found: {args.pairs}")
         template_points, character_points = wrap.pairs_from_json(args.pairs, template, character)
     else:
-        template_points, character_points = wrap.stored_pairs(character, template)
+        if args.propose_pairs:
+            character.shapesmith_wrap.pairs.clear()
+            if wrap.PAIRS_PROPERTY in character.keys():
+                del character[wrap.PAIRS_PROPERTY]
+        template_points, character_points, proposal = wrap.pairs_or_proposed(character, template)
+        if proposal is not None:
+            print(f"point pairs proposed: {len(proposal['pairs'])}" + (f" (not found: {', '.join(proposal['missing'])})" if proposal["missing"] else ""))
     opened = time.perf_counter()
     wrapped = wrap.wrap_object(template, character, template_points, character_points)
     wrapped.seconds["io"] += opened - started
@@ -652,12 +666,13 @@ def run_wrap(args):
             "template": template.name,
             "character": character.name,
             "fit": wrapped.report,
+            "proposed_pairs": proposal,
             "shapes": written,
             "skipped": skipped,
             "penetration": penetration,
             "worse_than_template": worse,
             "symmetry": symmetry,
-            "warnings": warnings + wrapped.report["warnings"],
+            "warnings": warnings + (proposal or {}).get("warnings", []) + wrapped.report["warnings"],
             "seconds": seconds,
         },
     )

@@ -1,6 +1,6 @@
 """Wrap benchmark (SPEC section 5), run with the bpy Python:
 
-    python scripts/bench_wrap.py [-- --json OUT.json]
+    python scripts/bench_wrap.py [-- --json OUT.json] [--proposals-only]
 
 Characters of other topology with a known answer: the identity head Target_OldMan subdivided
 and collapse-decimated to about 10k and 25k vertices, in centimetres with Y up, paired with
@@ -25,13 +25,18 @@ miss between the mirror of one carried key and the other, in % of the larger one
 motion, each vertex's image at its closest point on the character (`mirror_misses`), beside
 the same measure of the barycentric copy of the wrapped template's keys (what it reads for
 keys as symmetric as the wrapped template's on a mesh whose triangles are not mirrored), and
-for the chain fitted and carried as if nothing were symmetric (`symmetric=False`), with its
+for the chain fitted and carried as if nothing were symmetric (`ignore_symmetry`), with its
 shapes worse and its error.
 
 Perfect alignment (`run_perfect`): the template collapse-decimated to half its faces, in the
 character frame, the template itself placed exactly on it as the wrapped template and its own
 keys carried: the carry's error against the template's keys sampled at the character's
 vertices, beside the nearest-vertex copy's (no fit error in either).
+
+Proposals (`run_proposals`; `-- --proposals-only` runs them alone): point pairs proposed (no
+click) on the sample character and on a glTF avatar copy of it (metres, each piece an
+object): each proposed point's distance from where its template point truly
+lies, the pieces and openings matched, and the keys' error from proposed against hand pairs.
 """
 
 import argparse
@@ -270,6 +275,123 @@ def run_sample(shapesmith):
     return row
 
 
+def key_error(shapesmith, character, entries, reference):
+    """The whole chain with point pairs `entries`: (error of the carried keys against
+    `reference` (K, N, 3) on moving vertices / diagonal, the fit report)."""
+    from importlib import import_module
+
+    wrap = import_module(shapesmith.__name__ + ".blender.wrap")
+    template = bpy.data.objects["Template"]
+    template_points, character_points = wrap.pairs_from_list(entries, template, character)
+    wrapped = wrap.wrap_object(template, character, template_points, character_points)
+    wrapped_object = wrap.show_wrapped(wrapped)
+    result = wrap.carry_onto_character(template, character, wrapped_object)
+    wrap.remove_object(wrapped_object)
+    return moving_error(result.deltas.astype(np.float64), reference, wrapped.report["diagonal"]), wrapped.report
+
+
+def proposal_row(shapesmith, character, true_point, reference=None):
+    """Pairs proposed on `character` against the truth: per pair the distance of its character
+    point from `true_point(template vertex)` (the template point's true place, character
+    space) / diagonal; the pieces and openings the wrap matched with the hand pairs (exact by
+    construction: template vertex -> its true place) and with the proposed ones; with
+    `reference` (the same-topology keys sampled at the character's vertices), the keys' error
+    from each."""
+    from importlib import import_module
+
+    wrap = import_module(shapesmith.__name__ + ".blender.wrap")
+    template = bpy.data.objects["Template"]
+    started = time.perf_counter()
+    proposal = wrap.propose_pairs(template, character)
+    seconds = time.perf_counter() - started
+    points = positions(character)
+    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
+    distances = {p["name"]: float(np.linalg.norm(np.array(p["character"]) - true_point(p["template_vertex"])) / diagonal) for p in proposal["pairs"]}
+    skin = makehuman.largest_piece(len(template.data.vertices), [tuple(p.vertices) for p in template.data.polygons])
+    hand = [[int(v), [float(x) for x in true_point(v)]] for v in makehuman.pair_vertices(positions(template), skin)]
+    proposed = [[p["template_vertex"], p["character_vertex"]] for p in proposal["pairs"]]
+    row = {"seconds": seconds, "pairs": len(proposed), "missing": proposal["missing"], "distances": distances,
+           "median_distance": float(np.median(list(distances.values()))), "max_distance": max(distances.values())}
+    for label, entries in (("hand", hand), ("proposed", proposed)):
+        if reference is not None:
+            error, report = key_error(shapesmith, character, entries, reference)
+            row[f"{label}_key_error"] = error
+        else:
+            template_points, character_points = wrap.pairs_from_list(entries, template, character)
+            report = wrap.wrap_object(template, character, template_points, character_points).report
+        row[f"{label}_matches"] = {"pieces": report["pieces"], "pieces_fitted": report["pieces_fitted"],
+                                   "holes_paired": report["holes_paired"], "lines": wrap.match_lines(report)}
+    return row
+
+
+def gltf_character(shapesmith, source):
+    """`source` (one mesh with its pieces) as an avatar export brings it: each piece an object
+    of its own, in metres and the scene's axes, through Blender's glTF exporter (Y up in the
+    file) and importer, the parts listed on the head. Returns (head, 4x4 matrix taking
+    `source`-local points to the head's local space)."""
+    from importlib import import_module
+
+    face_parts = import_module(shapesmith.__name__ + ".blender.face_parts")
+    nat = shapesmith.native.module()
+    rest = positions(source)
+    faces = [list(p.vertices) for p in source.data.polygons]
+    triangles = np.array([[f[0], f[i], f[i + 1]] for f in faces for i in range(1, len(f) - 1)], dtype=np.int32)
+    labels = np.asarray(nat.mesh_parts(len(rest), triangles)[0])
+    order = np.argsort(-np.bincount(labels), kind="stable")
+    exported = []
+    for rank, piece in enumerate(order):
+        vertices = np.flatnonzero(labels == piece)
+        index = np.full(len(rest), -1)
+        index[vertices] = np.arange(len(vertices))
+        mesh = bpy.data.meshes.new(f"Avatar_{rank}")
+        mesh.from_pydata(rest[vertices].tolist(), [], [[int(index[v]) for v in f] for f in faces if index[f[0]] >= 0])
+        mesh.shade_smooth()
+        mesh.transform(source.matrix_world)
+        obj = bpy.data.objects.new("Avatar_Head" if rank == 0 else f"Avatar_Piece{rank}", mesh)
+        bpy.context.scene.collection.objects.link(obj)
+        exported.append(obj)
+    bpy.ops.object.select_all(action="DESELECT")
+    for obj in exported:
+        obj.select_set(True)
+    bpy.context.view_layer.objects.active = exported[0]
+    path = os.path.join(os.path.dirname(batch.cached_sample_path()), "bench", "avatar.glb")
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    bpy.ops.export_scene.gltf(filepath=path, export_format="GLB", use_selection=True, export_animations=False)
+    for obj in exported:
+        bpy.data.objects.remove(obj)
+    bpy.ops.import_scene.gltf(filepath=path)
+    imported = [o for o in bpy.context.selected_objects if o.type == "MESH"]
+    head = max(imported, key=lambda o: len(o.data.vertices))
+    face_parts.store_parts(head, [o for o in imported if o != head])
+    bpy.context.view_layer.update()
+    return head, np.array(head.matrix_world.inverted()) @ np.array(source.matrix_world)
+
+
+def run_proposals(shapesmith, young_truth):
+    """Proposed against hand pairs on the sample character (keys against the same-topology
+    transfer onto Target_YoungWoman) and on its glTF avatar copy in metres with separate
+    pieces (pairs and matches only)."""
+    character = bpy.data.objects["Character_YoungWoman"]
+    identity = bpy.data.objects["Target_YoungWoman"]
+    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
+    identity_points = positions(identity)
+    from importlib import import_module
+
+    mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
+    nat = shapesmith.native.module()
+    points = positions(character)
+    back = points / scale
+    back = np.stack([back[:, 0], -back[:, 2], back[:, 1]], axis=1)
+    reference = barycentric_copy(nat, back, identity_points, mesh_arrays.read_triangles(identity), young_truth)
+    reference = np.stack([makehuman.character_frame(r, scale) for r in reference])
+    rows = {"Character_YoungWoman": proposal_row(
+        shapesmith, character, lambda v: makehuman.character_frame(identity_points[[v]], scale)[0], reference)}
+    head, to_head = gltf_character(shapesmith, character)
+    to_local = lambda v: (to_head @ np.append(makehuman.character_frame(identity_points[[v]], scale)[0], 1.0))[:3]  # noqa: E731
+    rows["glTF avatar (metres, separate pieces)"] = proposal_row(shapesmith, head, to_local)
+    return rows
+
+
 def run_perfect(shapesmith):
     """The template's own keys carried onto its collapse-decimated copy (half the faces, in the
     character frame) from the template itself placed exactly there: the carry's error against
@@ -322,16 +444,21 @@ def main():
     parser = argparse.ArgumentParser(prog="bench_wrap.py --")
     cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
     parser.add_argument("--json", default=os.path.join(cache, "bench", "bench_wrap.json"))
+    parser.add_argument("--proposals-only", action="store_true", help="only the proposed-pairs comparison")
     args = parser.parse_args(argv)
     shapesmith = batch.load_shapesmith()
     from importlib import import_module
 
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
     bpy.ops.wm.open_mainfile(filepath=batch.cached_sample())
-    truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY]).deltas.astype(np.float64)
-    result = {label: run_size(shapesmith, label, vertices, truth) for label, vertices in SIZES.items()}
-    perfect = run_perfect(shapesmith)
-    sample = run_sample(shapesmith)
+    result = {}
+    if not args.proposals_only:
+        truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects[IDENTITY]).deltas.astype(np.float64)
+        result = {label: run_size(shapesmith, label, vertices, truth) for label, vertices in SIZES.items()}
+        perfect = run_perfect(shapesmith)
+        sample = run_sample(shapesmith)
+    young_truth = transfer.transfer_object(bpy.data.objects["Template"], bpy.data.objects["Target_YoungWoman"]).deltas.astype(np.float64)
+    proposals = run_proposals(shapesmith, young_truth)
     print("\n== Wrap + transfer + carry onto a character of other topology (seconds, one run, 2 cores)")
     for label, row in result.items():
         s = row["seconds"]
@@ -359,18 +486,30 @@ def main():
             print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in ("carry", "barycentric", "carry without symmetry")))
         print(f"    without symmetry: {len(row['symmetry']['worse without symmetry'])} shapes worse "
               f"({', '.join(sorted(row['symmetry']['worse without symmetry']))}), error {row['symmetry']['error without symmetry']:.2e}")
-    print(f"\n== Perfect alignment: the template's keys carried onto its decimated copy ({perfect['vertices']} vertices)")
-    print("  error vs the template's keys sampled there: " + ", ".join(f"{k} {v:.2e}" for k, v in perfect["error"].items()))
-    result["perfect alignment"] = perfect
-    print("\n== Character_YoungWoman (the sample)")
-    for label, row in sample.items():
-        print(f"  {label}: {len(row['worse'])} shapes worse ({', '.join(sorted(row['worse']))}), error {row['error']:.2e} "
-              f"(nearest vertex {row['nearest vertex error']:.2e}); symmetric {row['symmetry']['symmetric']}")
-        for miss in row["symmetry"].get("shapes", []):
-            print(f"    {miss['first_name']}/{miss['second_name']}: worst-vertex mirror miss {100 * miss['carried']:.1f}% "
-                  f"(plain {100 * miss['plain']:.1f}%, barycentric copy {100 * miss['copied']:.1f}%, wrapped template {100 * miss['template']:.1f}%)"
-                  + (" held apart" if miss["held_apart"] else ""))
-    result["Character_YoungWoman"] = sample
+    if not args.proposals_only:
+        print(f"\n== Perfect alignment: the template's keys carried onto its decimated copy ({perfect['vertices']} vertices)")
+        print("  error vs the template's keys sampled there: " + ", ".join(f"{k} {v:.2e}" for k, v in perfect["error"].items()))
+        result["perfect alignment"] = perfect
+        print("\n== Character_YoungWoman (the sample)")
+        for label, row in sample.items():
+            print(f"  {label}: {len(row['worse'])} shapes worse ({', '.join(sorted(row['worse']))}), error {row['error']:.2e} "
+                  f"(nearest vertex {row['nearest vertex error']:.2e}); symmetric {row['symmetry']['symmetric']}")
+            for miss in row["symmetry"].get("shapes", []):
+                print(f"    {miss['first_name']}/{miss['second_name']}: worst-vertex mirror miss {100 * miss['carried']:.1f}% "
+                      f"(plain {100 * miss['plain']:.1f}%, barycentric copy {100 * miss['copied']:.1f}%, wrapped template {100 * miss['template']:.1f}%)"
+                      + (" held apart" if miss["held_apart"] else ""))
+        result["Character_YoungWoman"] = sample
+    print("\n== Point pairs proposed, against hand pairs (distances from the template point's true place, / diagonal)")
+    for label, row in proposals.items():
+        print(f"  {label}: {row['pairs']} pairs in {row['seconds']:.2f} s, median {100 * row['median_distance']:.2f}%, "
+              f"largest {100 * row['max_distance']:.2f}% ({max(row['distances'], key=row['distances'].get)})"
+              + (f"; not found: {', '.join(row['missing'])}" if row["missing"] else ""))
+        for pairs in ("hand", "proposed"):
+            matches = row[f"{pairs}_matches"]
+            error = f", keys {row[pairs + '_key_error']:.2e}" if pairs + "_key_error" in row else ""
+            print(f"    {pairs} pairs: pieces fitted {matches['pieces_fitted']} of {matches['pieces']}, "
+                  f"openings landed {matches['holes_paired']}{error}")
+    result["proposals"] = proposals
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with open(args.json, "w") as f:
         json.dump(result, f, indent=2)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import native
-from .face_parts import face_objects, face_of, read_face_rest, read_face_triangles
+from .face_parts import face_objects, face_of, read_face_rest, read_face_rig, read_face_triangles
 from .mesh_arrays import MeshDataError, read_triangles, show_mesh
 from .settings import CarrySettings, TransferSettings, WrapSettings
 from .transfer import Transfer, joined_face_corners, rest_positions, transfer_object
@@ -131,6 +131,55 @@ def store_pairs(character, entries, template, names=None):
     character.shapesmith_wrap.active_pair = max(len(pairs) - 1, 0)
 
 
+def propose_pairs(template, character, progress=None):
+    """The native proposal (`propose_pairs`: the same named features found on the template's
+    face, from its keys and geometry, and on the character's, from its geometry alone) for
+    the template and its face parts onto the character and its parts. Writes nothing."""
+    if character is None or template is None:
+        raise MeshDataError("pick a template and make the character the active mesh")
+    if character == template or character.data == template.data:
+        raise MeshDataError(f"the character '{character.name}' is the template itself: pick another mesh")
+    rig, _ = read_face_rig(face_objects(template))
+    character_neutral, character_triangles = read_surface(character, "character")
+    return native.module().propose_pairs(
+        rig.neutral, rig.deltas, rig.triangles, rig.names, character_neutral, character_triangles, progress=progress
+    )
+
+
+def store_proposed_pairs(character, template, proposal):
+    """Replaces the character's pairs with the proposal's, named after their features, each
+    end a vertex of its object (a part's vertex stays a point: the pair's index is the
+    head's). Returns how many."""
+    head_vertices = (len(template.data.vertices), len(character.data.vertices))
+    entries, names = [], []
+    for pair in proposal["pairs"]:
+        ends = []
+        for index, point, count in ((pair["template_vertex"], pair["template"], head_vertices[0]),
+                                    (pair["character_vertex"], pair["character"], head_vertices[1])):
+            ends.append(int(index) if index < count else [float(x) for x in point])
+        entries.append(ends)
+        names.append(pair["name"])
+    store_pairs(character, entries, template, names)
+    return len(entries)
+
+
+def pairs_or_proposed(character, template, progress=None):
+    """(template points, character points, proposal): the pairs stored on the character with
+    proposal None, or, with none stored, the proposed pairs (stored on the character for the
+    rigger to review) and the proposal. A proposal of fewer than 4 pairs is not stored: the
+    wrap then aligns by the principal axes, and the proposal's warnings say why."""
+    template_points, character_points = stored_pairs(character, template)
+    if len(template_points):
+        return template_points, character_points, None
+    proposal = propose_pairs(template, character, progress)
+    if len(proposal["pairs"]) < 4:
+        proposal["warnings"].append(f"only {len(proposal['pairs'])} pairs found on both heads: none used")
+        return template_points, character_points, proposal
+    store_proposed_pairs(character, template, proposal)
+    template_points, character_points = stored_pairs(character, template)
+    return template_points, character_points, proposal
+
+
 def marker_collection_name(character):
     return f"{character.name} Point Pairs"
 
@@ -198,7 +247,52 @@ def wrap_object(template, character, template_points, character_points, settings
         progress=progress,
     )
     seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
+    name_matches(report, template, character)
     return Wrapped(template, character, positions, report, seconds)
+
+
+def _piece_namer(obj):
+    """vertex (the face's numbering) -> the name of the face object holding it, or, for a
+    face in one mesh, 'piece at vertex V'."""
+    face = face_of(face_objects(obj, topology=False))
+
+    def name(vertex, count):
+        if vertex is None:
+            return None
+        if len(face.objects) == 1:
+            return f"{obj.name} piece at vertex {vertex} ({count} vertices)"
+        index = int(np.searchsorted(face.offsets, vertex, side="right") - 1)
+        return face.objects[index].name
+
+    return name
+
+
+def name_matches(report, template, character):
+    """Names each piece and hole row of the native report by the objects holding them
+    (`template_name`, `character_name`): which pieces landed on which, which follow the skin."""
+    template_name, character_name = _piece_namer(template), _piece_namer(character)
+    for row in report["piece_matches"]:
+        row["template_name"] = template_name(row["template_vertex"], row["template_vertices"])
+        row["character_name"] = character_name(row["character_vertex"], row["character_vertices"])
+    for row in report["hole_matches"]:
+        row["template_name"] = f"{template.name}'s opening at vertex {row['template_vertex']} ({row['template_rim']} rim vertices)"
+        row["character_name"] = f"{character.name}'s at vertex {row['character_vertex']} ({row['character_rim']})"
+
+
+def match_lines(report):
+    """One line per template piece (fitted onto which character piece, or following the skin
+    and why) and per paired opening."""
+    lines = []
+    for row in report["piece_matches"]:
+        if row["fitted"]:
+            lines.append(f"{row['template_name']} fitted onto {row['character_name']}")
+        elif row["character_name"]:
+            lines.append(f"{row['template_name']} follows the skin: it did not fit {row['character_name']}")
+        else:
+            lines.append(f"{row['template_name']} follows the skin: no character piece of its place and size")
+    for row in report["hole_matches"]:
+        lines.append(f"{row['template_name']} landed on {row['character_name']}")
+    return lines
 
 
 def wrapped_name(template, character):
@@ -268,6 +362,8 @@ def store_wrap(wrapped, stage):
     result.symmetric = report["symmetry"]["symmetric"]
     result.symmetry_note = report["symmetry"]["reason"]
     result.worst_mirror_miss = -1.0
+    result.pieces = f"{report['pieces_fitted']} of {report['pieces']} fitted, openings landed: {report['holes_paired']}"
+    result.matches = "\n".join(match_lines(report))
     result.seconds = sum(wrapped.seconds.values())
 
 
@@ -497,4 +593,5 @@ def summary_lines(wrapped):
         )
     else:
         lines.append(f"fitted without symmetry: {symmetry['reason']}")
+    lines += ["  " + line for line in match_lines(report)]
     return lines + [f"warning: {w}" for w in report["warnings"]]

@@ -5,7 +5,7 @@ inspected before any key is written."""
 import bpy
 
 from ..blender.settings import WrapSettings
-from ..blender.wrap import show_wrapped, stored_pairs, store_wrap, wrap_object
+from ..blender.wrap import pairs_or_proposed, refresh_markers, show_wrapped, store_wrap, wrap_object
 from .base import expected_errors, poll_mesh, progress_cursor
 
 
@@ -27,8 +27,8 @@ class WrapOperator:
         character = context.active_object
         template = context.scene.shapesmith.transfer.source
         try:
-            template_points, character_points = stored_pairs(character, template)
             with progress_cursor(context, "Wrap") as progress:
+                template_points, character_points, proposal = pairs_or_proposed(character, template, progress)
                 wrapped = wrap_object(
                     template, character, template_points, character_points, WrapSettings(align_only=self.align_only),
                     progress=progress,
@@ -38,7 +38,10 @@ class WrapOperator:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         store_wrap(wrapped, "ALIGN" if self.align_only else "WRAP")
-        for warning in wrapped.report["warnings"]:
+        if proposal is not None:
+            refresh_markers(character, template)
+            self.report({"INFO"}, f"no point pairs: {len(template_points)} proposed and used (listed in the panel to review)")
+        for warning in (proposal or {}).get("warnings", []) + wrapped.report["warnings"]:
             self.report({"WARNING"}, warning)
         report = wrapped.report
         self.report(
@@ -53,8 +56,8 @@ class SHAPESMITH_OT_align_template(WrapOperator, bpy.types.Operator):
     bl_idname = "shapesmith.align_template"
     bl_label = "Align"
     bl_description = (
-        "Move, turn and scale the template onto the active character from the point pairs (no pairs: "
-        "a guess from the principal axes), shown as a wrapped-template object"
+        "Move, turn and scale the template onto the active character from the point pairs (none: they are "
+        "proposed first), shown as a wrapped-template object"
     )
     align_only = True
 
@@ -64,7 +67,7 @@ class SHAPESMITH_OT_wrap_template(WrapOperator, bpy.types.Operator):
     bl_label = "Wrap"
     bl_description = (
         "Align, then fit the template's surface onto the active character (non-rigid ICP guided by the "
-        "point pairs); the wrapped template is coloured by its distance to the character"
+        "point pairs, proposed first when there are none); the wrapped template is coloured by its distance to the character"
     )
 
 

@@ -31,7 +31,8 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
         layout.label(text=f"Template: {template.name if template else 'none (pick it above)'}", icon="MESH_DATA")
         layout.label(text=f"Character: {obj.name}", icon="USER")
         settings = obj.shapesmith_wrap
-        layout.label(text=f"Point pairs: {len(settings.pairs)} (at least 4; none = rough guess)")
+        layout.label(text=f"Point pairs: {len(settings.pairs)} (none: Wrap proposes them)")
+        layout.operator("shapesmith.propose_point_pairs", icon="AUTOMERGE_ON")
         if not len(settings.pairs) and PAIRS_PROPERTY in obj.keys():
             layout.label(text="Pairs stored by a script: Show Markers or Align lists them", icon="INFO")
         row = layout.row()
@@ -66,6 +67,10 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
                 box.label(text=f"Not symmetric: {settings.symmetry_note}", icon="INFO")
             if settings.worst_mirror_miss >= 0.0:
                 box.label(text=f"Worst mirror miss: {100 * settings.worst_mirror_miss:.1f}% ({settings.worst_mirror_pair})")
+            if settings.pieces:
+                box.label(text=f"Pieces: {settings.pieces}")
+                for line in settings.matches.splitlines():
+                    box.label(text=line, icon="CHECKMARK" if " fitted onto " in line or " landed on " in line else "INFO")
             if settings.written:
                 box.label(text=f"Shape keys written: {settings.written}", icon="CHECKMARK")
                 result = obj.shapesmith.transfer

@@ -1,4 +1,4 @@
-//! Bindings of [`crate::wrap`]: `wrap_template`, `carry_shapes`, `bind_to_surface`.
+//! Bindings of [`crate::wrap`]: `wrap_template`, `propose_pairs`, `carry_shapes`, `bind_to_surface`.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
@@ -9,7 +9,8 @@ use super::run::{detached, detached_with_progress};
 use super::settings::settings as read_settings;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::to_f64;
-use crate::wrap::{bind, carry_shapes as run_carry, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
+use crate::rig::RigView;
+use crate::wrap::{bind, carry_shapes as run_carry, propose_pairs as run_propose, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, settings=None, *, progress=None)
@@ -57,6 +58,40 @@ fn wrap_template<'py>(
     let flat: Vec<f32> = wrap.wrapped.into_iter().flatten().collect();
     let array = PyArray1::from_vec(py, flat).reshape([n, 3])?;
     Ok((array.into_any(), arrays::to_python(py, &wrap.report)?))
+}
+
+/// propose_pairs(template_neutral, template_deltas, template_triangles, names, character_neutral,
+///               character_triangles, *, progress=None) -> dict
+///
+/// Point pairs found on both heads (eye and mouth corners, lid and lip centres, nose tip and
+/// wings, chin, brows): `pairs` (each `name`, `template_vertex`, `character_vertex`,
+/// `template`, `character`: vertices and their rest points), `missing` (features not found on
+/// both), the alignment they were found through (`similarity`, `alignment_distance`), both
+/// heads' front and up, `warnings`. The template's keys (float32 (K, Nt, 3)) and names tell
+/// where its face is and which way it looks.
+#[pyfunction]
+#[pyo3(signature = (template_neutral, template_deltas, template_triangles, names, character_neutral, character_triangles, *, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn propose_pairs<'py>(
+    py: Python<'py>,
+    template_neutral: PyReadonlyArray2<'py, f32>,
+    template_deltas: PyReadonlyArray3<'py, f32>,
+    template_triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    character_neutral: PyReadonlyArray2<'py, f32>,
+    character_triangles: PyReadonlyArray2<'py, i32>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let template = arrays::points(&template_neutral, "template_neutral").map_err(py_err(py))?;
+    let (deltas, _) = arrays::deltas(&template_deltas, template.len()).map_err(py_err(py))?;
+    let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
+    let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
+    let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let proposal = detached_with_progress(py, progress.as_ref(), |progress| {
+        let rig = RigView::new(template, deltas, &template_tris, &names)?;
+        run_propose(&rig, character, &character_tris, progress)
+    })?;
+    arrays::to_python(py, &proposal)
 }
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
@@ -172,6 +207,7 @@ fn bind_to_surface<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(wrap_template, m)?)?;
+    m.add_function(wrap_pyfunction!(propose_pairs, m)?)?;
     m.add_function(wrap_pyfunction!(carry_shapes, m)?)?;
     m.add_function(wrap_pyfunction!(bind_to_surface, m)?)
 }

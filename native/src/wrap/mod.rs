@@ -63,6 +63,7 @@ mod carry;
 mod collisions;
 mod nricp;
 mod pieces;
+mod propose;
 mod rims;
 mod symmetry;
 #[cfg(test)]
@@ -77,6 +78,7 @@ pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, Carry
 pub use collisions::{AddedCurve, CarryCollision, TemplateCurve};
 pub use nricp::FitStats;
 pub use symmetry::MirrorPlane;
+pub use propose::{propose_pairs, Proposal, ProposedPair};
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -88,7 +90,9 @@ use crate::progress::{Progress, Stage};
 use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
 use nricp::{fit_skin, FitMirror, Landmark, TargetSurface};
 use pieces::{carry_pieces, fit_pieces};
+pub use pieces::PieceMatch;
 use rims::rim_targets;
+pub use rims::HoleMatch;
 
 /// Knobs of the non-rigid fit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -181,13 +185,15 @@ pub struct WrapReport {
     pub fit: FitStats,
     /// Template pieces other than the skin (eyes, teeth, tongue, lashes), and how many of them
     /// were fitted onto a character piece of the same place and size (the others follow the
-    /// skin around them).
+    /// skin around them); per piece, what it matched (`pieces::PieceMatch`).
     pub pieces: usize,
     pub pieces_fitted: usize,
+    pub piece_matches: Vec<PieceMatch>,
     /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
-    /// rims the fit lands on the character's (`rims`).
+    /// rims the fit lands on the character's (`rims`), and which.
     pub holes_paired: usize,
     pub symmetry: WrapSymmetry,
+    pub hole_matches: Vec<HoleMatch>,
     /// Character bbox diagonal (character units).
     pub diagonal: f64,
     pub template_vertices: usize,
@@ -231,7 +237,16 @@ pub fn wrap_template(
         params,
         progress,
     )?;
-    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), ..wrap })
+    let mut report = wrap.report;
+    for row in &mut report.piece_matches {
+        row.template_vertex = template_weld.vertex(row.template_vertex);
+        row.character_vertex = row.character_vertex.map(|c| character_weld.vertex(c));
+    }
+    for row in &mut report.hole_matches {
+        row.template_vertex = template_weld.vertex(row.template_vertex);
+        row.character_vertex = character_weld.vertex(row.character_vertex);
+    }
+    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), report })
 }
 
 fn wrap_welded(
@@ -348,19 +363,19 @@ fn wrap_welded(
     // again on the fitted template (its plane symmetrises the result).
     let mirror_after_fit = (mirror.is_none() && !params.ignore_symmetry && symmetry.template_coverage >= symmetry::MIN_COVERAGE)
         .then(|| symmetry::template_mirror(template, &is_skin).partner);
-    let (mut template_pieces, mut pieces_fitted, mut rims_paired) = (0, 0, 0);
+    let (mut piece_matches, mut hole_matches) = (Vec::new(), Vec::new());
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
     } else {
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
         let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
-        rims_paired = holes;
+        hole_matches = holes;
         let (mut fitted, stats) =
             fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, fit_mirror.as_ref(), &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
         let mut is_character_skin = vec![false; character.len()];
         character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
-        (template_pieces, pieces_fitted) = fit_pieces(&mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
+        piece_matches = fit_pieces(&aligned, &mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
         let every = vec![true; fitted.len()];
         if let Some((partner, plane)) = &mirror {
             symmetry::symmetrize(&mut fitted, partner, &every, plane);
@@ -391,9 +406,11 @@ fn wrap_welded(
         aligned_pair_residuals,
         pair_residuals: residual(&fitted),
         fit,
-        pieces: template_pieces,
-        pieces_fitted,
-        holes_paired: rims_paired,
+        pieces: piece_matches.len(),
+        pieces_fitted: piece_matches.iter().filter(|m| m.fitted).count(),
+        piece_matches,
+        holes_paired: hole_matches.len(),
+        hole_matches,
         symmetry,
         diagonal,
         template_vertices: template.len(),

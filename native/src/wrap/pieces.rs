@@ -131,35 +131,87 @@ pub(super) fn match_pieces(template_moments: &[Option<Moments>], character_momen
     matched
 }
 
+/// A template piece (eye, tooth row, tongue, lashes) and what became of it: the character
+/// piece it matched, if any, and whether it was fitted there (else it follows the skin).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct PieceMatch {
+    /// The piece's lowest vertex and its vertex count (the add-on names the object holding it).
+    pub template_vertex: u32,
+    pub template_vertices: usize,
+    /// The matched character piece's lowest vertex and vertex count, `None` without a match.
+    pub character_vertex: Option<u32>,
+    pub character_vertices: usize,
+    /// After the skin fit: the centres' distance in template piece radii, the character
+    /// piece's radius over the template piece's.
+    pub offset: f64,
+    pub size_ratio: f64,
+    pub fitted: bool,
+}
+
 /// Fits each non-skin template piece (at `fitted`, already carried with the skin) onto the
 /// non-skin character piece it matches (one to one, the closest in place and size first);
-/// returns the number of template pieces and how many of them were fitted.
+/// returns one row per template piece (welded vertex numbering). A piece is matched from where
+/// the skin carried it or from where the alignment put it (`aligned`), whichever lies nearer
+/// a character piece of its size, and fitted from there: where the character's skin differs
+/// around a piece (an eye socket cut open at the lids, as avatars have them), the skin fit
+/// there says little about where the piece belongs.
 pub fn fit_pieces(
+    aligned: &[Vec3],
     fitted: &mut [Vec3],
     triangles: &[[u32; 3]],
     is_skin: &[bool],
     character: &[Vec3],
     character_triangles: &[[u32; 3]],
     is_character_skin: &[bool],
-) -> (usize, usize) {
+) -> Vec<PieceMatch> {
     let template_pieces = pieces(fitted.len(), triangles, |v| is_skin[v]);
     let character_pieces = pieces(character.len(), character_triangles, |v| is_character_skin[v]);
-    let template_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(fitted, t)).collect();
+    let carried_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(fitted, t)).collect();
+    let aligned_moments: Vec<Option<Moments>> = template_pieces.iter().map(|(_, t)| moments(aligned, t)).collect();
     let character_moments: Vec<Option<Moments>> = character_pieces.iter().map(|(_, t)| moments(character, t)).collect();
-    let mut count = 0;
+    // Per piece, the placement nearer its best character piece.
+    let nearest = |m: &Option<Moments>| -> f64 {
+        m.map_or(f64::INFINITY, |a| {
+            character_moments.iter().flatten().filter(|b| (b.radius / a.radius).ln().abs() < MATCH_SIZE.ln()).map(|b| length(sub(a.centre, b.centre)) / a.radius).fold(f64::INFINITY, f64::min)
+        })
+    };
+    let from_aligned: Vec<bool> = carried_moments.iter().zip(&aligned_moments).map(|(c, a)| nearest(a) < nearest(c)).collect();
+    for ((members, _), &use_aligned) in template_pieces.iter().zip(&from_aligned) {
+        if use_aligned {
+            members.iter().for_each(|&v| fitted[v] = aligned[v]);
+        }
+    }
+    let template_moments: Vec<Option<Moments>> =
+        carried_moments.iter().zip(&aligned_moments).zip(&from_aligned).map(|((c, a), &use_aligned)| if use_aligned { *a } else { *c }).collect();
+    let mut rows: Vec<PieceMatch> = template_pieces
+        .iter()
+        .map(|(members, _)| PieceMatch {
+            template_vertex: members[0] as u32,
+            template_vertices: members.len(),
+            character_vertex: None,
+            character_vertices: 0,
+            offset: 0.0,
+            size_ratio: 0.0,
+            fitted: false,
+        })
+        .collect();
     for (i, j) in match_pieces(&template_moments, &character_moments, MATCH_DISTANCE) {
         let (members, piece_triangles) = &template_pieces[i];
         let (character_members, character_piece_triangles) = &character_pieces[j];
-        let radius = template_moments[i].map_or(1.0, |m| m.radius);
-        if let Some(motion) = similarity_icp(fitted, piece_triangles, members, character, character_piece_triangles, character_members, radius) {
+        let (Some(a), Some(b)) = (template_moments[i], character_moments[j]) else { continue };
+        rows[i].character_vertex = Some(character_members[0] as u32);
+        rows[i].character_vertices = character_members.len();
+        rows[i].offset = length(sub(a.centre, b.centre)) / a.radius;
+        rows[i].size_ratio = b.radius / a.radius;
+        if let Some(motion) = similarity_icp(fitted, piece_triangles, members, character, character_piece_triangles, character_members, a.radius) {
             let start: Vec<Vec3> = members.iter().map(|&v| fitted[v]).collect();
             for (&v, p) in members.iter().zip(start) {
                 fitted[v] = motion.apply(p);
             }
-            count += 1;
+            rows[i].fitted = true;
         }
     }
-    (template_pieces.len(), count)
+    rows
 }
 
 /// Which part each template triangle and each character vertex and triangle belong to, for

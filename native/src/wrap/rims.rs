@@ -188,10 +188,20 @@ fn longest_axis(curve: &Curve) -> Option<Vec3> {
     Some([vectors[0][2], vectors[1][2], vectors[2][2]])
 }
 
+/// A template hole paired with a character hole: a vertex of each rim and the rims' vertex
+/// counts (the report says which openings landed where).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HoleMatch {
+    pub template_vertex: u32,
+    pub template_rim: usize,
+    pub character_vertex: u32,
+    pub character_rim: usize,
+}
+
 /// Targets on the character's holes for the rim vertices of the template's matching holes.
 /// `template` at its aligned positions with `skin_triangles`/`skin` its skin, `character` with
-/// `character_triangles`/`character_skin` the character's. Returns the targets and the number
-/// of holes paired.
+/// `character_triangles`/`character_skin` the character's. Returns the targets and the holes
+/// paired.
 pub fn rim_targets(
     template: &[Vec3],
     skin_triangles: &[[u32; 3]],
@@ -199,7 +209,7 @@ pub fn rim_targets(
     character: &[Vec3],
     character_triangles: &[[u32; 3]],
     character_skin: &[u32],
-) -> (Vec<RimTarget>, usize) {
+) -> (Vec<RimTarget>, Vec<HoleMatch>) {
     let template_holes = holes(template, skin_triangles, skin);
     let character_holes = holes(character, character_triangles, character_skin);
     let pairs = match_pieces(
@@ -208,9 +218,9 @@ pub fn rim_targets(
         HOLE_OFFSET,
     );
     let mut targets = Vec::new();
-    let mut paired = 0;
+    let mut paired = Vec::new();
     for (i, j) in pairs {
-        let ((walk, template_curve), (_, character_curve)) = (&template_holes[i], &character_holes[j]);
+        let ((walk, template_curve), (character_walk, character_curve)) = (&template_holes[i], &character_holes[j]);
         let Some(axis) = longest_axis(character_curve) else { continue };
         let (template_corners, character_corners) = (template_curve.corners(axis), character_curve.corners(axis));
         let fractions: Vec<(bool, f64)> = (0..walk.len()).map(|k| template_curve.arc_fraction(k, template_corners)).collect();
@@ -222,7 +232,7 @@ pub fn rim_targets(
         let spread = |points: &Vec<Vec3>| points.iter().zip(&template_curve.points).map(|(a, b)| length(sub(*a, *b)).powi(2)).sum::<f64>();
         let best = if spread(&candidates[0]) <= spread(&candidates[1]) { &candidates[0] } else { &candidates[1] };
         targets.extend(walk.iter().zip(best).map(|(&vertex, &target)| RimTarget { vertex, target }));
-        paired += 1;
+        paired.push(HoleMatch { template_vertex: walk[0], template_rim: walk.len(), character_vertex: character_walk[0], character_rim: character_walk.len() });
     }
     (targets, paired)
 }
@@ -283,7 +293,7 @@ mod tests {
         let skin: Vec<u32> = (0..template.len() as u32).collect();
         let character_skin: Vec<u32> = (0..character.len() as u32).collect();
         let (targets, paired) = rim_targets(&template, &template_triangles, &skin, &character, &character_triangles, &character_skin);
-        assert_eq!(paired, 1);
+        assert_eq!(paired.len(), 1);
         assert_eq!(targets.len(), 12);
         let on_polygon = |p: Vec3| {
             // On one of the character rim's chords.
@@ -318,6 +328,6 @@ mod tests {
         let (character, character_triangles, _) = holed_disc(12, 2.5, 1.25, 0.0, 3);
         let all = |n: usize| (0..n as u32).collect::<Vec<u32>>();
         let (targets, paired) = rim_targets(&template, &template_triangles, &all(template.len()), &character, &character_triangles, &all(character.len()));
-        assert_eq!((targets.len(), paired), (0, 0));
+        assert_eq!((targets.len(), paired.len()), (0, 0));
     }
 }
