@@ -23,71 +23,17 @@ sys.path.insert(0, SCRIPTS)
 from sample_blend import build_sample, cached_sample, cached_sample_path  # noqa: E402,F401
 
 
-class BatchError(Exception):
-    """Bad input: reported as one line on stderr, exit status 2."""
-
-
-def load_shapesmith():
-    """The installed Shapesmith extension's package, enabled."""
-    import addon_utils
-    import importlib
-
-    names = [m.__name__ for m in addon_utils.modules(refresh=False) if m.__name__.rsplit(".", 1)[-1] == "shapesmith"]
-    if not names:
-        raise BatchError(
-            "the Shapesmith extension is not installed in this Blender: build it with scripts/build and "
-            "install dist/shapesmith-*.zip (Preferences > Get Extensions > Install from Disk)"
-        )
-    addon_utils.enable(names[0], default_set=True)
-    return importlib.import_module(names[0])
-
-
-def tool_settings():
-    """The installed extension's `blender/settings.py`: each tool's settings dataclass, whose
-    defaults are every tool flag's (the core's, as the panel's)."""
-    from importlib import import_module
-
-    return import_module(load_shapesmith().__name__ + ".blender.settings")
-
-
-def open_blend(path):
-    if not path or not os.path.isfile(path):
-        raise BatchError(f"input file not found: {path}")
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
-
-
-def find_object(name):
-    obj = bpy.data.objects.get(name)
-    if obj is None:
-        meshes = ", ".join(o.name for o in bpy.data.objects if o.type == "MESH") or "none"
-        raise BatchError(f"no object named '{name}' in the file (meshes: {meshes})")
-    return obj
-
-
-def find_face(value, shapesmith):
-    """The head named first in a comma list `Head,Teeth,EyeLeft,EyeRight`, with the parts
-    after it stored as its Face Parts list (every tool then reads them with it, and a saved
-    copy keeps them); a head named alone keeps the list stored on it."""
-    from importlib import import_module
-
-    names = [name.strip() for name in value.split(",")]
-    if not all(names):
-        raise BatchError(f"'{value}' has an empty name: give the head, then its parts, separated by commas")
-    objects = [find_object(name) for name in names]
-    if len(objects) > 1:
-        import_module(shapesmith.__name__ + ".blender.face_parts").store_parts(objects[0], objects[1:])
-    return objects[0]
-
-
-def write_json(path, data):
-    if path:
-        with open(path, "w") as f:
-            json.dump(data, f, indent=2)
-
-
-def save_copy(path):
-    """Saves the result to a new file; the input file is left as it was."""
-    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path), copy=True)
+# The shared parts are re-exported: the tests, benches and renders call them here.
+from batch_common import (  # noqa: E402,F401
+    BatchError,
+    find_face,
+    find_object,
+    load_shapesmith,
+    open_blend,
+    save_copy,
+    tool_settings,
+    write_json,
+)
 
 
 # --- commands ---------------------------------------------------------------------------
