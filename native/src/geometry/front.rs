@@ -31,7 +31,7 @@
 
 use serde::Serialize;
 
-use super::mat3::{add, cross, dot, length, scale, sub, to_f64, Vec3};
+use super::mat3::{add, cross, dot, length, scale, sub, to_f64, unit, Vec3};
 use super::mirror::MirrorMap;
 use crate::error::ShapesmithResult;
 use crate::invalid;
@@ -91,7 +91,8 @@ pub fn find_front(rig: &RigView, axis: usize) -> ShapesmithResult<Front> {
     if weights.iter().all(|&w| w == 0.0) {
         return Err(invalid!("no shape key moves the mesh: the face's front cannot be found"));
     }
-    let normals = outward_normals(rig);
+    let points: Vec<Vec3> = rig.neutral.iter().map(to_f64).collect();
+    let normals = outward_normals(&points, rig.triangles);
     let mut raw = [0.0; 3];
     for (n, &w) in normals.iter().zip(&weights) {
         raw = add(raw, scale(*n, w));
@@ -126,12 +127,11 @@ fn motion_weights(rig: &RigView) -> Vec<f64> {
 
 /// Unit area-weighted vertex normals (zero at a vertex in no triangle), flipped when the
 /// signed volume about the centroid says the triangles are wound inwards.
-fn outward_normals(rig: &RigView) -> Vec<Vec3> {
-    let points: Vec<Vec3> = rig.neutral.iter().map(to_f64).collect();
-    let centroid = scale(points.iter().fold([0.0; 3], |s, &p| add(s, p)), 1.0 / points.len() as f64);
+pub(crate) fn outward_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let centroid = scale(points.iter().fold([0.0; 3], |s, &p| add(s, p)), 1.0 / points.len().max(1) as f64);
     let mut normals = vec![[0.0; 3]; points.len()];
     let mut volume = 0.0;
-    for t in rig.triangles {
+    for t in triangles {
         let [a, b, c] = t.map(|v| sub(points[v as usize], centroid));
         let n = cross(sub(b, a), sub(c, a));
         volume += dot(a, cross(b, c));
@@ -236,11 +236,6 @@ fn axis_vector(axis: usize, sign: f64) -> Vec3 {
 
 fn angle_degrees(a: Vec3, b: Vec3) -> f64 {
     dot(a, b).clamp(-1.0, 1.0).acos().to_degrees()
-}
-
-fn unit(v: Vec3) -> Option<Vec3> {
-    let n = length(v);
-    (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
 }
 
 #[cfg(test)]

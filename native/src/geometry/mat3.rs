@@ -137,3 +137,9 @@ mod tests {
         assert!((determinant(&transpose(&similarity)) - 8.0).abs() < 1e-12);
     }
 }
+
+/// `v` scaled to length 1, or None when its length is zero or not finite.
+pub fn unit(v: Vec3) -> Option<Vec3> {
+    let n = length(v);
+    (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
+}

@@ -31,8 +31,8 @@
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::front::find_front;
-use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, Vec3};
+use crate::geometry::front::{find_front, outward_normals};
+use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, unit, Vec3};
 use crate::geometry::topology::{boundary_edges, connected_components, Adjacency};
 use crate::geometry::weld::{Weld, WeldedRig};
 use crate::invalid;
@@ -290,24 +290,6 @@ fn occluders(points: &[Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> Vec<[
         })
         .collect();
     triangles.iter().filter(|t| is_skin[t[0] as usize] || round[label[t[0] as usize] as usize]).copied().collect()
-}
-
-/// Unit area-weighted vertex normals of `triangles` (zero at a vertex in none), flipped when
-/// their signed volume about the centroid says they are wound inwards.
-fn outward_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let centroid = scale(points.iter().fold([0.0; 3], |s, &p| add(s, p)), 1.0 / points.len().max(1) as f64);
-    let mut normals = vec![[0.0; 3]; points.len()];
-    let mut volume = 0.0;
-    for t in triangles {
-        let [a, b, c] = t.map(|v| sub(points[v as usize], centroid));
-        let n = cross(sub(b, a), sub(c, a));
-        volume += dot(a, cross(b, c));
-        for &v in t {
-            normals[v as usize] = add(normals[v as usize], n);
-        }
-    }
-    let sign = if volume < 0.0 { -1.0 } else { 1.0 };
-    normals.iter().map(|&n| unit(n).map_or([0.0; 3], |u| scale(u, sign))).collect()
 }
 
 /// An orthonormal frame: `x` to the left (`up x front`), `y` up, `z` to the front.
@@ -686,11 +668,6 @@ fn trimmed_icp(
         }
     }
     (motion, mean)
-}
-
-fn unit(v: Vec3) -> Option<Vec3> {
-    let n = length(v);
-    (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
 }
 
 #[cfg(test)]
