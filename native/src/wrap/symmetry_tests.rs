@@ -4,7 +4,7 @@
 //! vertex has a mirror vertex), in other units and axes. Truths by construction: the
 //! character's plane is the image of x = 0, the template's mirror map is found by brute force.
 
-use super::tests::{as_f32, rotation};
+use super::tests::{as_f32, rotation, sphere_mesh};
 use super::*;
 use crate::geometry::closest_point::SurfacePoint;
 use crate::geometry::mat3::dot;
@@ -24,26 +24,7 @@ fn lumpy(rings: usize, segments: usize, phase: f64, lumps: &[Vec3]) -> (Vec<Vec3
         let r = 1.0 + lumps.iter().map(|l| 0.2 * (-(0..3).map(|a| (u[a] - l[a] / length(*l)).powi(2)).sum::<f64>() / 0.5).exp()).sum::<f64>();
         [1.5 * r * u[0], 1.0 * r * u[1], 0.7 * r * u[2]]
     };
-    let mut points = vec![surface(0.0, 0.0)];
-    for j in 1..rings {
-        let theta = std::f64::consts::PI * j as f64 / rings as f64;
-        points.extend((0..segments).map(|i| surface(theta, phase + 2.0 * std::f64::consts::PI * i as f64 / segments as f64)));
-    }
-    points.push(surface(std::f64::consts::PI, 0.0));
-    let south = (points.len() - 1) as u32;
-    let at = |j: usize, i: usize| (1 + (j - 1) * segments + i % segments) as u32;
-    let mut triangles = Vec::new();
-    for i in 0..segments {
-        triangles.push([0, at(1, i), at(1, i + 1)]);
-        triangles.push([south, at(rings - 1, i + 1), at(rings - 1, i)]);
-    }
-    for j in 1..rings - 1 {
-        for i in 0..segments {
-            triangles.push([at(j, i), at(j + 1, i), at(j + 1, i + 1)]);
-            triangles.push([at(j, i), at(j + 1, i + 1), at(j, i + 1)]);
-        }
-    }
-    (points, triangles)
+    sphere_mesh(rings, segments, phase, surface)
 }
 
 const BOTH_SIDES: [Vec3; 2] = [[0.5, 0.6, 0.62], [-0.5, 0.6, 0.62]];

@@ -9,7 +9,6 @@ use crate::progress::NoProgress;
 /// A lumpy ellipsoid, `rings` latitude bands by `2 * rings` segments, outward triangles.
 /// The lump breaks every symmetry, so that principal axes and closest points are unambiguous.
 pub(crate) fn lumpy_box(rings: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let segments = 2 * rings;
     let surface = |theta: f64, phi: f64| -> Vec3 {
         let u = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
         let lump = [0.5f64, 0.6, 0.62];
@@ -18,12 +17,16 @@ pub(crate) fn lumpy_box(rings: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         let r = 1.0 + 0.3 * (-closeness / 0.2).exp();
         [1.5 * r * u[0], 1.0 * r * u[1], 0.7 * r * u[2]]
     };
+    sphere_mesh(rings, 2 * rings, 0.0, surface)
+}
+
+/// A closed mesh of `surface(theta, phi)` sampled at `rings` latitude bands by `segments`
+/// (the segments turned by `phase`), a vertex at each pole, outward triangles.
+pub(crate) fn sphere_mesh(rings: usize, segments: usize, phase: f64, surface: impl Fn(f64, f64) -> Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let mut points = vec![surface(0.0, 0.0)];
     for j in 1..rings {
         let theta = std::f64::consts::PI * j as f64 / rings as f64;
-        for i in 0..segments {
-            points.push(surface(theta, 2.0 * std::f64::consts::PI * i as f64 / segments as f64));
-        }
+        points.extend((0..segments).map(|i| surface(theta, phase + 2.0 * std::f64::consts::PI * i as f64 / segments as f64)));
     }
     points.push(surface(std::f64::consts::PI, 0.0));
     let south = (points.len() - 1) as u32;
