@@ -20,6 +20,18 @@ def poll_mesh(cls, context):
     return True
 
 
+def poll_character(cls, context):
+    """True for a character mesh in Object Mode with a template picked in the Transfer panel
+    (the wrap's buttons); otherwise says why the button is disabled."""
+    if not poll_mesh(cls, context):
+        return False
+    template = context.scene.shapesmith.transfer.source
+    if template is None or template == context.active_object:
+        cls.poll_message_set("Pick the template in the Transfer panel and make the character active")
+        return False
+    return True
+
+
 def poll_packed(cls, context):
     """A mesh in Object Mode that carries a Pack Expressions result."""
     if not poll_mesh(cls, context):

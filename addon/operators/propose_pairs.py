@@ -5,7 +5,7 @@ rigger to review and move instead of clicking each."""
 import bpy
 
 from ..blender.wrap import propose_pairs, refresh_markers, store_proposed_pairs
-from .base import expected_errors, poll_mesh, progress_cursor
+from .base import expected_errors, poll_character, progress_cursor
 
 
 class SHAPESMITH_OT_propose_point_pairs(bpy.types.Operator):
@@ -19,13 +19,7 @@ class SHAPESMITH_OT_propose_point_pairs(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if not poll_mesh(cls, context):
-            return False
-        template = context.scene.shapesmith.transfer.source
-        if template is None or template == context.active_object:
-            cls.poll_message_set("Pick the template in the Transfer panel and make the character active")
-            return False
-        return True
+        return poll_character(cls, context)
 
     def execute(self, context):
         character = context.active_object

@@ -6,7 +6,7 @@ import bpy
 
 from ..blender.settings import WrapSettings
 from ..blender.wrap import pairs_or_proposed, refresh_markers, show_wrapped, store_wrap, wrap_object
-from .base import expected_errors, poll_mesh, progress_cursor
+from .base import expected_errors, poll_character, progress_cursor
 
 
 class WrapOperator:
@@ -15,13 +15,7 @@ class WrapOperator:
 
     @classmethod
     def poll(cls, context):
-        if not poll_mesh(cls, context):
-            return False
-        template = context.scene.shapesmith.transfer.source
-        if template is None or template == context.active_object:
-            cls.poll_message_set("Pick the template in the Transfer panel and make the character active")
-            return False
-        return True
+        return poll_character(cls, context)
 
     def execute(self, context):
         character = context.active_object
