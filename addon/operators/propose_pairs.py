@@ -1,6 +1,6 @@
 """Propose Pairs: the character's point pairs filled from the same features found on both
-heads (eye and mouth corners, lid and lip centres, nose tip and wings, chin, brows), for the
-rigger to review and move instead of clicking each."""
+heads (eye and mouth corners, nose tip and wings, chin), for the rigger to review and move
+instead of clicking each."""
 
 import bpy
 
@@ -12,8 +12,8 @@ class SHAPESMITH_OT_propose_point_pairs(bpy.types.Operator):
     bl_idname = "shapesmith.propose_point_pairs"
     bl_label = "Propose Pairs"
     bl_description = (
-        "Replace the point pairs with ones found on both heads: eye and mouth corners, lid and lip centres, "
-        "nose tip and wings, chin and brows (the template's from its keys and shape, the character's from its shape)"
+        "Replace the point pairs with ones found on both heads: eye and mouth corners, "
+        "nose tip and wings, and chin (the template's from its keys and shape, the character's from its shape)"
     )
     bl_options = {"REGISTER", "UNDO"}
 

@@ -63,9 +63,9 @@ fn wrap_template<'py>(
 /// propose_pairs(template_neutral, template_deltas, template_triangles, names, character_neutral,
 ///               character_triangles, *, progress=None) -> dict
 ///
-/// Point pairs found on both heads (eye and mouth corners, lid and lip centres, nose tip and
-/// wings, chin, brows): `pairs` (each `name`, `template_vertex`, `character_vertex`,
-/// `template`, `character`: vertices and their rest points), `missing` (features not found on
+/// Point pairs found on both heads (eye and mouth corners, nose tip and wings, chin): `pairs`
+/// (each `name`, `template_vertex`, `character_vertex`, `template`, `character`: vertices and
+/// their rest points), `missing` (features not found on
 /// both), the alignment they were found through (`similarity`, `alignment_distance`), both
 /// heads' front and up, `warnings`. The template's keys (float32 (K, Nt, 3)) and names tell
 /// where its face is and which way it looks.
