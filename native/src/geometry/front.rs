@@ -168,8 +168,8 @@ fn symmetry_axis(points: &[[f32; 3]], weights: &[f64], preferred: usize) -> Opti
 
 /// Up: perpendicular to `front`, from the lower face's moving regions to the upper's.
 fn find_up(rig: &RigView, front: Vec3, lateral_axis: Option<usize>) -> (Vec3, UpSource) {
-    let upper = region_centroid(rig, &UPPER_NAMES);
-    let lower = region_centroid(rig, &LOWER_NAMES);
+    let upper = region_centroid(rig, &UPPER_NAMES, |_| true);
+    let lower = region_centroid(rig, &LOWER_NAMES, |_| true);
     // Within the symmetry plane, up is one of the two directions perpendicular to the front.
     let plane_up = lateral_axis.and_then(|a| unit(cross(front, axis_vector(a, 1.0))));
     if let (Some(upper), Some(lower)) = (upper, lower) {
@@ -188,8 +188,8 @@ fn find_up(rig: &RigView, front: Vec3, lateral_axis: Option<usize>) -> (Vec3, Up
 }
 
 /// The motion-weighted centroid of the shapes whose names contain one of `words`
-/// (case-insensitive), or `None` when none of them moves.
-fn region_centroid(rig: &RigView, words: &[&str]) -> Option<Vec3> {
+/// (case-insensitive), over the rest points `keep` accepts, or `None` when none of them moves.
+pub(crate) fn region_centroid(rig: &RigView, words: &[&str], keep: impl Fn(Vec3) -> bool) -> Option<Vec3> {
     let floor = INERT_FRACTION * rig.bbox_diagonal();
     let mut sum = [0.0; 3];
     let mut total = 0.0;
@@ -200,8 +200,12 @@ fn region_centroid(rig: &RigView, words: &[&str]) -> Option<Vec3> {
             continue;
         }
         for (p, d) in rig.neutral.iter().zip(rig.delta(k)) {
+            let p = to_f64(p);
+            if !keep(p) {
+                continue;
+            }
             let w = norm(d) / max;
-            sum = add(sum, scale(to_f64(p), w));
+            sum = add(sum, scale(p, w));
             total += w;
         }
     }

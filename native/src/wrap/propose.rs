@@ -31,13 +31,13 @@
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::front::{find_front, outward_normals};
+use crate::geometry::front::{find_front, outward_normals, region_centroid};
 use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, unit, Vec3};
 use crate::geometry::topology::{boundary_edges, connected_components, Adjacency};
 use crate::geometry::weld::{Weld, WeldedRig};
 use crate::invalid;
 use crate::progress::Progress;
-use crate::rig::{bbox_diagonal, norm, RigView, INERT_FRACTION};
+use crate::rig::{bbox_diagonal, RigView};
 
 use super::align::{similarity_from_pairs, symmetric_eigen, Similarity};
 use super::skin_flags;
@@ -365,26 +365,9 @@ struct Seeds {
 }
 
 fn rig_seeds(rig: &RigView, frame: &Frame) -> Seeds {
-    let floor = INERT_FRACTION * rig.bbox_diagonal();
-    let centroid = |words: &[&str], side: Option<f64>| -> Option<Vec3> {
-        let (mut sum, mut total) = ([0.0; 3], 0.0);
-        for k in 0..rig.n_shapes() {
-            let name = rig.names[k].to_lowercase();
-            let max = rig.max_displacement(k);
-            if max <= floor || !words.iter().any(|w| name.contains(w)) {
-                continue;
-            }
-            for (p, d) in rig.neutral.iter().zip(rig.delta(k)) {
-                let p = to_f64(p);
-                if side.is_some_and(|s| s * frame.local(p)[0] <= 0.0) {
-                    continue;
-                }
-                let w = norm(d) / max;
-                sum = add(sum, scale(p, w));
-                total += w;
-            }
-        }
-        (total > 0.0).then(|| scale(sum, 1.0 / total))
+    // One side of the plane for each eye, both for the mouth.
+    let centroid = |words: &[&str], side: Option<f64>| {
+        region_centroid(rig, words, |p| !side.is_some_and(|s| s * frame.local(p)[0] <= 0.0))
     };
     Seeds { eyes: [centroid(&EYE_NAMES, Some(1.0)), centroid(&EYE_NAMES, Some(-1.0))], mouth: centroid(&MOUTH_NAMES, None) }
 }
