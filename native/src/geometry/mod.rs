@@ -9,5 +9,6 @@ pub mod mesh_faults;
 pub mod mirror;
 pub mod neighbours;
 pub mod penetration;
+pub mod similarity;
 pub mod topology;
 pub mod weld;

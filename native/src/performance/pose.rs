@@ -1,10 +1,12 @@
 //! The head's rigid pose `x = s R X + t` (X in the rig's own space), its update by a
-//! rotation vector, and its first guess from point pairs (weighted Kabsch / Umeyama 1991).
+//! rotation vector, and its first guess from point pairs (weighted Umeyama 1991, shared with
+//! the wrap in `geometry::similarity`).
 
 use faer::Mat;
 use serde::Serialize;
 
-use crate::geometry::mat3::{add, cross, determinant, dot, mat_mul, mat_vec, scale, sub, Mat3, Vec3, IDENTITY};
+use crate::geometry::mat3::{add, cross, dot, mat_mul, mat_vec, scale, sub, Mat3, Vec3, IDENTITY};
+use crate::geometry::similarity::fit_similarity;
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Pose {
@@ -84,49 +86,30 @@ fn orthonormalised(m: &Mat3) -> Mat3 {
     [x, y, cross(x, y)]
 }
 
-/// Weighted Umeyama (1991, Eq. (40)-(42)): the pose minimising `sum_i a_i |s R p_i + t - q_i|^2`
-/// over proper rotations (`s` fixed at 1 unless `with_scale`). `None` when the weighted points
+/// The pose minimising `sum_i a_i |s R p_i + t - q_i|^2` (weighted Umeyama,
+/// [`fit_similarity`]), `s` fixed at 1 unless `with_scale`. `None` when the weighted points
 /// span less than a plane (the rotation about their line is then free).
 pub fn fit_pose(source: &[Vec3], target: &[Vec3], weights: &[f64], with_scale: bool) -> Option<Pose> {
     let total: f64 = weights.iter().sum();
     if source.len() < 3 || total <= 0.0 {
         return None;
     }
-    let centre = |points: &[Vec3]| {
-        let sum = points.iter().zip(weights).fold([0.0; 3], |acc, (p, a)| add(acc, scale(*p, *a)));
-        scale(sum, 1.0 / total)
-    };
-    let (mu_p, mu_q) = (centre(source), centre(target));
-    let mut covariance = [[0.0; 3]; 3];
+    let mu_p = scale(source.iter().zip(weights).fold([0.0; 3], |acc, (p, a)| add(acc, scale(*p, *a))), 1.0 / total);
     let mut spread = [[0.0; 3]; 3];
-    let mut variance_p = 0.0;
-    for ((p, q), a) in source.iter().zip(target).zip(weights) {
-        let (dp, dq) = (sub(*p, mu_p), sub(*q, mu_q));
-        variance_p += a * dot(dp, dp);
+    for (p, a) in source.iter().zip(weights) {
+        let dp = sub(*p, mu_p);
         for r in 0..3 {
             for c in 0..3 {
-                covariance[r][c] += a * dq[r] * dp[c];
                 spread[r][c] += a * dp[r] * dp[c];
             }
         }
     }
-    let singular = |m: &Mat3| Mat::<f64>::from_fn(3, 3, |r, c| m[r][c]).singular_values().ok();
-    let spread_values = singular(&spread)?;
+    let spread_values = Mat::<f64>::from_fn(3, 3, |r, c| spread[r][c]).singular_values().ok()?;
     if !(spread_values[1] > 1e-12 * spread_values[0].max(f64::MIN_POSITIVE)) {
         return None;
     }
-    let svd = Mat::<f64>::from_fn(3, 3, |r, c| covariance[r][c]).svd().ok()?;
-    let (u, v, d) = (svd.U(), svd.V(), svd.S().column_vector());
-    let det_u = determinant(&std::array::from_fn(|r| std::array::from_fn(|c| u[(r, c)])));
-    let det_v = determinant(&std::array::from_fn(|r| std::array::from_fn(|c| v[(r, c)])));
-    let signs = [1.0, 1.0, if det_u * det_v < 0.0 { -1.0 } else { 1.0 }];
-    let rotation: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| u[(r, k)] * signs[k] * v[(c, k)]).sum()));
-    let s = if with_scale { (0..3).map(|k| d[k] * signs[k]).sum::<f64>() / variance_p } else { 1.0 };
-    if !(s > 0.0 && s.is_finite()) {
-        return None;
-    }
-    let translation = sub(mu_q, scale(mat_vec(&rotation, mu_p), s));
-    Some(Pose { rotation, translation, scale: s })
+    let fitted = fit_similarity(source, target, weights, with_scale)?;
+    Some(Pose { rotation: fitted.rotation, translation: fitted.translation, scale: fitted.scale })
 }
 
 #[cfg(test)]

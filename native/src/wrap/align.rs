@@ -7,24 +7,10 @@ use faer::{Mat, Side};
 
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::{add, determinant, mat_vec, scale, sub, Mat3, Vec3, IDENTITY};
+use crate::geometry::mat3::{add, determinant, mat_vec, scale, sub, Mat3, Vec3};
+pub use crate::geometry::similarity::Similarity;
+use crate::geometry::similarity::fit_similarity;
 use crate::invalid;
-
-/// `x -> scale * rotation * x + translation`.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct Similarity {
-    pub rotation: Mat3,
-    pub scale: f64,
-    pub translation: Vec3,
-}
-
-impl Similarity {
-    pub const IDENTITY: Similarity = Similarity { rotation: IDENTITY, scale: 1.0, translation: [0.0; 3] };
-
-    pub fn apply(&self, p: Vec3) -> Vec3 {
-        add(scale(mat_vec(&self.rotation, p), self.scale), self.translation)
-    }
-}
 
 /// The fewest pairs the alignment takes (SPEC section 5: a similarity has 7 degrees of
 /// freedom; 3 non-collinear pairs fix it, a fourth catches a misplaced one).
@@ -52,27 +38,9 @@ pub fn similarity_from_pairs(template: &[Vec3], character: &[Vec3]) -> Shapesmit
             ));
         }
     }
-    let n = template.len() as f64;
-    let (centres, covariance) = centred_covariance(character, template);
-    let (mu_q, mu_p) = centres;
-    let variance_p = template.iter().map(|p| {
-        let d = sub(*p, mu_p);
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-    }).sum::<f64>()
-        / n;
-    let m = Mat::<f64>::from_fn(3, 3, |r, c| covariance[r][c]);
-    let svd = m.svd().map_err(|e| ShapesmithError::Solver(format!("the alignment's SVD failed: {e:?}")))?;
-    let (u, v, d) = (svd.U(), svd.V(), svd.S().column_vector());
-    let det_u = determinant(&std::array::from_fn(|r| std::array::from_fn(|c| u[(r, c)])));
-    let det_v = determinant(&std::array::from_fn(|r| std::array::from_fn(|c| v[(r, c)])));
-    let signs = [1.0, 1.0, if det_u * det_v < 0.0 { -1.0 } else { 1.0 }];
-    let rotation: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| u[(r, k)] * signs[k] * v[(c, k)]).sum()));
-    let s = (0..3).map(|k| d[k] * signs[k]).sum::<f64>() / variance_p;
-    if !(s > 0.0 && s.is_finite()) {
-        return Err(invalid!("the point pairs do not agree on any orientation (scale {s}): check that each pair marks the same feature"));
-    }
-    let translation = sub(mu_q, scale(mat_vec(&rotation, mu_p), s));
-    Ok(Similarity { rotation, scale: s, translation })
+    fit_similarity(template, character, &vec![1.0; template.len()], true).ok_or_else(|| {
+        invalid!("the point pairs do not agree on any orientation: check that each pair marks the same feature")
+    })
 }
 
 /// Without pairs: centroids matched, scale from the RMS radii, the template's principal axes
