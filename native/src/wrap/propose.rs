@@ -29,10 +29,12 @@
 //! 4. A feature found on both meshes is a pair (template vertex, character vertex); one
 //!    missing on either (a closed scan without openings) is left out and named.
 
+use rayon::prelude::*;
+
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::front::{find_front, outward_normals, region_centroid};
-use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, unit, Vec3};
+use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, transpose, unit, Vec3};
 use crate::geometry::topology::{boundary_edges, connected_components, Adjacency};
 use crate::geometry::weld::{Weld, WeldedRig};
 use crate::invalid;
@@ -543,12 +545,13 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
     let template_samples: Vec<Vec3> = template.samples(SAMPLES).iter().map(|&v| template.points[v as usize]).collect();
     let character_samples: Vec<Vec3> = character.samples(SAMPLES).iter().map(|&v| character.points[v as usize]).collect();
     let target = TriangleBvh::build(&character.points, &character.skin_triangles);
+    let template_skin = TriangleBvh::build(&template.points, &template.skin_triangles);
     let s = character_size / template_size;
     let helper = if normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
     let (f, u, l) = (template_frame.front, template_frame.up, template_frame.lateral);
     let steps = (360.0 / TURN_STEP_DEGREES).round() as usize;
-    let mut screened: Vec<(Similarity, f64)> = Vec::new();
-    for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
+    let mut starts = Vec::with_capacity(2 * steps);
+    for sign in [1.0, -1.0] {
         let lateral = scale(normal, sign);
         let b1 = unit(cross(lateral, helper)).unwrap_or(helper);
         let b2 = cross(lateral, b1);
@@ -558,20 +561,23 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
             let front = cross(lateral, up);
             // R = [up front lateral] [u f l]^T: the template's frame onto this one.
             let rotation: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| up[r] * u[c] + front[r] * f[c] + lateral[r] * l[c]));
-            let start = Similarity { rotation, scale: s, translation: sub(origin, scale(mat_vec(&rotation, template_frame.origin), s)) };
-            screened.push(trimmed_icp(template, &template_samples, &character_samples, &target, start, SCREEN_ITERATIONS));
-            progress.checkpoint(0.3 + 0.4 * (k * steps + step + 1) as f64 / (2 * steps) as f64)?;
+            starts.push(Similarity { rotation, scale: s, translation: sub(origin, scale(mat_vec(&rotation, template_frame.origin), s)) });
         }
+    }
+    // The starts are independent: screened side by side, a batch per checkpoint.
+    let icp = |start: Similarity, iterations: usize| trimmed_icp(&template_skin, &template_samples, &character_samples, &target, start, iterations);
+    let mut screened: Vec<(Similarity, f64)> = Vec::with_capacity(starts.len());
+    let batch = 2 * rayon::current_num_threads();
+    for chunk in starts.chunks(batch) {
+        screened.extend(chunk.par_iter().map(|&start| icp(start, SCREEN_ITERATIONS)).collect::<Vec<_>>());
+        progress.checkpoint(0.3 + 0.4 * screened.len() as f64 / starts.len() as f64)?;
     }
     // The few closest screened starts refined: a few steps rank the turns only roughly.
     screened.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut best: Option<(Similarity, f64)> = None;
-    for (start, _) in screened.into_iter().take(REFINED_STARTS) {
-        let (motion, distance) = trimmed_icp(template, &template_samples, &character_samples, &target, start, REFINE_ITERATIONS);
-        if best.as_ref().is_none_or(|(_, d)| distance < *d) {
-            best = Some((motion, distance));
-        }
-    }
+    let refined: Vec<(Similarity, f64)> =
+        screened.into_par_iter().take(REFINED_STARTS).map(|(start, _)| icp(start, REFINE_ITERATIONS)).collect();
+    // The first of the closest, as a serial run would keep it.
+    let best = refined.into_iter().reduce(|best, next| if next.1 < best.1 { next } else { best });
     progress.checkpoint(0.8)?;
     let (motion, distance) = best.ok_or_else(|| invalid!("the template's skin could not be aligned with the character's"))?;
     Ok((motion, distance / character.diagonal))
@@ -611,9 +617,11 @@ fn mirror_distance(mesh: &Mesh, normal: Vec3, origin: Vec3) -> f64 {
 
 /// Similarity ICP with closest points both ways (template samples onto the character's skin,
 /// character samples onto the moved template's skin), the farthest [`TRIM`] dropped each
-/// step; returns the motion and its last mean kept distance.
+/// step; returns the motion and its last mean kept distance. The moved template's closest
+/// point to `q` is the motion of the rest skin's (`template_skin`) closest point to
+/// `motion^-1(q)`, at `s` times the distance: one hierarchy serves every step and start.
 fn trimmed_icp(
-    template: &Mesh,
+    template_skin: &TriangleBvh,
     template_samples: &[Vec3],
     character_samples: &[Vec3],
     target: &TriangleBvh,
@@ -623,8 +631,7 @@ fn trimmed_icp(
     let mut motion = start;
     let mut mean = f64::INFINITY;
     for _ in 0..iterations {
-        let moved: Vec<Vec3> = template.points.iter().map(|&p| motion.apply(p)).collect();
-        let source = TriangleBvh::build(&moved, &template.skin_triangles);
+        let back = transpose(&motion.rotation);
         let mut pairs: Vec<(f64, Vec3, Vec3)> = Vec::with_capacity(template_samples.len() + character_samples.len());
         for &p in template_samples {
             if let Some(hit) = target.closest_point(&motion.apply(p), f64::INFINITY) {
@@ -632,10 +639,9 @@ fn trimmed_icp(
             }
         }
         for &q in character_samples {
-            if let Some(hit) = source.closest_point(&q, f64::INFINITY) {
-                let corners = template.skin_triangles[hit.triangle as usize];
-                let p = (0..3).fold([0.0; 3], |acc, k| add(acc, scale(template.points[corners[k] as usize], hit.barycentric[k])));
-                pairs.push((hit.distance_squared, p, q));
+            let rest = scale(mat_vec(&back, sub(q, motion.translation)), 1.0 / motion.scale);
+            if let Some(hit) = template_skin.closest_point(&rest, f64::INFINITY) {
+                pairs.push((hit.distance_squared * motion.scale * motion.scale, hit.point, q));
             }
         }
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
