@@ -39,10 +39,14 @@
 //! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
 //!
 //! # Deviations (numbers and the alternatives that lost: docs/design.md, "Wrap")
-//! - **Two attempts against static pieces** ([`ATTEMPTS`]): first a corner that moved at most
-//!   twice the margin goes back to rest (skin resting on the teeth or an eyeball crosses it
-//!   there as the neutral does); while the shape is still worse, a second attempt from the
-//!   plain carry holds every such corner at the margin. The least excess is kept.
+//! - **Three attempts** ([`ATTEMPTS`]): first a corner that moved at most twice the margin
+//!   against a static piece goes back to rest (skin resting on the teeth or an eyeball crosses
+//!   it there as the neutral does); while the shape is still worse, a second attempt from the
+//!   plain carry holds every such corner at the margin; a third holds every free corner of a
+//!   crossing pair halfway back along its own motion, again each round (a lip that turns over
+//!   goes through the other lip's plane on the side it rested on, so the side test pushes it
+//!   the wrong way; halving its motion never crosses where the rest does not). The least
+//!   excess is kept.
 //! - **All rounds run**: a round that does not lower the excess can be followed by one that
 //!   clears the shape.
 //! - **Left worse**: the rolled lips (the lip turns over, so the side of the other triangle's

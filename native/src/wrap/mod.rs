@@ -34,7 +34,9 @@
 //!   the skin (the largest component) moves by the similarity that best maps the skin around
 //!   it from aligned to fitted; a piece whose centre and size match a character piece's (one
 //!   to one, by place and size, not by the user's pairs) is then fitted onto it by a
-//!   similarity ICP (`pieces`).
+//!   similarity ICP (`pieces`). Its carried keys are then not the gradients' but the
+//!   template piece's own motion mapped by the similarity that placed it
+//!   (`pieces::PieceMapping`): an eyeball's turn stays a turn about its centre.
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected
 //!   (SPEC), which leaves rim vertices without a data term; the skin's small boundary loops
 //!   (eye and mouth openings, not the neck cut) are paired with the character's by place and

@@ -261,7 +261,8 @@ pub fn parts(template: &[Vec3], triangles: &[[u32; 3]], character: &[Vec3], char
     }
 }
 
-/// A matched piece's keys as the template piece's own motion mapped by the similarity `S`
+/// A matched piece's keys, where the piece moves rigidly in the shape (within
+/// [`RIGID_MOTION`]), as the template piece's own motion mapped by the similarity `S`
 /// that placed it (rest -> wrapped, recovered from the two by Umeyama: the wrap's alignment,
 /// the skin around it and the piece's own fit composed). Per shape, `M` the similarity best
 /// taking the template piece from rest to posed (exact for an eyeball turning or the teeth
@@ -281,6 +282,10 @@ pub(super) struct PieceMapping {
     preimages: Vec<Vec3>,
     bound: Vec<crate::geometry::closest_point::SurfacePoint>,
 }
+
+/// A piece's motion in a shape is rigid when no vertex moves farther than this fraction of
+/// its largest motion from where the shape's best similarity of the piece takes it.
+const RIGID_MOTION: f64 = 0.01;
 
 /// The mappings of the matched pieces whose wrapped piece is a similarity image of the
 /// template's (within 1e-4 of its radius: else the piece was reshaped, and is carried).
@@ -317,12 +322,12 @@ impl PieceMapping {
     /// deltas, template vertex order; `still`: below this a template vertex is static) into
     /// the character's `deltas`, and marks the piece's vertices fixed (`fixed`: the collision
     /// pass moves the skin around a piece, not the piece). A piece static in the shape gets
-    /// exactly zero.
+    /// exactly zero; one that bends keeps its carried deltas.
     pub(super) fn write(&self, neutral: &[Vec3], own: &[[f32; 3]], still: f64, deltas: &mut [Vec3], fixed: &mut [bool]) {
         let delta = |v: usize| [0, 1, 2].map(|a| own[v][a] as f64);
-        let moves = self.template_members.iter().any(|&v| length(delta(v)) >= still);
-        self.character_members.iter().for_each(|&c| (deltas[c], fixed[c]) = ([0.0; 3], true));
-        if !moves {
+        let largest = self.template_members.iter().map(|&v| length(delta(v))).fold(0.0, f64::max);
+        if largest < still {
+            self.character_members.iter().for_each(|&c| (deltas[c], fixed[c]) = ([0.0; 3], true));
             return;
         }
         let rest: Vec<Vec3> = self.template_members.iter().map(|&v| neutral[v]).collect();
@@ -333,6 +338,13 @@ impl PieceMapping {
         for (&v, (p, q)) in self.template_members.iter().zip(rest.iter().zip(&posed)) {
             left[v] = sub(*q, motion.apply(*p));
         }
+        // A piece that bends in the shape (a tongue stretching out, lashes riding a closing
+        // lid) is carried with the skin's gradients: its own similarity, fitted to a thin or
+        // blob-like piece, says little about the directions its bend should take there.
+        if self.template_members.iter().any(|&v| length(left[v]) > RIGID_MOTION * largest) {
+            return;
+        }
+        self.character_members.iter().for_each(|&c| fixed[c] = true);
         for ((&c, y), hit) in self.character_members.iter().zip(&self.preimages).zip(&self.bound) {
             let t = self.template_triangles[hit.triangle as usize];
             let residual = (0..3).fold([0.0; 3], |acc, k| add(acc, scale(left[t[k] as usize], hit.barycentric[k])));
