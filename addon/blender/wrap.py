@@ -462,8 +462,12 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     collisions = transfer_settings.transfer.collisions
     carry = CarrySettings(collision_pass=collisions is not None, symmetrize=symmetric)
     # The template's rest gives the carry its mirror map: with a symmetric character each
-    # carried shape is averaged with the mirror of its partner's.
+    # carried shape is averaged with the mirror of its partner's; its own keys give each
+    # matched piece its motion (an eyeball turns as the template's does).
     template_neutral, _ = read_surface(template, "template")
+    template_rig, _ = read_face_rig(face_objects(template))
+    row = {name: k for k, name in enumerate(template_rig.names)}
+    template_shapes = template_rig.deltas[[row[name] for name in onto_wrapped.names]]
     if collisions is not None:
         carry.collision_margin = collisions.margin
     deltas, carry_report = native.module().carry_shapes(
@@ -474,6 +478,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
         character_triangles,
         carry.as_native(),
         template_neutral=np.ascontiguousarray(template_neutral, dtype=np.float32),
+        template_shapes=np.ascontiguousarray(template_shapes, dtype=np.float32),
         progress=halves[1],
         **template_curve(onto_wrapped.report),
     )

@@ -213,7 +213,7 @@ fn wrap_and_carry_onto_a_split_character_weld_its_seams() {
     let split = wrap_template(&r.split_points, &r.split_triangles, &split_character, &r.split_triangles, pairs, &params, &NoProgress).unwrap();
     assert_eq!(split.wrapped, pick(&welded.wrapped, &r.source, n));
     let carry = CarryParams { collision_pass: false, ..Default::default() };
-    let plain = carry_shapes(&welded.wrapped, &r.triangles, &r.deltas, &character, &r.triangles, None, None, &carry, &NoProgress).unwrap();
-    let onto_split = carry_shapes(&welded.wrapped, &r.triangles, &r.deltas, &split_character, &r.split_triangles, None, None, &carry, &NoProgress).unwrap();
+    let plain = carry_shapes(&welded.wrapped, &r.triangles, &r.deltas, &character, &r.triangles, None, None, None, &carry, &NoProgress).unwrap();
+    let onto_split = carry_shapes(&welded.wrapped, &r.triangles, &r.deltas, &split_character, &r.split_triangles, None, None, None, &carry, &NoProgress).unwrap();
     assert_eq!(onto_split.deltas, pick(&plain.deltas, &r.source, n));
 }

@@ -96,7 +96,7 @@ fn propose_pairs<'py>(
 
 /// carry_shapes(wrapped_neutral, template_triangles, template_deltas, character_neutral,
 ///              character_triangles, settings=None, *, template_added=None, template_crossing=None,
-///              template_neutral=None, progress=None)
+///              template_neutral=None, template_shapes=None, progress=None)
 ///     -> (deltas float32 (K, Nc, 3), report dict)
 ///
 /// `settings`: a dict onto [`CarryParams`] (None: `default_settings("carry")`):
@@ -108,6 +108,10 @@ fn propose_pairs<'py>(
 /// averaged with the mirror of its partner's before the collision pass; the report's
 /// `symmetry` says whether it was, and per mirror pair of shapes the worst vertex's miss
 /// (`symmetrize: false` only measures them).
+/// `template_shapes` (float32 (K, Nt, 3), the template's own deltas in its own space, the
+/// shapes of `template_deltas` in their order; with `template_neutral`) gives each character
+/// piece matching a template piece the template piece's own motion mapped by the similarity
+/// that placed it (an eyeball turns as the template's does, the teeth follow the jaw).
 /// `template_added` and `template_crossing` (float64 (K, 2) each, given together: per shape,
 /// the intersection curve the template's own shape adds to the template's neutral and its
 /// whole curve, inside one piece and between pieces, in the character's units: the transfer
@@ -120,7 +124,8 @@ fn propose_pairs<'py>(
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (wrapped_neutral, template_triangles, template_deltas, character_neutral, character_triangles,
-                    settings=None, *, template_added=None, template_crossing=None, template_neutral=None, progress=None))]
+                    settings=None, *, template_added=None, template_crossing=None, template_neutral=None, template_shapes=None,
+                    progress=None))]
 fn carry_shapes<'py>(
     py: Python<'py>,
     wrapped_neutral: PyReadonlyArray2<'py, f32>,
@@ -132,6 +137,7 @@ fn carry_shapes<'py>(
     template_added: Option<PyReadonlyArray2<'py, f64>>,
     template_crossing: Option<PyReadonlyArray2<'py, f64>>,
     template_neutral: Option<PyReadonlyArray2<'py, f32>>,
+    template_shapes: Option<PyReadonlyArray3<'py, f32>>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let params: CarryParams = read_settings(py, settings.as_ref(), "carry")?;
@@ -159,8 +165,12 @@ fn carry_shapes<'py>(
     let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
     let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
     let template_rest = template_neutral.as_ref().map(|t| arrays::points(t, "template_neutral")).transpose().map_err(py_err(py))?;
+    let template_own = template_shapes.as_ref().map(|t| arrays::deltas(t, wrapped.len())).transpose().map_err(py_err(py))?;
+    if template_own.as_ref().is_some_and(|(_, own_k)| *own_k != k) {
+        return Err(py_err(py)(crate::invalid!("template_shapes has {} shapes but template_deltas {k}", template_own.as_ref().map_or(0, |t| t.1))));
+    }
     let result = detached_with_progress(py, progress.as_ref(), |progress| {
-        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), template_rest, &params, progress)
+        run_carry(wrapped, &template_tris, deltas, character, &character_tris, template_curve.as_deref(), template_rest, template_own.map(|t| t.0), &params, progress)
     })?;
     let nc = character.len();
     let flat: Vec<f32> = result.deltas.iter().flatten().copied().collect();

@@ -179,6 +179,7 @@ pub fn carry_shapes(
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
     template_neutral: Option<&[[f32; 3]]>,
+    template_shapes: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -193,6 +194,19 @@ pub fn carry_shapes(
     let cos_max_angle = params.max_angle_degrees.to_radians().cos();
     let vertex_normals = crate::geometry::mat3::vertex_normals(&points, character_triangles);
     let parts = super::pieces::parts(&template, template_triangles, &points, character_triangles);
+    // With the template's own rest and shapes, a matched piece's keys are its motion mapped by
+    // the similarity that placed it (`pieces::PieceMapping`).
+    let neutral: Option<Vec<Vec3>> = template_neutral.map(|n| n.iter().map(to_f64).collect());
+    let mappings = match (&neutral, template_shapes) {
+        (Some(neutral), Some(_)) => super::pieces::piece_mappings(&parts.matched, neutral, &template, &points),
+        _ => Vec::new(),
+    };
+    let map_pieces = |k: usize, deltas: &mut [Vec3], fixed: &mut [bool]| {
+        let (Some(neutral), Some(shapes)) = (&neutral, template_shapes) else { return };
+        let own = &shapes[k * nt..(k + 1) * nt];
+        let still = params.static_fraction * own.iter().map(|d| length(to_f64(d))).fold(0.0, f64::max);
+        mappings.iter().for_each(|m| m.write(neutral, own, still, deltas, fixed));
+    };
     let vertex_binding = bind_facing(&points, &vertex_normals, &parts.character_vertex, &surface, &template_normals, &parts.template_triangle, cos_max_angle);
     let samples: Vec<Vec3> = character_triangles
         .iter()
@@ -275,7 +289,7 @@ pub fn carry_shapes(
     let solve = |k: usize| -> ShapesmithResult<Solved> {
         let deltas = &template_deltas[k * nt..(k + 1) * nt];
         let shape = Shape { deltas, template: &template, template_triangles, rest_inverse: &rest_inverse };
-        let (deltas, rhs, static_vertex) = shape.carry(
+        let (mut deltas, rhs, mut static_vertex) = shape.carry(
             &points,
             character_triangles,
             &operators,
@@ -288,6 +302,9 @@ pub fn carry_shapes(
             (&piece, n_pieces),
             params.static_fraction,
         )?;
+        // A mapped piece is its own component of the system and fixed for the pass: its rows
+        // of the right-hand side are never read again.
+        map_pieces(k, &mut deltas, &mut static_vertex);
         Ok(Solved { deltas, rhs, static_vertex })
     };
     let resolve = |k: usize, solved: Solved| -> ShapesmithResult<CarriedShape> {
@@ -329,6 +346,9 @@ pub fn carry_shapes(
             let (mut deltas, mut static_vertex): (Vec<Vec<Vec3>>, Vec<Vec<bool>>) = solved.into_iter().map(|s| (s.deltas, s.static_vertex)).unzip();
             let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&deltas[i], &deltas[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
             symmetry::average_with_mirror(&mut deltas, &mut static_vertex, &symmetric.pairs, &symmetric.mirror);
+            // The mapped pieces stay their template piece's motion, not its average with the
+            // mirror piece's (the fit may place the two eyes a little differently).
+            deltas.iter_mut().zip(&mut static_vertex).enumerate().for_each(|(k, (d, s))| map_pieces(k, d, s));
             // The averaged shape is the plain solution of its own right-hand side, `A d`, so
             // the pass re-solves around held vertices as it does for any carried shape.
             let shapes: Vec<CarriedShape> = deltas

@@ -39,10 +39,14 @@
 //! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
 //!
 //! # Deviations (numbers and the alternatives that lost: docs/design.md, "Wrap")
-//! - **Two attempts against static pieces** ([`ATTEMPTS`]): first a corner that moved at most
-//!   twice the margin goes back to rest (skin resting on the teeth or an eyeball crosses it
-//!   there as the neutral does); while the shape is still worse, a second attempt from the
-//!   plain carry holds every such corner at the margin. The least excess is kept.
+//! - **Three attempts** ([`ATTEMPTS`]): first a corner that moved at most twice the margin
+//!   against a static piece goes back to rest (skin resting on the teeth or an eyeball crosses
+//!   it there as the neutral does); while the shape is still worse, a second attempt from the
+//!   plain carry holds every such corner at the margin; a third holds every free corner of a
+//!   crossing pair halfway back along its own motion, again each round (a lip that turns over
+//!   goes through the other lip's plane on the side it rested on, so the side test pushes it
+//!   the wrong way; halving its motion never crosses where the rest does not). The least
+//!   excess is kept.
 //! - **All rounds run**: a round that does not lower the excess can be followed by one that
 //!   clears the shape.
 //! - **Left worse**: the rolled lips (the lip turns over, so the side of the other triangle's
@@ -99,10 +103,22 @@ impl CarryPenetration {
     }
 }
 
-/// The attempts, each from the plain carry, while the shape is still worse: skin that moved
-/// little sent back to rest against a static piece, then held at the margin like the rest
-/// (each clears shapes the other does not: Deviations).
-const ATTEMPTS: [bool; 2] = [true, false];
+/// How an attempt holds a crossing vertex (module docs, "Holds" and Deviations).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum HoldRule {
+    /// At the margin off the other surface, skin that moved at most twice the margin against a
+    /// static piece back to rest.
+    BackToRest,
+    /// At the margin off the other surface.
+    Margin,
+    /// Halfway back along its own motion, each round: for a lip that turns over, where the
+    /// side of the other lip's plane it rested on says nothing.
+    AlongPath,
+}
+
+/// The attempts, each from the plain carry, while the shape is still worse (each clears
+/// shapes the others do not: Deviations).
+const ATTEMPTS: [HoldRule; 3] = [HoldRule::BackToRest, HoldRule::Margin, HoldRule::AlongPath];
 
 /// Re-solved rounds per attempt at most.
 const ROUNDS: usize = 4;
@@ -259,7 +275,7 @@ impl<'a> Guard<'a> {
         }
         let mut best = plain.clone();
         let mut best_penetration = plain_sweep.penetration;
-        for back_to_rest in ATTEMPTS {
+        for rule in ATTEMPTS {
             if outcome.excess <= self.tolerance {
                 break;
             }
@@ -269,7 +285,7 @@ impl<'a> Guard<'a> {
             let mut current_sweep = None;
             for _ in 0..ROUNDS {
                 let sweep = current_sweep.as_ref().unwrap_or(&plain_sweep);
-                if !self.hold(&sweep.posed, &sweep.pairs, &current, static_vertex, parts, back_to_rest, &mut targets) {
+                if !self.hold(&sweep.posed, &sweep.pairs, &current, static_vertex, parts, rule, &mut targets) {
                     break;
                 }
                 let (round, region) = self.local_solve(solved, rhs, static_vertex, &targets, matrix)?;
@@ -300,7 +316,7 @@ impl<'a> Guard<'a> {
         deltas: &[[f32; 3]],
         static_vertex: &[bool],
         parts: AddedCurve,
-        back_to_rest: bool,
+        rule: HoldRule,
         targets: &mut BTreeMap<usize, Vec3>,
     ) -> bool {
         let mut piece_moves = vec![false; self.n_pieces];
@@ -322,8 +338,11 @@ impl<'a> Guard<'a> {
                         continue;
                     }
                     let other_piece = self.triangle_piece[other as usize];
-                    let push = if !inside && !piece_moves[other_piece as usize] {
-                        self.off_static_piece(posed[u], u, other_piece, back_to_rest)
+                    let push = if rule == HoldRule::AlongPath {
+                        let back = scale(sub(self.points[u], posed[u]), 0.5);
+                        (length(back) > 1e-3 * self.margin[u]).then_some(back)
+                    } else if !inside && !piece_moves[other_piece as usize] {
+                        self.off_static_piece(posed[u], u, other_piece, rule == HoldRule::BackToRest)
                     } else {
                         let other_moves = self.triangles[other as usize].iter().any(|&w| deltas[w as usize] != [0.0; 3]);
                         self.off_plane(posed, u, other as usize).map(|p| if other_moves { scale(p, 0.5) } else { p })
@@ -510,6 +529,7 @@ mod tests {
             &character,
             &character_triangles,
             collisions.then_some(&none[..]),
+            None,
             None,
             params,
             &NoProgress,

@@ -34,7 +34,9 @@
 //!   the skin (the largest component) moves by the similarity that best maps the skin around
 //!   it from aligned to fitted; a piece whose centre and size match a character piece's (one
 //!   to one, by place and size, not by the user's pairs) is then fitted onto it by a
-//!   similarity ICP (`pieces`).
+//!   similarity ICP (`pieces`). Its carried keys are then not the gradients' but the
+//!   template piece's own motion mapped by the similarity that placed it
+//!   (`pieces::PieceMapping`): an eyeball's turn stays a turn about its centre.
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected
 //!   (SPEC), which leaves rim vertices without a data term; the skin's small boundary loops
 //!   (eye and mouth openings, not the neck cut) are paired with the character's by place and
@@ -433,7 +435,10 @@ fn wrap_welded(
 ///
 /// With `template_neutral` (the template's rest, template vertex order) the carry is
 /// symmetric when template and character are (`symmetry`; the result's `symmetry` says which
-/// was done and the mirror misses).
+/// was done and the mirror misses); with `template_shapes` too (the template's own deltas,
+/// K x Nt, template space, the shapes of `template_deltas` in their order) a matched piece's
+/// keys are the template piece's own motion mapped by the similarity that placed it
+/// (`pieces::PieceMapping`: eyeballs turn as eyeballs, teeth follow the jaw).
 ///
 /// Carried between the welded surfaces: the wrapped template's ([`Weld::of_rig`], as the
 /// transfer welds it) and the character's own (its UV seams), so that every copy of a
@@ -447,11 +452,16 @@ pub fn carry_shapes(
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
     template_neutral: Option<&[[f32; 3]]>,
+    template_shapes: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
-    if wrapped.is_empty() || !template_deltas.len().is_multiple_of(wrapped.len()) || template_neutral.is_some_and(|t| t.len() != wrapped.len()) {
-        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, params, progress);
+    if wrapped.is_empty()
+        || !template_deltas.len().is_multiple_of(wrapped.len())
+        || template_neutral.is_some_and(|t| t.len() != wrapped.len())
+        || template_shapes.is_some_and(|t| t.len() != template_deltas.len())
+    {
+        return carry_welded(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, template_shapes, params, progress);
     }
     let template_weld = Weld::of_rig(wrapped, template_deltas, template_triangles);
     let character_weld = Weld::new(character, character_triangles);
@@ -463,6 +473,7 @@ pub fn carry_shapes(
         &character_weld.triangles,
         template_curve,
         template_neutral.map(|neutral| template_weld.gather(neutral)).as_deref(),
+        template_shapes.map(|shapes| template_weld.gather(shapes)).as_deref(),
         params,
         progress,
     )?;
@@ -479,6 +490,7 @@ fn carry_welded(
     character_triangles: &[[u32; 3]],
     template_curve: Option<&[TemplateCurve]>,
     template_neutral: Option<&[[f32; 3]]>,
+    template_shapes: Option<&[[f32; 3]]>,
     params: &CarryParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<CarryResult> {
@@ -513,7 +525,13 @@ fn carry_welded(
         }
         validate_points(neutral, "template neutral")?;
     }
-    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, params, progress)
+    if let Some(shapes) = template_shapes {
+        if template_neutral.is_none() || shapes.len() != template_deltas.len() {
+            return Err(invalid!("the template's own shapes need its rest, and as many rows as the wrapped template's deltas ({} for {})", shapes.len(), template_deltas.len()));
+        }
+        validate_points(shapes, "template shapes")?;
+    }
+    carry::carry_shapes(wrapped, template_triangles, template_deltas, character, character_triangles, template_curve, template_neutral, template_shapes, params, progress)
 }
 
 /// The symmetry of template and character (`symmetry`): the template's vertex map and the

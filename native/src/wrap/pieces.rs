@@ -10,7 +10,7 @@
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::{add, cross, length, sub, Vec3};
+use crate::geometry::mat3::{add, cross, length, mat_vec, scale, sub, transpose, Vec3};
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::connected_components;
 
@@ -222,6 +222,15 @@ pub struct Parts {
     pub template_triangle: Vec<u32>,
     pub character_vertex: Vec<u32>,
     pub character_triangle: Vec<u32>,
+    /// The matched pieces, in part order (part `k + 1` is `matched[k]`).
+    pub matched: Vec<MatchedPiece>,
+}
+
+/// A template piece and the character piece it matches (vertex lists, sorted).
+pub struct MatchedPiece {
+    pub template_members: Vec<usize>,
+    pub template_triangles: Vec<[u32; 3]>,
+    pub character_members: Vec<usize>,
 }
 
 /// A character piece with no template piece of its place and size binds to any triangle.
@@ -237,14 +246,111 @@ pub fn parts(template: &[Vec3], triangles: &[[u32; 3]], character: &[Vec3], char
     let mut template_vertex = vec![ANY_PART; template.len()];
     let mut character_vertex: Vec<u32> = is_character_skin.iter().map(|&s| if s { 0 } else { ANY_PART }).collect();
     (0..template.len()).filter(|&v| is_skin[v]).for_each(|v| template_vertex[v] = 0);
+    let mut matched = Vec::new();
     for (k, (i, j)) in match_pieces(&template_moments, &character_moments, MATCH_DISTANCE).into_iter().enumerate() {
         template_pieces[i].0.iter().for_each(|&v| template_vertex[v] = k as u32 + 1);
         character_pieces[j].0.iter().for_each(|&v| character_vertex[v] = k as u32 + 1);
+        let (template_members, template_triangles) = template_pieces[i].clone();
+        matched.push(MatchedPiece { template_members, template_triangles, character_members: character_pieces[j].0.clone() });
     }
     Parts {
         template_triangle: triangles.iter().map(|t| template_vertex[t[0] as usize]).collect(),
         character_triangle: character_triangles.iter().map(|t| character_vertex[t[0] as usize]).collect(),
         character_vertex,
+        matched,
+    }
+}
+
+/// A matched piece's keys, where the piece moves rigidly in the shape (within
+/// [`RIGID_MOTION`]), as the template piece's own motion mapped by the similarity `S`
+/// that placed it (rest -> wrapped, recovered from the two by Umeyama: the wrap's alignment,
+/// the skin around it and the piece's own fit composed). Per shape, `M` the similarity best
+/// taking the template piece from rest to posed (exact for an eyeball turning or the teeth
+/// following the jaw) and `r` what is left of its motion (a tongue's bend), each character
+/// vertex `c` of the matched piece moves to
+/// $$ c + d_c = S\big(M(y) + r(\hat y)\big), \qquad y = S^{-1}(c), $$
+/// `\hat y` the closest point to `y` on the template piece at rest (`r` interpolated there).
+/// A piece's motion so stays a rotation about its own centre, which the carry's gradients,
+/// sampled across the piece and integrated with the screening's pull to the barycentric copy,
+/// only approximate.
+pub(super) struct PieceMapping {
+    template_members: Vec<usize>,
+    template_triangles: Vec<[u32; 3]>,
+    character_members: Vec<usize>,
+    placed: Similarity,
+    /// `y` per character member, and its closest point on the template piece at rest.
+    preimages: Vec<Vec3>,
+    bound: Vec<crate::geometry::closest_point::SurfacePoint>,
+}
+
+/// A piece's motion in a shape is rigid when no vertex moves farther than this fraction of
+/// its largest motion from where the shape's best similarity of the piece takes it.
+const RIGID_MOTION: f64 = 0.01;
+
+/// The mappings of the matched pieces whose wrapped piece is a similarity image of the
+/// template's (within 1e-4 of its radius: else the piece was reshaped, and is carried).
+pub(super) fn piece_mappings(matched: &[MatchedPiece], neutral: &[Vec3], wrapped: &[Vec3], character: &[Vec3]) -> Vec<PieceMapping> {
+    matched
+        .iter()
+        .filter_map(|piece| {
+            let rest: Vec<Vec3> = piece.template_members.iter().map(|&v| neutral[v]).collect();
+            let placed_points: Vec<Vec3> = piece.template_members.iter().map(|&v| wrapped[v]).collect();
+            let placed = similarity_from_pairs(&rest, &placed_points).ok()?;
+            let radius = moments(wrapped, &piece.template_triangles)?.radius;
+            let misfit = rest.iter().zip(&placed_points).map(|(p, q)| length(sub(placed.apply(*p), *q))).fold(0.0, f64::max);
+            if misfit > 1e-4 * radius {
+                return None;
+            }
+            let inverse = |c: Vec3| scale(mat_vec(&transpose(&placed.rotation), sub(c, placed.translation)), 1.0 / placed.scale);
+            let preimages: Vec<Vec3> = piece.character_members.iter().map(|&c| inverse(character[c])).collect();
+            let surface = TriangleBvh::build(neutral, &piece.template_triangles);
+            let bound = preimages.iter().map(|y| surface.closest_point(y, f64::INFINITY)).collect::<Option<Vec<_>>>()?;
+            Some(PieceMapping {
+                template_members: piece.template_members.clone(),
+                template_triangles: piece.template_triangles.clone(),
+                character_members: piece.character_members.clone(),
+                placed,
+                preimages,
+                bound,
+            })
+        })
+        .collect()
+}
+
+impl PieceMapping {
+    /// Writes the piece's mapped motion for one template shape (`own`: the template's own
+    /// deltas, template vertex order; `still`: below this a template vertex is static) into
+    /// the character's `deltas`, and marks the piece's vertices fixed (`fixed`: the collision
+    /// pass moves the skin around a piece, not the piece). A piece static in the shape gets
+    /// exactly zero; one that bends keeps its carried deltas.
+    pub(super) fn write(&self, neutral: &[Vec3], own: &[[f32; 3]], still: f64, deltas: &mut [Vec3], fixed: &mut [bool]) {
+        let delta = |v: usize| [0, 1, 2].map(|a| own[v][a] as f64);
+        let largest = self.template_members.iter().map(|&v| length(delta(v))).fold(0.0, f64::max);
+        if largest < still {
+            self.character_members.iter().for_each(|&c| (deltas[c], fixed[c]) = ([0.0; 3], true));
+            return;
+        }
+        let rest: Vec<Vec3> = self.template_members.iter().map(|&v| neutral[v]).collect();
+        let posed: Vec<Vec3> = self.template_members.iter().map(|&v| add(neutral[v], delta(v))).collect();
+        let Ok(motion) = similarity_from_pairs(&rest, &posed) else { return };
+        // What the similarity leaves of each template vertex's motion.
+        let mut left = vec![[0.0; 3]; neutral.len()];
+        for (&v, (p, q)) in self.template_members.iter().zip(rest.iter().zip(&posed)) {
+            left[v] = sub(*q, motion.apply(*p));
+        }
+        // A piece that bends in the shape (a tongue stretching out, lashes riding a closing
+        // lid) is carried with the skin's gradients: its own similarity, fitted to a thin or
+        // blob-like piece, says little about the directions its bend should take there.
+        if self.template_members.iter().any(|&v| length(left[v]) > RIGID_MOTION * largest) {
+            return;
+        }
+        self.character_members.iter().for_each(|&c| fixed[c] = true);
+        for ((&c, y), hit) in self.character_members.iter().zip(&self.preimages).zip(&self.bound) {
+            let t = self.template_triangles[hit.triangle as usize];
+            let residual = (0..3).fold([0.0; 3], |acc, k| add(acc, scale(left[t[k] as usize], hit.barycentric[k])));
+            let image = self.placed.apply(add(motion.apply(*y), residual));
+            deltas[c] = sub(image, self.placed.apply(*y));
+        }
     }
 }
 

@@ -103,6 +103,7 @@ fn chain(character_lumps: &[Vec3], symmetric_carry: bool) -> Chain {
         &dense_triangles,
         None,
         symmetric_carry.then_some(&as_f32(&template)[..]),
+        None,
         &CarryParams::default(),
         &NoProgress,
     )

@@ -3,7 +3,7 @@
 //! moved by a known similarity.
 
 use super::*;
-use crate::geometry::mat3::{mat_mul, Mat3};
+use crate::geometry::mat3::{mat_mul, mat_vec, scale, Mat3};
 use crate::progress::NoProgress;
 
 /// A lumpy ellipsoid, `rings` latitude bands by `2 * rings` segments, outward triangles.
@@ -127,6 +127,7 @@ fn carry_reproduces_a_smooth_deformation_far_better_than_nearest_vertex() {
         &character_triangles,
         None,
         None,
+        None,
         &CarryParams::default(),
         &NoProgress,
     )
@@ -247,4 +248,95 @@ fn a_piece_lands_on_the_characters_piece_of_its_place_and_size() {
     assert!(error < 0.05 * 0.23, "eye vertices {error} from where the true similarity takes them");
     // The skin is not touched.
     assert!(fitted[..skin.len()] == template[..skin.len()]);
+}
+
+#[test]
+fn a_matched_eyeball_gets_the_templates_turn_mapped_by_its_similarity() {
+    // Template: a lumpy skin and an eyeball (a sphere) inside it; one shape turns the eyeball
+    // by 0.3 rad about its centre and moves the skin a little.
+    let (skin, skin_triangles) = lumpy_box(12);
+    let ball = |rings: usize, phase: f64| sphere_mesh(rings, 2 * rings, phase, |theta: f64, phi: f64| [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()]);
+    let (unit_ball, ball_triangles) = ball(8, 0.0);
+    let (centre, radius) = ([0.6, 0.1, 0.0], 0.2);
+    let eye_rest = Similarity { rotation: IDENTITY_ROTATION, scale: radius, translation: centre };
+    let mut template = skin.clone();
+    let mut triangles = skin_triangles.clone();
+    let (eye, eye_triangles) = placed(&unit_ball, &ball_triangles, &eye_rest, template.len() as u32);
+    template.extend(eye);
+    triangles.extend(eye_triangles);
+    let turn = rotation(0.3, 0.2);
+    let own: Vec<[f32; 3]> = template
+        .iter()
+        .enumerate()
+        .map(|(v, p)| if v < skin.len() { local_motion(*p).map(|x| 0.2 * x) } else { sub(add(mat_vec(&turn, sub(*p, centre)), centre), *p) })
+        .map(|d| d.map(|x| x as f32))
+        .collect();
+    // Wrapped: the skin under `skin_motion`, the eyeball under `eye_motion` (the skin's and the
+    // piece's own fit), in other units and axes; its keys rotated and scaled as a whole (what
+    // the transfer gives, blind to the piece's own turn).
+    let skin_motion = Similarity { rotation: rotation(1.1, -0.4), scale: 50.0, translation: [3.0, -2.0, 7.0] };
+    let piece_fit = Similarity { rotation: rotation(0.15, 0.1), scale: 1.08, translation: [0.4, -0.3, 0.2] };
+    let eye_motion = Similarity {
+        rotation: mat_mul(&piece_fit.rotation, &skin_motion.rotation),
+        scale: piece_fit.scale * skin_motion.scale,
+        translation: piece_fit.apply(skin_motion.translation),
+    };
+    let wrapped: Vec<Vec3> = template.iter().enumerate().map(|(v, p)| if v < skin.len() { skin_motion.apply(*p) } else { eye_motion.apply(*p) }).collect();
+    let wrapped_deltas: Vec<[f32; 3]> =
+        own.iter().map(|d| mat_vec(&skin_motion.rotation, to_f64(d)).map(|x| (x * skin_motion.scale) as f32)).collect();
+    // Character: the skin resampled, the eyeball resampled (other rings, turned segments),
+    // both where the wrapped template's are.
+    let (dense_skin, dense_skin_triangles) = lumpy_box(19);
+    let (dense_ball, dense_ball_triangles) = ball(11, 0.37);
+    let mut character: Vec<Vec3> = dense_skin.iter().map(|p| skin_motion.apply(*p)).collect();
+    let mut character_triangles = dense_skin_triangles.clone();
+    let (eye, eye_triangles) = placed(&dense_ball, &dense_ball_triangles, &eye_rest, character.len() as u32);
+    character.extend(eye.iter().map(|p| eye_motion.apply(*p)));
+    character_triangles.extend(eye_triangles);
+    let carry = |shapes: Option<&[[f32; 3]]>| {
+        carry_shapes(
+            &as_f32(&wrapped),
+            &triangles,
+            &wrapped_deltas,
+            &as_f32(&character),
+            &character_triangles,
+            None,
+            Some(&as_f32(&template)),
+            shapes,
+            &CarryParams::default(),
+            &NoProgress,
+        )
+        .unwrap()
+    };
+    let mapped = carry(Some(&own));
+    let carried = carry(None);
+    // The truth at a character eyeball vertex c: the template's turn about its centre, mapped
+    // by the eyeball's similarity: eye_motion(centre + turn (y - centre)) - c, y its preimage.
+    let inverse = |c: Vec3| scale(mat_vec(&crate::geometry::mat3::transpose(&eye_motion.rotation), sub(c, eye_motion.translation)), 1.0 / eye_motion.scale);
+    let largest = (2.0 * (0.3f64 / 2.0).sin()).max(0.2) * radius * eye_motion.scale;
+    let miss = |result: &CarryResult| -> f64 {
+        (dense_skin.len()..character.len())
+            .map(|c| {
+                let p = to_f32_point(character[c]);
+                let y = inverse(p);
+                let truth = sub(eye_motion.apply(add(mat_vec(&turn, sub(y, centre)), centre)), p);
+                length(sub(to_f64(&result.deltas[c]), truth))
+            })
+            .fold(0.0, f64::max)
+            / largest
+    };
+    // Exact up to f32 rounding (1e-7 of the 5e1 scale); the plain carry's gradients, sampled
+    // without the piece's own turn, miss by far more.
+    assert!(miss(&mapped) < 1e-5, "mapped eyeball misses by {} of its motion", miss(&mapped));
+    assert!(miss(&carried) > 100.0 * miss(&mapped), "carried {} mapped {}", miss(&carried), miss(&mapped));
+    // The skin is carried as without the template's own shapes.
+    let skin_gap = (0..dense_skin.len()).map(|v| length(sub(to_f64(&mapped.deltas[v]), to_f64(&carried.deltas[v])))).fold(0.0, f64::max);
+    assert!(skin_gap < 1e-6 * skin_motion.scale, "the skin changed by {skin_gap}");
+}
+
+const IDENTITY_ROTATION: Mat3 = crate::geometry::mat3::IDENTITY;
+
+/// A point as the carry reads it (f32), back in f64.
+fn to_f32_point(p: Vec3) -> Vec3 {
+    p.map(|x| x as f32 as f64)
 }
