@@ -264,34 +264,28 @@ impl Scene<'_> {
         total
     }
 
-    /// The crossings of shape k posed alone, in every piece, that touch a triangle k moves
-    /// and one `other` moves: those of k's crossings that [`touching_both`] keeps for the
-    /// pair, in the order a search over all of k's crossings finds them (so its sum is the
-    /// same to the bit). A triangle only k moves can meet one `other` moves at rest only
-    /// inside `other`'s box, and one both move only when k and `other` share a triangle.
-    fn alone_touching(&self, k: usize, other: usize, margin: f64) -> Crossings {
-        let (region, near, mut found) = (&self.regions[k], &self.regions[other], Vec::new());
+    /// The crossings of shape k posed alone, in every piece, that touch a triangle k moves:
+    /// a moved triangle against one it does not move at rest, or against another moved one
+    /// (each such pair once). Found once per shape and filtered per pair ([`touching_both`]),
+    /// instead of searched again for every pair the shape is in: a filtered list keeps the
+    /// order of the whole one, so each pair's sum is the same to the bit.
+    fn alone_all(&self, k: usize) -> Crossings {
+        let (region, mut found) = (&self.regions[k], Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        let posed = &moved.posed;
-        let (reach, share) = (grown(near, margin), posed.triangles.iter().any(|&t| near.contains(t)));
+        let posed = moved.posed;
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
-            let shared = near.contains(s);
-            if shared || query.overlaps(&reach) {
-                self.rest.for_each_overlap(&query, |t| {
-                    if !region.contains(t) && (shared || near.contains(t)) && !self.shares_corner(s, t) {
-                        found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
-                    }
-                });
-            }
-            if shared || share {
-                posed.for_each_overlap(&query, |j| {
-                    let t = posed.triangles[j as usize];
-                    if t > s && (shared || near.contains(t)) && !self.shares_corner(s, t) {
-                        found.extend(intersection_length(corners, posed.corners[j as usize]).map(|len| (s, t, len)));
-                    }
-                });
-            }
+            self.rest.for_each_overlap(&query, |t| {
+                if !region.contains(t) && !self.shares_corner(s, t) {
+                    found.extend(intersection_length(corners, self.rest.corners[t as usize]).map(|len| (s.min(t), s.max(t), len)));
+                }
+            });
+            posed.for_each_overlap(&query, |j| {
+                let t = posed.triangles[j as usize];
+                if t > s && !self.shares_corner(s, t) {
+                    found.extend(intersection_length(corners, posed.corners[j as usize]).map(|len| (s, t, len)));
+                }
+            });
         }
         found
     }
@@ -404,8 +398,8 @@ pub fn find_collisions(
 }
 
 /// The collisions with their total E (every piece) beside the part between pieces that
-/// decided them: per colliding pair, each shape's crossings that touch the other's region,
-/// and those at rest among the triangles of the smaller of the two regions (a crossing that
+/// decided them: per colliding pair, each shape's crossings alone (listed once per shape,
+/// [`Scene::alone_all`]) that touch the other's region, and those at rest among the triangles of the smaller of the two regions (a crossing that
 /// touches both regions has a triangle in each).
 fn total_curve(scene: &Scene, between: &[((usize, usize), f64)], margin: f64, diagonal: f64) -> Vec<Collision> {
     if between.is_empty() {
@@ -420,12 +414,16 @@ fn total_curve(scene: &Scene, between: &[((usize, usize), f64)], margin: f64, di
     let rest: Vec<Vec3> = rig.neutral.iter().map(|p| p.map(f64::from)).collect();
     // `scene.rest` holds triangle t at position t: its hierarchy answers triangle indices.
     let at_rest = crossings(&rest, rig.triangles, &scene.rest.bvh, Some(&marked));
+    let mut colliding = vec![false; rig.n_shapes()];
+    between.iter().for_each(|&((a, b), _)| (colliding[a], colliding[b]) = (true, true));
+    let alone: Vec<Crossings> =
+        (0..rig.n_shapes()).into_par_iter().map(|k| if colliding[k] { scene.alone_all(k) } else { Vec::new() }).collect();
     between
         .par_iter()
         .map(|&((a, b), between_pieces)| {
             let (ra, rb) = (&regions[a], &regions[b]);
-            let alone = |k: usize, other: usize| touching_both(&scene.alone_touching(k, other, margin), ra, rb);
-            let added = scene.mixed(a, b, margin) - alone(a, b) - alone(b, a) + touching_both(&at_rest, ra, rb);
+            let added = scene.mixed(a, b, margin) - touching_both(&alone[a], ra, rb) - touching_both(&alone[b], ra, rb)
+                + touching_both(&at_rest, ra, rb);
             Collision { first: a, second: b, added: added / diagonal, between_pieces }
         })
         .collect()
