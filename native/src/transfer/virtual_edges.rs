@@ -102,20 +102,23 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
     // Scratch handed from batch to batch: a fresh one per split of every batch cleared
     // 0.6 MB each time on the 25k head, 0.20 G of the search's 2.9 G instructions.
     let spare = std::sync::Mutex::new(Vec::new());
+    let mut proofs = ClosePaths::new(n);
     while next < uncertain.len() {
         // The next pairs the thinning would take if they are far; checked in parallel, then
         // taken in order (a pair blocked by an earlier one of the batch is skipped).
         let batch: Vec<usize> =
             (next..uncertain.len()).filter(|&k| free(&used, &blocked, uncertain[k].1, uncertain[k].2)).take(FAR_CHECK_BATCH).collect();
         let Some(&last) = batch.last() else { break };
-        let far: Vec<bool> = batch
+        // Per pair of the batch, the length of a path within its deadline (`None`: far).
+        let close: Vec<Option<f64>> = batch
             .par_iter()
             .with_min_len(16)
             .fold(
                 || (spare.lock().map(|mut s| s.pop()).ok().flatten().unwrap_or_else(|| SurfaceSearch::new(n)), Vec::new()),
                 |(mut search, mut far), &k| {
                     let (d, i, j) = uncertain[k];
-                    far.push(search.is_far(&graph, &bounds, i as usize, j as usize, params.tau_r * d));
+                    let (i, j, deadline) = (i as usize, j as usize, params.tau_r * d);
+                    far.push(proofs.path_beside(&graph, i, j, deadline).or_else(|| search.path_within(&graph, &bounds, i, j, deadline)));
                     (search, far)
                 },
             )
@@ -126,9 +129,13 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
                 far
             })
             .collect();
-        for (&k, &is_far) in batch.iter().zip(&far) {
+        for (&k, &path) in batch.iter().zip(&close) {
             let (_, i, j) = uncertain[k];
-            if !is_far || !free(&used, &blocked, i, j) {
+            if let Some(length) = path {
+                proofs.add(i, j, length);
+                continue;
+            }
+            if !free(&used, &blocked, i, j) {
                 continue;
             }
             used[i as usize] += 1;
@@ -143,6 +150,50 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
         next = last + 1;
     }
     edges
+}
+
+/// The pairs the thinning proved close, with the length of the path that proved each: a
+/// pair beside one of them (each end equal or adjacent to the proven pair's) is close when
+/// the path through it, `|a i| + g_ij + |j b|`, is within its own deadline. Uncertain pairs
+/// come in rows along a lip or a lid, and on a dense mesh most of a row's neighbours are
+/// proven close this way without a search of their own.
+struct ClosePaths {
+    /// Per vertex, its partners in proven pairs and the paths' lengths.
+    partners: Vec<Vec<(u32, f64)>>,
+}
+
+impl ClosePaths {
+    fn new(n: usize) -> Self {
+        Self { partners: vec![Vec::new(); n] }
+    }
+
+    fn add(&mut self, i: u32, j: u32, length: f64) {
+        self.partners[i as usize].push((j, length));
+        self.partners[j as usize].push((i, length));
+    }
+
+    /// The length of a path from `a` to `b` through a proven pair, when one is within
+    /// `deadline`.
+    fn path_beside(&self, graph: &EdgeGraph, a: usize, b: usize, deadline: f64) -> Option<f64> {
+        let steps = |v: usize| {
+            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
+            std::iter::once((v as u32, 0.0)).chain(graph.adjacency.targets[row.clone()].iter().copied().zip(graph.lengths[row].iter().copied()))
+        };
+        for (i, to_i) in steps(a) {
+            for &(j, length) in &self.partners[i as usize] {
+                if to_i + length > deadline {
+                    continue;
+                }
+                if let Some((_, to_b)) = steps(b).find(|&(u, _)| u == j) {
+                    let through = to_i + length + to_b;
+                    if through <= deadline {
+                        return Some(through);
+                    }
+                }
+            }
+        }
+        None
+    }
 }
 
 fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -302,12 +353,22 @@ impl SurfaceSearch {
     /// length bounds `g_ij` from above, so every pair left out is close. On smooth skin that
     /// is all of them.
     fn not_proven_close(&mut self, graph: &EdgeGraph, source: usize, ball: &[(usize, f64)], ratio: f64, open: &mut Vec<(f64, u32, u32)>) {
-        let mut pending = ball.iter().filter(|&&(j, _)| j > source).count();
+        let pending = ball.iter().filter(|&&(j, _)| j > source).count();
         if pending == 0 {
             return;
         }
+        self.breadth_first(graph, source, ball, pending, |u| u > source);
+        open.extend(ball.iter().filter(|&&(j, d)| j > source && self.distance[j] > ratio * d).map(|&(j, d)| (d, source as u32, j as u32)));
+        self.reset_distances();
+    }
+
+    /// A breadth-first pass from `source` over the vertices of `region`, until `targets`
+    /// vertices for which `is_target` holds are reached; leaves the path lengths found in
+    /// `distance` (reset by the caller).
+    fn breadth_first(&mut self, graph: &EdgeGraph, source: usize, region: &[(usize, f64)], targets: usize, is_target: impl Fn(usize) -> bool) {
+        let mut pending = targets;
         let stamp = source as u32 + 1;
-        for &(j, _) in ball {
+        for &(j, _) in region {
             self.in_ball[j] = stamp;
         }
         self.queue.clear();
@@ -328,25 +389,24 @@ impl SurfaceSearch {
                 if self.distance[u].is_infinite() {
                     self.touched.push(u as u32);
                     self.queue.push(u as u32);
-                    pending -= usize::from(u > source);
+                    pending -= usize::from(is_target(u));
                 }
                 // Queued vertices keep the shortest path seen so far (a later, shorter one
                 // matters where edge lengths vary a lot, e.g. beside split n-gons).
                 self.distance[u] = self.distance[u].min(through_v);
             }
         }
-        open.extend(ball.iter().filter(|&&(j, d)| j > source && self.distance[j] > ratio * d).map(|&(j, d)| (d, source as u32, j as u32)));
-        self.reset_distances();
     }
 
-    /// Whether every edge path from `source` to `target` is longer than `deadline`. A
+    /// The length of an edge path from `source` to `target` no longer than `deadline`, or
+    /// `None` when every path is longer (the pair is far). A
     /// greedy search (weighted A*) usually finds a short enough path at once; when it runs
     /// out of vertices instead, that proves the pair far ([`Self::reaches_within`]), so no
     /// exact search follows it (it would explore the same region again and find the same;
     /// few greedy searches fail on a close pair, so this saves little: the searches' 0.91 ->
     /// 0.89 G instructions on the 25k head, one thread, the same edges).
-    fn is_far(&mut self, graph: &EdgeGraph, bounds: &Distances, source: usize, target: usize, deadline: f64) -> bool {
-        !self.reaches_within(graph, bounds, source, target, deadline, GREEDY_WEIGHT)
+    fn path_within(&mut self, graph: &EdgeGraph, bounds: &Distances, source: usize, target: usize, deadline: f64) -> Option<f64> {
+        self.reaches_within(graph, bounds, source, target, deadline, GREEDY_WEIGHT)
     }
 
     /// A* from `source` to `target` ordered by `g + weight x h`, `h` a lower bound on the
@@ -368,7 +428,7 @@ impl SurfaceSearch {
         target: usize,
         deadline: f64,
         weight: f64,
-    ) -> bool {
+    ) -> Option<f64> {
         let to_target = |v: usize| bounds.at_least(v, target);
         self.heap.clear();
         self.distance[source] = 0.0;
@@ -376,7 +436,7 @@ impl SurfaceSearch {
         let start = entry(weight * to_target(source), source);
         self.queued_estimate[source] = start.0 .0;
         self.heap.push(start);
-        let mut reached = false;
+        let mut reached = None;
         'search: while let Some(Reverse((bits, v))) = self.heap.pop() {
             let v = v as usize;
             let g = self.distance[v];
@@ -389,7 +449,7 @@ impl SurfaceSearch {
                 let u = u as usize;
                 let next = g + step;
                 if u == target && next <= deadline {
-                    reached = true;
+                    reached = Some(next);
                     break 'search;
                 }
                 // The distance to the target only for a shorter path (most neighbours have one).
