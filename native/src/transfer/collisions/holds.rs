@@ -35,7 +35,7 @@ impl DeformationTransfer {
         // A vertex the template's own shape takes to the other side of the corresponding
         // obstacle is left where the solve put it: the target only follows the artist there.
         let hold = |u: usize, obstacle: u32, piece: Option<u32>, push: Option<Vec3>| {
-            push.filter(|_| attempt.follow || attempt.clear || !self.template_crosses(guard, template_positions, u, obstacle, piece))
+            push.filter(|_| attempt.follow || attempt.clear || !self.template_crosses(guard, template, u, obstacle, piece))
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
         let mut queue: Vec<(u32, u32)> = Vec::new();
@@ -262,18 +262,19 @@ impl DeformationTransfer {
         Some(sub(target, positions[u]))
     }
 
-    /// Whether the template's own shape (`template`, its positions) has vertex `u` on the
+    /// Whether the template's own shape (`contacts.positions`) has vertex `u` on the
     /// other side of the obstacle than at the template's rest: of the static piece `piece`'s
     /// surface (read at the closest point, as [`Self::push_off_piece`] reads the target's), or
     /// else of triangle `obstacle`'s plane (as [`Self::push_out`] reads it). Template and
     /// target share the topology, so the corresponding vertex and obstacle are the same indices.
-    fn template_crosses(&self, guard: &CollisionGuard, template: &[Vec3], u: usize, obstacle: u32, piece: Option<u32>) -> bool {
-        let rest = &self.source_neutral;
+    fn template_crosses(&self, guard: &CollisionGuard, contacts: &TemplateContacts, u: usize, obstacle: u32, piece: Option<u32>) -> bool {
+        let (rest, template) = (&self.source_neutral, &contacts.positions);
         match piece {
             Some(piece) => {
                 let side_at = |q: Vec3| self.piece_side(guard, Neutral::Template, q, piece).map(|(height, _, _)| height);
                 let before = guard.rest_side(Neutral::Template, u, piece, || side_at(rest[u]));
-                before.zip(side_at(template[u])).is_some_and(|(before, now)| before * now < 0.0)
+                let now = || contacts.side(u, piece, || side_at(template[u]));
+                before.is_some_and(|before| now().is_some_and(|now| before * now < 0.0))
             }
             None => {
                 let tri = self.triangles[obstacle as usize];

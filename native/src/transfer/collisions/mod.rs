@@ -350,26 +350,6 @@ impl DeformationTransfer {
                 }
                 None => true,
             };
-            let mut new_pairs: Vec<(u32, u32)> = match &template {
-                // The rest attempt also acts near the template's contacts against a piece it
-                // adds no curve to: there its contacts only slide along what its neutral has.
-                Some(contacts) => candidates
-                    .iter()
-                    .copied()
-                    .filter(|&(a, b)| {
-                        let (p, q) = (piece_of(a), piece_of(b));
-                        attempt.follow || attempt.clear || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
-                    })
-                    .collect(),
-                None => candidates.clone(),
-            };
-            if !new_pairs.iter().any(in_excess) {
-                // Every pair of the part in excess lies near one of the template's own
-                // contacts, yet the part adds more than the template's: the template's contact
-                // is smaller than the target's there (skin sliding along the teeth), so the
-                // pairs are acted on after all.
-                new_pairs = candidates.clone();
-            }
             // Only the part (inside one piece, between pieces) adding more than the template's
             // is acted on: pushing the other part's pairs moves vertices for nothing and can
             // add curve where the shape met the criterion.
@@ -379,8 +359,27 @@ impl DeformationTransfer {
             // eyeballs and presses the lips into each other (OldMan's mouthClose).
             let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs.iter().copied(), piece_of, 0.5 * tolerance);
             let grew = |&(a, b): &(u32, u32)| grown.contains(&piece_key(piece_of(a), piece_of(b)));
-            let acted_on = |pairs: &[(u32, u32)]| -> Vec<(u32, u32)> { pairs.iter().copied().filter(in_excess).filter(grew).collect() };
-            let new_pairs = acted_on(&new_pairs);
+            // And of those, the pairs away from the template's own contacts. The rest attempt
+            // also acts near the template's contacts against a piece it adds no curve to:
+            // there its contacts only slide along what its neutral has. The piece tests go
+            // first: the contact test reads two one-rings a pair, for the tens of thousands
+            // of pairs that moving lashes carry.
+            let away = |&(a, b): &(u32, u32)| match &template {
+                Some(contacts) => {
+                    let (p, q) = (piece_of(a), piece_of(b));
+                    attempt.follow || attempt.clear || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
+                }
+                None => true,
+            };
+            let in_part: Vec<(u32, u32)> = candidates.iter().copied().filter(in_excess).collect();
+            let acted: Vec<(u32, u32)> = in_part.iter().copied().filter(grew).collect();
+            let away_acted: Vec<(u32, u32)> = acted.iter().copied().filter(away).collect();
+            // When every pair of the part in excess lies near one of the template's own
+            // contacts, yet the part adds more than the template's, the template's contact is
+            // smaller than the target's there (skin sliding along the teeth): the pairs are
+            // acted on after all.
+            let near_only = away_acted.is_empty() && !in_part.iter().any(|p| !grew(p) && away(p));
+            let new_pairs = if near_only { acted.clone() } else { away_acted };
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
@@ -424,7 +423,7 @@ impl DeformationTransfer {
                 // shape crosses where they are, or they sit on rest pairs): act on all pairs of
                 // the part in excess (OldMan's jawForward, skin sliding deeper into the upper
                 // teeth than the template's does).
-                let pairs: Vec<(u32, u32)> = acted_on(&candidates).into_iter().filter(|&(a, b)| !folded(a) && !folded(b)).collect();
+                let pairs: Vec<(u32, u32)> = acted.into_iter().filter(|&(a, b)| !folded(a) && !folded(b)).collect();
                 found = self.offending_vertices(guard, &positions, &pairs, free, static_piece, attempt, contacts);
             }
             if found.is_empty() && fold_seeds.is_empty() {
