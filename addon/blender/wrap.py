@@ -464,8 +464,8 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     # The template's rest gives the carry its mirror map: with a symmetric character each
     # carried shape is averaged with the mirror of its partner's; its own keys give each
     # matched piece its motion (an eyeball turns as the template's does).
-    template_neutral, _ = read_surface(template, "template")
     template_rig, _ = read_face_rig(face_objects(template))
+    template_neutral = template_rig.neutral  # the reference keys in the head's space, as read_surface reads them
     row = {name: k for k, name in enumerate(template_rig.names)}
     template_shapes = template_rig.deltas[[row[name] for name in onto_wrapped.names]]
     if collisions is not None:

@@ -4,7 +4,7 @@
 
 use faer::Mat;
 
-use super::mat3::{add, determinant, dot, mat_vec, scale, sub, Mat3, Vec3, IDENTITY};
+use super::mat3::{add, determinant, dot, mat_vec, scale, sub, transpose, Mat3, Vec3, IDENTITY};
 
 /// `x -> scale * rotation * x + translation`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -19,6 +19,11 @@ impl Similarity {
 
     pub fn apply(&self, p: Vec3) -> Vec3 {
         add(scale(mat_vec(&self.rotation, p), self.scale), self.translation)
+    }
+
+    /// The point this similarity takes to `q`: `R^T (q - t) / s`.
+    pub fn apply_inverse(&self, q: Vec3) -> Vec3 {
+        scale(mat_vec(&transpose(&self.rotation), sub(q, self.translation)), 1.0 / self.scale)
     }
 }
 
@@ -91,6 +96,10 @@ mod tests {
             assert!((fitted.translation[r] - truth.translation[r]).abs() < 1e-9);
         }
         assert!((fitted.scale - 2.5).abs() < 1e-10);
+        for p in &source {
+            let back = fitted.apply_inverse(fitted.apply(*p));
+            assert!((0..3).all(|a| (back[a] - p[a]).abs() < 1e-12));
+        }
         // Weighted in, it pulls the fit away.
         let pulled = fit_similarity(&source, &target, &[1.0; 7], true).unwrap();
         assert!((pulled.scale - 2.5).abs() > 1e-3);

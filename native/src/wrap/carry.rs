@@ -202,10 +202,10 @@ pub fn carry_shapes(
         _ => Vec::new(),
     };
     let map_pieces = |k: usize, deltas: &mut [Vec3], fixed: &mut [bool]| {
-        let (Some(neutral), Some(shapes)) = (&neutral, template_shapes) else { return };
+        let Some(shapes) = template_shapes else { return };
         let own = &shapes[k * nt..(k + 1) * nt];
         let still = params.static_fraction * own.iter().map(|d| length(to_f64(d))).fold(0.0, f64::max);
-        mappings.iter().for_each(|m| m.write(neutral, own, still, deltas, fixed));
+        mappings.iter().for_each(|m| m.write(own, still, deltas, fixed));
     };
     let vertex_binding = bind_facing(&points, &vertex_normals, &parts.character_vertex, &surface, &template_normals, &parts.template_triangle, cos_max_angle);
     let samples: Vec<Vec3> = character_triangles

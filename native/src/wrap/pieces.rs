@@ -10,7 +10,7 @@
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::{add, cross, length, mat_vec, scale, sub, transpose, Vec3};
+use crate::geometry::mat3::{add, cross, length, scale, sub, Vec3};
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::connected_components;
 
@@ -275,7 +275,9 @@ pub fn parts(template: &[Vec3], triangles: &[[u32; 3]], character: &[Vec3], char
 /// only approximate.
 pub(super) struct PieceMapping {
     template_members: Vec<usize>,
-    template_triangles: Vec<[u32; 3]>,
+    /// The template piece at rest, in member order, and its triangles in member numbering.
+    rest: Vec<Vec3>,
+    local_triangles: Vec<[u32; 3]>,
     character_members: Vec<usize>,
     placed: Similarity,
     /// `y` per character member, and its closest point on the template piece at rest.
@@ -301,13 +303,15 @@ pub(super) fn piece_mappings(matched: &[MatchedPiece], neutral: &[Vec3], wrapped
             if misfit > 1e-4 * radius {
                 return None;
             }
-            let inverse = |c: Vec3| scale(mat_vec(&transpose(&placed.rotation), sub(c, placed.translation)), 1.0 / placed.scale);
-            let preimages: Vec<Vec3> = piece.character_members.iter().map(|&c| inverse(character[c])).collect();
-            let surface = TriangleBvh::build(neutral, &piece.template_triangles);
+            let preimages: Vec<Vec3> = piece.character_members.iter().map(|&c| placed.apply_inverse(character[c])).collect();
+            let local = |v: u32| piece.template_members.binary_search(&(v as usize)).map(|i| i as u32);
+            let local_triangles = piece.template_triangles.iter().map(|t| Ok([local(t[0])?, local(t[1])?, local(t[2])?])).collect::<Result<Vec<_>, usize>>().ok()?;
+            let surface = TriangleBvh::build(&rest, &local_triangles);
             let bound = preimages.iter().map(|y| surface.closest_point(y, f64::INFINITY)).collect::<Option<Vec<_>>>()?;
             Some(PieceMapping {
                 template_members: piece.template_members.clone(),
-                template_triangles: piece.template_triangles.clone(),
+                rest,
+                local_triangles,
                 character_members: piece.character_members.clone(),
                 placed,
                 preimages,
@@ -323,30 +327,26 @@ impl PieceMapping {
     /// the character's `deltas`, and marks the piece's vertices fixed (`fixed`: the collision
     /// pass moves the skin around a piece, not the piece). A piece static in the shape gets
     /// exactly zero; one that bends keeps its carried deltas.
-    pub(super) fn write(&self, neutral: &[Vec3], own: &[[f32; 3]], still: f64, deltas: &mut [Vec3], fixed: &mut [bool]) {
-        let delta = |v: usize| [0, 1, 2].map(|a| own[v][a] as f64);
-        let largest = self.template_members.iter().map(|&v| length(delta(v))).fold(0.0, f64::max);
+    pub(super) fn write(&self, own: &[[f32; 3]], still: f64, deltas: &mut [Vec3], fixed: &mut [bool]) {
+        let motion_of: Vec<Vec3> = self.template_members.iter().map(|&v| [0, 1, 2].map(|a| own[v][a] as f64)).collect();
+        let largest = motion_of.iter().map(|d| length(*d)).fold(0.0, f64::max);
         if largest < still {
             self.character_members.iter().for_each(|&c| (deltas[c], fixed[c]) = ([0.0; 3], true));
             return;
         }
-        let rest: Vec<Vec3> = self.template_members.iter().map(|&v| neutral[v]).collect();
-        let posed: Vec<Vec3> = self.template_members.iter().map(|&v| add(neutral[v], delta(v))).collect();
-        let Ok(motion) = similarity_from_pairs(&rest, &posed) else { return };
-        // What the similarity leaves of each template vertex's motion.
-        let mut left = vec![[0.0; 3]; neutral.len()];
-        for (&v, (p, q)) in self.template_members.iter().zip(rest.iter().zip(&posed)) {
-            left[v] = sub(*q, motion.apply(*p));
-        }
+        let posed: Vec<Vec3> = self.rest.iter().zip(&motion_of).map(|(p, d)| add(*p, *d)).collect();
+        let Ok(motion) = similarity_from_pairs(&self.rest, &posed) else { return };
+        // What the similarity leaves of each template vertex's motion, in member order.
+        let left: Vec<Vec3> = self.rest.iter().zip(&posed).map(|(p, q)| sub(*q, motion.apply(*p))).collect();
         // A piece that bends in the shape (a tongue stretching out, lashes riding a closing
         // lid) is carried with the skin's gradients: its own similarity, fitted to a thin or
         // blob-like piece, says little about the directions its bend should take there.
-        if self.template_members.iter().any(|&v| length(left[v]) > RIGID_MOTION * largest) {
+        if left.iter().any(|r| length(*r) > RIGID_MOTION * largest) {
             return;
         }
         self.character_members.iter().for_each(|&c| fixed[c] = true);
         for ((&c, y), hit) in self.character_members.iter().zip(&self.preimages).zip(&self.bound) {
-            let t = self.template_triangles[hit.triangle as usize];
+            let t = self.local_triangles[hit.triangle as usize];
             let residual = (0..3).fold([0.0; 3], |acc, k| add(acc, scale(left[t[k] as usize], hit.barycentric[k])));
             let image = self.placed.apply(add(motion.apply(*y), residual));
             deltas[c] = sub(image, self.placed.apply(*y));

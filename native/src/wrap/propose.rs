@@ -34,7 +34,7 @@ use rayon::prelude::*;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::front::{find_front, outward_normals, region_centroid};
-use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, transpose, unit, Vec3};
+use crate::geometry::mat3::{add, cross, dot, length, mat_vec, scale, sub, to_f64, unit, Vec3};
 use crate::geometry::topology::{boundary_edges, connected_components, Adjacency};
 use crate::geometry::weld::{Weld, WeldedRig};
 use crate::invalid;
@@ -631,7 +631,6 @@ fn trimmed_icp(
     let mut motion = start;
     let mut mean = f64::INFINITY;
     for _ in 0..iterations {
-        let back = transpose(&motion.rotation);
         let mut pairs: Vec<(f64, Vec3, Vec3)> = Vec::with_capacity(template_samples.len() + character_samples.len());
         for &p in template_samples {
             if let Some(hit) = target.closest_point(&motion.apply(p), f64::INFINITY) {
@@ -639,8 +638,7 @@ fn trimmed_icp(
             }
         }
         for &q in character_samples {
-            let rest = scale(mat_vec(&back, sub(q, motion.translation)), 1.0 / motion.scale);
-            if let Some(hit) = template_skin.closest_point(&rest, f64::INFINITY) {
+            if let Some(hit) = template_skin.closest_point(&motion.apply_inverse(q), f64::INFINITY) {
                 pairs.push((hit.distance_squared * motion.scale * motion.scale, hit.point, q));
             }
         }

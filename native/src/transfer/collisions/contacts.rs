@@ -3,8 +3,8 @@
 //! template's contacts the pass leaves alone ([`TemplateContacts::near`]).
 
 use std::collections::{HashMap, HashSet};
-use std::sync::Mutex;
 
+use super::guard::SideMemo;
 use super::CollisionGuard;
 use crate::geometry::penetration::{crossings, AddedCurve, TemplateCurve};
 use crate::transfer::deformation::DeformationTransfer;
@@ -39,7 +39,7 @@ impl DeformationTransfer {
             crossing: AddedCurve::of(all.into_iter(), piece_of, AddedCurve::default()),
         };
         let allowed = template.scaled(self.template_to_target).allowed(&AddedCurve::crossing(&guard.rest_penetration));
-        TemplateContacts { partners, allowed, positions: points, adding, sides: Mutex::new(HashMap::new()) }
+        TemplateContacts { partners, allowed, positions: points, adding, sides: SideMemo::default() }
     }
 }
 
@@ -56,22 +56,14 @@ pub(super) struct TemplateContacts {
     /// Per `(vertex, static piece)`, the side of the piece's surface the shape has the vertex
     /// on ([`TemplateContacts::side`]): the same for every round and attempt of the shape
     /// that asks, so each is found once per shape.
-    sides: Mutex<HashMap<(u32, u32), Option<f64>>>,
+    sides: SideMemo,
 }
 
 impl TemplateContacts {
     /// The side of static piece `piece` the template's shape has vertex `u` on, `find`
     /// computing it the first time it is asked.
     pub(super) fn side(&self, u: usize, piece: u32, find: impl FnOnce() -> Option<f64>) -> Option<f64> {
-        let key = (u as u32, piece);
-        if let Some(&known) = self.sides.lock().ok().as_ref().and_then(|m| m.get(&key)) {
-            return known;
-        }
-        let found = find();
-        if let Ok(mut sides) = self.sides.lock() {
-            sides.insert(key, found);
-        }
-        found
+        self.sides.get_or(u, piece, find)
     }
 
     /// Whether the template's shape adds no curve between pieces `p` and `q` (it keeps or

@@ -53,7 +53,7 @@ pub(in crate::transfer) struct CollisionGuard {
     /// Per neutral, the side of a static piece each vertex rests on (`(vertex, piece)` ->
     /// its height over the piece's surface, [`CollisionGuard::rest_side`]): the same for every
     /// shape, round and attempt that asks, so each is found once per transfer.
-    rest_sides: [Mutex<HashMap<(u32, u32), Option<f64>>>; 2],
+    rest_sides: [SideMemo; 2],
     /// The (triangle, piece) pairs crossing at the target's rest, made on first use.
     embedded: OnceLock<HashSet<(u32, u32)>>,
 }
@@ -103,7 +103,7 @@ impl CollisionGuard {
         let n_pieces = triangle_piece.iter().max().map_or(0, |&p| p as usize + 1);
         Self {
             piece_nodes: [0, 1].map(|_| (0..n_pieces).map(|_| OnceLock::new()).collect()),
-            rest_sides: [0, 1].map(|_| Mutex::new(HashMap::new())),
+            rest_sides: [SideMemo::default(), SideMemo::default()],
             embedded: OnceLock::new(),
             params,
             diagonal,
@@ -151,15 +151,7 @@ impl CollisionGuard {
     /// The side of static piece `piece` vertex `u` rests on, on `neutral`: its signed height
     /// over the piece's surface, `find(u, piece)` computing it the first time it is asked.
     pub(super) fn rest_side(&self, neutral: Neutral, u: usize, piece: u32, find: impl FnOnce() -> Option<f64>) -> Option<f64> {
-        let key = (u as u32, piece);
-        if let Some(&known) = self.rest_sides[neutral as usize].lock().ok().as_ref().and_then(|m| m.get(&key)) {
-            return known;
-        }
-        let found = find();
-        if let Ok(mut sides) = self.rest_sides[neutral as usize].lock() {
-            sides.insert(key, found);
-        }
-        found
+        self.rest_sides[neutral as usize].get_or(u, piece, find)
     }
 
     /// The (triangle, piece) pairs crossing at the target's rest: each of a rest pair's two
@@ -178,5 +170,25 @@ impl CollisionGuard {
     /// The distance kept from the other surface at vertex `u`.
     pub(super) fn margin(&self, u: usize) -> f64 {
         (self.params.margin * self.edge_length[u]).max(self.params.min_margin * self.diagonal)
+    }
+}
+
+/// Per `(vertex, static piece)`, the side of the piece's surface a vertex is on (its signed
+/// height, `None` where it has no closest point), found the first time it is asked and then
+/// looked up: the rest sides of a transfer, the template shape's sides of one shape.
+#[derive(Default)]
+pub(super) struct SideMemo(Mutex<HashMap<(u32, u32), Option<f64>>>);
+
+impl SideMemo {
+    pub(super) fn get_or(&self, u: usize, piece: u32, find: impl FnOnce() -> Option<f64>) -> Option<f64> {
+        let key = (u as u32, piece);
+        if let Some(&known) = self.0.lock().ok().as_ref().and_then(|m| m.get(&key)) {
+            return known;
+        }
+        let found = find();
+        if let Ok(mut sides) = self.0.lock() {
+            sides.insert(key, found);
+        }
+        found
     }
 }
