@@ -64,7 +64,9 @@ def find_face(value, shapesmith):
 
 
 def write_json(path, data):
+    """Writes `data` to `path` (nothing when no path), making its folder if need be."""
     if path:
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
         with open(path, "w") as f:
             json.dump(data, f, indent=2)
 

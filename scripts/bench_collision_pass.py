@@ -14,7 +14,6 @@ Nothing is asserted: the numbers go to docs/transfer.md and docs/benchmarks.md.
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -118,9 +117,7 @@ def main():
             f"{len(row['worse_virtual_edges'])} -> {len(row['worse_with_pass'])} {row['worse_with_pass']}",
             flush=True,
         )
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(result, f, indent=2)
+    batch.write_json(args.json, result)
     print(f"\nwrote {args.json}")
 
 

@@ -24,7 +24,6 @@ Needs the extension installed (scripts/install_extension.py) in this Blender's u
 """
 
 import argparse
-import json
 from importlib import import_module
 import os
 import sys
@@ -298,12 +297,6 @@ def stages(results, landmarks, rig):
           f"{row['rays_per_second']:.3g}/s, load {row['load_average'][0]:.1f}")
 
 
-def write_json(path, results):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w") as f:
-        json.dump(results, f, indent=2)
-
-
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="bench_landmarks.py --")
@@ -342,11 +335,11 @@ def main():
                 "Template_25k": lambda: bench_transfer.subdivided(template, "Template_25k", bench_transfer.FACE_EDGES),
                 "Template_many_pieces": lambda: many_piece_head.build(template, import_module(landmarks.__package__ + ".mesh_arrays"))}
         stages(results, landmarks, rigs[args.stages]())
-        write_json(args.json, results)
+        batch.write_json(args.json, results)
         return
     if args.speed_only:
         speed(results, landmarks, template, dense)
-        write_json(args.json, results)
+        batch.write_json(args.json, results)
         return
     print("1. The cover alone (multi-cover, 2 rounds)")
     print(f"{'rig':<18}{'vertices':>9}{'eps':>6}{'M':>5}{'opt':>5}{'vis s':>8}{'solve s':>9}"
@@ -401,7 +394,7 @@ def main():
     conditioned["comparison"] = scores[template.name]
     curve.write_curve_png(conditioned, os.path.abspath(args.curve))
     results["curve"] = conditioned["curve"]
-    write_json(args.json, results)
+    batch.write_json(args.json, results)
     print(f"\nwrote {args.json}, {args.picture}, {args.conventional_picture}, {args.design_picture} and {args.curve}")
 
 

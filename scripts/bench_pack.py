@@ -22,7 +22,6 @@ On the many-piece head, under 0.5 s cold.
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -33,7 +32,7 @@ import bpy
 import bmesh  # after bpy: the bpy wheel provides it
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from batch import BatchError, cached_sample, load_shapesmith  # noqa: E402
+from batch import BatchError, cached_sample, load_shapesmith, write_json  # noqa: E402
 import many_piece_head  # noqa: E402
 
 NATIVE_TARGET_SECONDS = 0.050
@@ -173,9 +172,7 @@ def main():
     print(f"target: the {many['vertices']}-vertex head with {many['pieces']} pieces in < {MANY_PIECES_TARGET_SECONDS} s native, "
           f"conflicts cold: {many['seconds']['native']:.3f} s, {verdict} (cached {many['seconds']['native_cached']:.3f} s, "
           f"off {many['seconds']['native_without']:.3f} s)")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"rows": rows, "repeats": args.repeats}, f, indent=2)
+    write_json(args.json, {"rows": rows, "repeats": args.repeats})
 
 
 if __name__ == "__main__":

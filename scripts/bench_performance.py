@@ -14,7 +14,6 @@ landmarks added for reconstruction up to 68, and the conventional 68-point layou
 
 import argparse
 import csv
-import json
 import os
 import sys
 import tempfile
@@ -118,9 +117,7 @@ def main():
     c = results["capture"]
     print(f"\nImport Capture: {c['rows']} rows ({CAPTURE_MINUTES} minutes at {CAPTURE_FPS} fps), {c['columns']} columns "
           f"keyed in {c['seconds']:.2f} s ({c['ms_per_row']:.3f} ms a row)")
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as handle:
-        json.dump(results, handle, indent=2)
+    batch.write_json(args.json, results)
     print(f"\nwrote {args.json}")
 
 

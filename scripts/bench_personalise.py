@@ -17,7 +17,6 @@ shape keys subdivided with it).
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -214,9 +213,7 @@ def main():
     if "4x" in heads:
         result["4x"] = warp_benchmark(nat, mesh_arrays.read_rig(subdivided(template, "TemplateDense")), **options)
     print_report(result)
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(result, f, indent=2)
+    batch.write_json(args.json, result)
     print(f"\nwrote {args.json}")
 
 

@@ -372,9 +372,7 @@ def main():
         os.remove(partial)
     result = {"runs": runs, "growth": {"vertices": growth(runs, "vertices", "keys"), "keys": growth(runs, "keys", "vertices")}}
     print_report(result)
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(result, f, indent=2)
+    batch.write_json(args.json, result)
     print(f"\nwrote {args.json}")
 
 

@@ -186,9 +186,7 @@ def main():
               f"{row['plain_vs_reference']:12.2e}{'' if same else '  NOT THE SAME: the ratio compares different work'}")
     setups = ", ".join(f"{label} {row['reference']['setup']:.3f}" for label, row in rows.items())
     print(f"  (reference setup: {setups} s; goal: ref/VE >= {GOAL_RATIO})")
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(rows, f, indent=2)
+    batch.write_json(args.json, rows)
     print(f"\nwrote {args.json}")
 
 

@@ -19,7 +19,6 @@ The warp ground truth of personalisation is scripts/bench_personalise.py.
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -388,9 +387,7 @@ def main():
         if args.save_arrays:
             save_arrays(mesh_arrays.read_rig(pair[0]), rest_positions(pair[1]), os.path.join(args.save_arrays, head))
     print_report(result)
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(result, f, indent=2)
+    batch.write_json(args.json, result)
     print(f"\nwrote {args.json}")
 
 

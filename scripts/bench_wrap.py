@@ -40,7 +40,6 @@ lies, the pieces and openings matched, and the keys' error from proposed against
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -510,9 +509,7 @@ def main():
             print(f"    {pairs} pairs: pieces fitted {matches['pieces_fitted']} of {matches['pieces']}, "
                   f"openings landed {matches['holes_paired']}{error}")
     result["proposals"] = proposals
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(result, f, indent=2)
+    batch.write_json(args.json, result)
     print(f"\nwrote {args.json}")
 
 
