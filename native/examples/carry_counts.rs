@@ -53,7 +53,7 @@ fn main() {
         println!("{} pass {pass}: {} worse in {seconds:.2} s: {}", dir, worse.len(), worse.join(", "));
         if pass {
             for (k, c) in result.collisions.iter().enumerate() {
-                if c.plain_excess > 0.0 && only.as_deref().map_or(true, |o| names[k].contains(o)) {
+                if c.plain_excess > 0.0 && only.as_deref().is_none_or(|o| names[k].contains(o)) {
                     println!("  {}: plain {:.5} kept {:.5} applied {} solves {} held {}", names[k], c.plain_excess / diagonal, c.excess / diagonal, c.applied, c.solves, c.held_vertices);
                 }
             }

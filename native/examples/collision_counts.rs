@@ -77,7 +77,7 @@ fn main() {
         return;
     }
     let truth = points(&truth_path);
-    let mut plain_params = params.clone();
+    let mut plain_params = params;
     plain_params.transfer.collisions = None;
     plain_params.measure_penetration = false;
     plain_params.compare_plain = false;

@@ -99,7 +99,7 @@ fn partial_refit_and_pruned_closest_point_match_the_full_ones() {
     assert_eq!(boxes(&partial), boxes(&full));
     assert!(partial.triangles.iter().zip(&full.triangles).all(|(a, b)| (a.a, a.ab, a.ac) == (b.a, b.ab, b.ac)));
     // The subset: a third of the triangles, mostly in one corner of the cube.
-    let accept = |t: u32| t % 3 == 0 && moved[3 * t as usize][0] < 0.6;
+    let accept = |t: u32| t.is_multiple_of(3) && moved[3 * t as usize][0] < 0.6;
     let marked: Vec<bool> = (0..triangles.len() as u32).map(accept).collect();
     let holding = full.nodes_holding(&marked);
     assert!(holding.iter().any(|&h| !h), "some subtree should hold none of the subset");

@@ -117,6 +117,12 @@ impl HatGradients {
     }
 }
 
+/// `v` scaled to length 1, or None when its length is zero or not finite.
+pub fn unit(v: Vec3) -> Option<Vec3> {
+    let n = length(v);
+    (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,10 +142,4 @@ mod tests {
         assert!((0..3).all(|r| (0..3).all(|c| (gradient[r][c] - similarity[r][c]).abs() < 1e-12)));
         assert!((determinant(&transpose(&similarity)) - 8.0).abs() < 1e-12);
     }
-}
-
-/// `v` scaled to length 1, or None when its length is zero or not finite.
-pub fn unit(v: Vec3) -> Option<Vec3> {
-    let n = length(v);
-    (n.is_finite() && n > 1e-300).then(|| scale(v, 1.0 / n))
 }

@@ -366,7 +366,7 @@ mod tests {
         let back = weld.scatter(weld.gather(&rows).into_owned());
         assert_eq!(back[8..12], [4, 6, 7, 5]);
         assert_eq!(back[20..24], [104, 106, 107, 105]);
-        assert_eq!(weld.scatter_triangles(&vec![true; 12], 12, false), vec![true; 12]);
+        assert_eq!(weld.scatter_triangles(&[true; 12], 12, false), vec![true; 12]);
     }
 
     #[test]
@@ -421,6 +421,6 @@ mod tests {
         tris.push([0, 8, 4]);
         let weld = Weld::new(&points, &tris);
         assert_eq!((weld.triangles.len(), weld.triangle_of.len()), (12, 12));
-        assert_eq!(weld.scatter_triangles(&vec![1; 12], 13, 0)[12], 0);
+        assert_eq!(weld.scatter_triangles(&[1; 12], 13, 0)[12], 0);
     }
 }

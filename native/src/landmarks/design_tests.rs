@@ -150,7 +150,7 @@ fn blocked_units_are_never_chosen_and_counts_stop_the_run() {
         assert!(units[i + 1..].iter().all(|&later| later != (u + 1) % 6), "{units:?}");
     }
     let mut counted = Vec::new();
-    greedy(&problem, &initial, &vec![true; 6], |_| Vec::new(), Criterion::A, |added, _| {
+    greedy(&problem, &initial, &[true; 6], |_| Vec::new(), Criterion::A, |added, _| {
         counted.push(added);
         added < 5
     });
@@ -217,7 +217,7 @@ fn rank_r_updates_choose_exactly_as_from_scratch() {
         }
         let allowed: Vec<bool> = (0..n).map(|_| rng.random_bool(0.9)).collect();
         let spacing = rng.random_range(3..n + 3);
-        let blocked_by = |u: usize| if (u + trial) % 2 == 0 { vec![(u + spacing) % n] } else { Vec::new() };
+        let blocked_by = |u: usize| if (u + trial).is_multiple_of(2) { vec![(u + spacing) % n] } else { Vec::new() };
         for criterion in [Criterion::A, Criterion::D] {
             let want = greedy_from_scratch(&problem, &allowed, blocked_by, criterion, n);
             let initial = Posterior::new(k, &[], problem.noise_variance);

@@ -105,7 +105,7 @@ impl<'a> Moved<'a> {
             };
             set.triangles.iter().zip(&set.corners).map(|(&t, c)| with_rest(t, c)).collect()
         };
-        Self { swept: swept(&posed), small_swept: swept(&small), posed, small }
+        Self { swept: swept(posed), small_swept: swept(&small), posed, small }
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another

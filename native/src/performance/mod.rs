@@ -250,7 +250,7 @@ fn validate(rig: &RigView, landmarks: &[u32], tracks: &Tracks, params: &Performa
     if let Some(&bad) = landmarks.iter().find(|&&v| v as usize >= rig.n_vertices()) {
         return Err(invalid!("landmark vertex {bad} does not exist: the mesh has {} vertices", rig.n_vertices()));
     }
-    if tracks.len() == 0 || tracks.len() % landmarks.len() != 0 {
+    if tracks.len() == 0 || !tracks.len().is_multiple_of(landmarks.len()) {
         return Err(invalid!(
             "the tracks hold {} values, not a whole number of frames of {} landmarks",
             tracks.len(),

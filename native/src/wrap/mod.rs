@@ -496,7 +496,7 @@ fn carry_welded(
 ) -> ShapesmithResult<CarryResult> {
     validate_mesh(wrapped, template_triangles, "wrapped template")?;
     validate_mesh(character, character_triangles, "character")?;
-    if template_deltas.len() % wrapped.len() != 0 {
+    if !template_deltas.len().is_multiple_of(wrapped.len()) {
         return Err(invalid!("template deltas: {} rows is not a multiple of the {} template vertices", template_deltas.len(), wrapped.len()));
     }
     validate_points(template_deltas, "template deltas")?;
