@@ -354,8 +354,7 @@ def main():
         shapesmith = batch.load_shapesmith()
         print(f"{args.one}: {cached_rig_path(level, keys)}", flush=True)
         result = run_tools(shapesmith, cached_rig_path(level, keys), args.tools)
-        with open(args.json, "w") as f:
-            json.dump(result, f)
+        batch.write_json(args.json, result)
         return
     runs = []
     for size in args.sizes:
