@@ -520,7 +520,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false, contacts: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));

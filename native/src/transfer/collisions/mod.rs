@@ -45,9 +45,13 @@
 //! other holds: twice the margin, ten times the stiffness, the whole lip contact strip, skin
 //! back to rest against static pieces the template adds no curve to, following the template's
 //! contacts, the skin resting across a static piece kept where it rests (kept only when it
-//! clears the shape), and last every vertex that went through held on its rest side, the
-//! template's contacts not followed (a template whose neutral's lips cross presses its shapes'
-//! lips through each other, which the target need not copy). The next runs only while the shape is still worse; the plain
+//! clears the shape), every vertex that went through held on its rest side, the template's
+//! contacts not followed (a template whose neutral's lips cross presses its shapes' lips
+//! through each other, which the target need not copy), and last the whole contact strip
+//! held with the pairs next to the template's own contacts acted on too, its vertices that
+//! cross as the template's still following it (a target pressing its lips along a longer
+//! contact than the template's adds its excess right beside the template's contacts, which the
+//! other attempts leave alone). The next runs only while the shape is still worse; the plain
 //! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
 //! run two side by side and are taken in order, so the result is that of a serial run.
 //!
@@ -367,7 +371,7 @@ impl DeformationTransfer {
             let away = |&(a, b): &(u32, u32)| match &template {
                 Some(contacts) => {
                     let (p, q) = (piece_of(a), piece_of(b));
-                    attempt.follow || attempt.clear || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
+                    attempt.follow || attempt.clear || attempt.contacts || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
                 }
                 None => true,
             };
@@ -557,7 +561,9 @@ impl PlainRound {
 /// the vertices that went through); with `embedded`, a corner of a new pair's triangle that
 /// crosses the same static piece at the target's rest goes back to rest, and the attempt is
 /// kept only when it clears the shape; with `clear`, the template's own contacts are not
-/// followed: every vertex of a pair in excess that went through is held on its rest side.
+/// followed: every vertex of a pair in excess that went through is held on its rest side; with
+/// `contacts`, the pairs near the template's own contacts are acted on too (its vertices
+/// crossing as the template's are still left alone).
 pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
@@ -566,20 +572,22 @@ pub(super) struct Attempt {
     pub(super) follow: bool,
     pub(super) embedded: bool,
     pub(super) clear: bool,
+    pub(super) contacts: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 8] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true },
+const ATTEMPTS: [Attempt; 9] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true },
 ];
 
 /// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
