@@ -5,7 +5,7 @@
 use std::collections::{HashMap, HashSet};
 
 use super::guard::SideMemo;
-use super::CollisionGuard;
+use super::{Attempt, CollisionGuard};
 use crate::geometry::penetration::{crossings, AddedCurve, TemplateCurve};
 use crate::transfer::deformation::DeformationTransfer;
 use crate::transfer::gradients::{add, to_f64, Vec3};
@@ -70,6 +70,16 @@ impl TemplateContacts {
     /// removes what its neutral has there): the criterion then allows the target none.
     pub(super) fn adds_none(&self, p: u32, q: u32) -> bool {
         !self.adding.contains(&piece_key(p, q))
+    }
+
+    /// Whether `attempt` acts on the crossing pair `(a, b)` of pieces `pieces`: a pair away from
+    /// the template's own contacts, or any pair for the attempts that do not follow the
+    /// template or that act beside its contacts. The rest attempt also acts near the template's
+    /// contacts against a piece it adds no curve to: there its contacts only slide along what
+    /// its neutral has. The piece test goes first: the contact test reads two one-rings a pair,
+    /// for the tens of thousands of pairs that moving lashes carry.
+    pub(super) fn acts_on(&self, guard: &CollisionGuard, attempt: &Attempt, (a, b): (u32, u32), (p, q): (u32, u32)) -> bool {
+        attempt.follow || attempt.clear || attempt.contacts || (attempt.rest && p != q && self.adds_none(p, q)) || !self.near(guard, a, b)
     }
 
     /// Whether the pair `(a, b)` is the artist's own: some triangle sharing a corner with `a`

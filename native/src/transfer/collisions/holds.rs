@@ -397,6 +397,7 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::super::{Attempt, CollisionGuard, CollisionParams, ATTEMPTS};
+    use super::TemplateContacts;
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
     use crate::transfer::gradients::{add, to_f64, Vec3};
@@ -422,6 +423,13 @@ mod tests {
         let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
         assert!(!pairs.is_empty());
         (source, dt, guard, positions, pairs)
+    }
+
+    /// `lip_closing`'s bump at `p`, 1 in the middle of the lips: along^2 x across^2.
+    fn bump(p: &[f32; 3]) -> f32 {
+        let along = (std::f32::consts::PI * p[0] / 1.5).sin().max(0.0);
+        let across = (std::f32::consts::PI * (p[1] + 0.5)).sin().max(0.0);
+        along.powi(2) * across.powi(2)
     }
 
     #[test]
@@ -468,12 +476,7 @@ mod tests {
             let template = dt.template_contacts(&guard, &lip_closing(&source, 0.1, amount), &moved);
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &ATTEMPTS[0], &template)
         };
-        let bump = |v: usize| {
-            let p = source[v];
-            let along = (std::f32::consts::PI * p[0] / 1.5).sin().max(0.0);
-            let across = (std::f32::consts::PI * (p[1] + 0.5)).sin().max(0.0);
-            along.powi(2) * across.powi(2)
-        };
+        let bump = |v: usize| bump(&source[v]);
         // A template closing 90% of its gap crosses nowhere: the crossing target vertices are
         // held, the middle of the lips among them.
         let open = held(0.045);
@@ -507,6 +510,36 @@ mod tests {
             let at = cleared.get(v).unwrap_or_else(|| panic!("vertex {v} is not held"));
             assert!((0..3).all(|a| (at[a] - target[a]).abs() < 1e-12), "vertex {v}: {at:?} against {target:?}");
         }
+    }
+
+    #[test]
+    fn the_last_attempt_acts_beside_the_templates_own_contacts_and_still_follows_them() {
+        // The template presses its lips 0.02 into each other where the bump exceeds 0.83; the
+        // target's, closed by 0.045 each across 0.04, cross wider (bump over 0.44). The first
+        // attempt leaves the target's pairs within two one-rings of the template's contacts
+        // alone; the last acts on them too, so it holds more, yet none of the vertices the
+        // template itself takes through the other lip.
+        let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
+        let moved = vec![true; dt.triangles.len()];
+        let piece = |t: u32| dt.piece[dt.triangles[t as usize][0] as usize];
+        let acted = |contacts: &TemplateContacts, attempt: &Attempt| -> Vec<(u32, u32)> {
+            pairs.iter().copied().filter(|&(a, b)| contacts.acts_on(&guard, attempt, (a, b), (piece(a), piece(b)))).collect()
+        };
+        let pressed = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.06), &moved);
+        let last = ATTEMPTS.last().expect("attempts");
+        assert!(last.contacts && last.strip && !last.follow && !last.clear);
+        let (first, beside) = (acted(&pressed, &ATTEMPTS[0]), acted(&pressed, last));
+        assert_eq!(beside, pairs);
+        assert!(!first.is_empty() && first.len() < pairs.len(), "{} of {}", first.len(), pairs.len());
+        assert!(pairs.iter().filter(|p| !first.contains(p)).all(|&(a, b)| pressed.near(&guard, a, b)));
+        // A template that keeps its lips apart has no contacts: every attempt acts on every pair.
+        let apart = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.045), &moved);
+        assert!(ATTEMPTS.iter().all(|attempt| acted(&apart, attempt) == pairs));
+        let free = vec![true; positions.len()];
+        let held = |pairs: &[(u32, u32)], attempt: &Attempt| dt.offending_vertices(&guard, &positions, pairs, &free, &[false], attempt, &pressed);
+        let (held_first, held_last) = (held(&first, &ATTEMPTS[0]), held(&beside, last));
+        assert!(held_first.keys().all(|v| held_last.contains_key(v)) && held_last.len() > held_first.len());
+        assert!(held_last.keys().all(|&v| bump(&source[v]) < 0.95), "{held_last:?}");
     }
 
     #[test]

@@ -363,16 +363,10 @@ impl DeformationTransfer {
             // eyeballs and presses the lips into each other (OldMan's mouthClose).
             let grown = pieces_grown(crossing.iter().copied(), swept_rest_pairs.iter().copied(), piece_of, 0.5 * tolerance);
             let grew = |&(a, b): &(u32, u32)| grown.contains(&piece_key(piece_of(a), piece_of(b)));
-            // And of those, the pairs away from the template's own contacts. The rest attempt
-            // also acts near the template's contacts against a piece it adds no curve to:
-            // there its contacts only slide along what its neutral has. The piece tests go
-            // first: the contact test reads two one-rings a pair, for the tens of thousands
-            // of pairs that moving lashes carry.
+            // And of those, the pairs the attempt acts on beside the template's own contacts
+            // ([`TemplateContacts::acts_on`]).
             let away = |&(a, b): &(u32, u32)| match &template {
-                Some(contacts) => {
-                    let (p, q) = (piece_of(a), piece_of(b));
-                    attempt.follow || attempt.clear || attempt.contacts || (attempt.rest && p != q && contacts.adds_none(p, q)) || !contacts.near(guard, a, b)
-                }
+                Some(contacts) => contacts.acts_on(guard, attempt, (a, b), (piece_of(a), piece_of(b))),
                 None => true,
             };
             let in_part: Vec<(u32, u32)> = candidates.iter().copied().filter(in_excess).collect();
