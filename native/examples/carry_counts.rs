@@ -1,6 +1,6 @@
 //! Shapes of the wrap's carried keys worse than the template by SPEC 3's criterion, with the
-//! carry's collision pass and without it, on the arrays `scripts/bench_wrap.py -- --save-arrays
-//! DIR` writes (one directory per character):
+//! carry's collision pass and without it, on the arrays `scripts/save_wrap_arrays.py -- DIR`
+//! writes (one directory per character):
 //!
 //!     cargo run --release --example carry_counts -- DIR/<character>
 //!

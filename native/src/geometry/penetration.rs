@@ -119,6 +119,11 @@ impl AddedCurve {
     }
 }
 
+/// A pair crossing at a neutral's rest is acted on (by the transfer's and the carry's collision
+/// passes) once its curve grows by more than this fraction in a shape: skin resting against an
+/// eyeball or the teeth adds curve by sliding deeper along pairs that already cross.
+pub const REST_GROWTH: f64 = 0.05;
+
 /// What the template's shape allows a target shape (SPEC 3's criterion), per part, at the
 /// target's size and units: the curve it adds to the template's neutral (`added`) and its
 /// own whole curve (`crossing`). Part by part, a target shape is worse than the template's

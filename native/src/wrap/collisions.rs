@@ -53,13 +53,13 @@
 //!   plane it had at rest says nothing; no round helps and the plain carry is kept), and small
 //!   excesses in squints and brows.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, cross, dot, length, scale, sub, Vec3};
 pub use crate::geometry::penetration::{AddedCurve, TemplateCurve};
-use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
+use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration, REST_GROWTH};
 use crate::geometry::topology::Adjacency;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
 
@@ -114,11 +114,15 @@ enum HoldRule {
     /// Halfway back along its own motion, each round: for a lip that turns over, where the
     /// side of the other lip's plane it rested on says nothing.
     AlongPath,
+    /// Skin whose triangle crosses the static piece at the character's rest (a lip resting in
+    /// the teeth) back to rest, the other corners as `BackToRest`; taken only when it clears
+    /// the shape.
+    Embedded,
 }
 
 /// The attempts, each from the plain carry, while the shape is still worse (each clears
 /// shapes the others do not: Deviations).
-const ATTEMPTS: [HoldRule; 3] = [HoldRule::BackToRest, HoldRule::Margin, HoldRule::AlongPath];
+const ATTEMPTS: [HoldRule; 4] = [HoldRule::BackToRest, HoldRule::Margin, HoldRule::AlongPath, HoldRule::Embedded];
 
 /// Re-solved rounds per attempt at most.
 const ROUNDS: usize = 4;
@@ -144,6 +148,8 @@ pub(super) struct Guard<'a> {
     bvh: TriangleBvh,
     /// Crossing pairs at rest, `(a, b, length)` sorted.
     rest_pairs: Vec<(u32, u32, f64)>,
+    /// `(triangle, piece)`: the triangle crosses that other piece at rest.
+    embedded: HashSet<(u32, u32)>,
     /// Each triangle's unit normal at rest (`None` when degenerate).
     rest_normal: Vec<Option<Vec3>>,
     rest: Penetration,
@@ -181,6 +187,11 @@ impl<'a> Guard<'a> {
         let rest_normal = triangles.iter().map(|t| unit_normal(t.map(|w| points[w as usize]))).collect();
         let triangle_piece: Vec<u32> = triangles.iter().map(|t| vertex_piece[t[0] as usize]).collect();
         let rest = shape_penetration(&rest_pairs, &[], &vec![true; triangles.len()], &triangle_piece);
+        let embedded = rest_pairs
+            .iter()
+            .filter(|&&(a, b, _)| triangle_piece[a as usize] != triangle_piece[b as usize])
+            .flat_map(|&(a, b, _)| [(a, triangle_piece[b as usize]), (b, triangle_piece[a as usize])])
+            .collect();
         let adjacency = Adjacency::from_triangles(points.len(), triangles);
         let margin = adjacency.mean_edge_lengths(points).iter().map(|mean| (params.collision_margin * mean).max(1e-3 * diagonal)).collect();
         let mut rank = vec![0usize; order.len()];
@@ -191,6 +202,7 @@ impl<'a> Guard<'a> {
             triangles,
             bvh,
             rest_pairs,
+            embedded,
             rest_normal,
             rest,
             triangle_piece,
@@ -292,7 +304,8 @@ impl<'a> Guard<'a> {
                 outcome.solves += 1;
                 let round_sweep = self.resweep(&plain_sweep, &round, &region);
                 let round_parts = round_sweep.added.excess_parts(template);
-                if round_parts.total() < outcome.excess {
+                let taken = rule != HoldRule::Embedded || round_parts.total() <= self.tolerance;
+                if taken && round_parts.total() < outcome.excess {
                     outcome = CarryCollision { excess: round_parts.total(), applied: true, held_vertices: targets.len(), ..outcome };
                     best = round.clone();
                     best_penetration = round_sweep.penetration;
@@ -323,12 +336,16 @@ impl<'a> Guard<'a> {
         for (v, d) in deltas.iter().enumerate() {
             piece_moves[self.vertex_piece[v] as usize] |= *d != [0.0; 3];
         }
-        let at_rest = |a: u32, b: u32| self.rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok();
+        // A pair crossing at rest is held only once its curve grows (skin resting in the teeth
+        // that slides deeper into them along the pairs it rests on).
+        let at_rest = |a: u32, b: u32, l: f64| {
+            self.rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok_and(|i| l <= self.rest_pairs[i].2 * (1.0 + REST_GROWTH))
+        };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
-        for &(a, b, _) in swept {
+        for &(a, b, l) in swept {
             let inside = self.triangle_piece[a as usize] == self.triangle_piece[b as usize];
             let part_excess = if inside { parts.inside } else { parts.between };
-            if part_excess <= 0.0 || at_rest(a, b) {
+            if part_excess <= 0.0 || at_rest(a, b, l) {
                 continue;
             }
             for (mine, other) in [(a, b), (b, a)] {
@@ -342,7 +359,12 @@ impl<'a> Guard<'a> {
                         let back = scale(sub(self.points[u], posed[u]), 0.5);
                         (length(back) > 1e-3 * self.margin[u]).then_some(back)
                     } else if !inside && !piece_moves[other_piece as usize] {
-                        self.off_static_piece(posed[u], u, other_piece, rule == HoldRule::BackToRest)
+                        if rule == HoldRule::Embedded && self.embedded.contains(&(mine, other_piece)) {
+                            let back = sub(self.points[u], posed[u]);
+                            (length(back) > 0.0).then_some(back)
+                        } else {
+                            self.off_static_piece(posed[u], u, other_piece, rule != HoldRule::Margin)
+                        }
                     } else {
                         let other_moves = self.triangles[other as usize].iter().any(|&w| deltas[w as usize] != [0.0; 3]);
                         self.off_plane(posed, u, other as usize).map(|p| if other_moves { scale(p, 0.5) } else { p })

@@ -89,7 +89,7 @@ use super::gradients::{add, length, sub, Vec3};
 use super::system::RestrictedFactor;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration};
+use crate::geometry::penetration::{crossings, crossings_of, shape_penetration, Penetration, REST_GROWTH};
 
 /// Knobs of the collision pass, defaults from SPEC section 3.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -583,10 +583,6 @@ const ATTEMPTS: [Attempt; 9] = [
     Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false },
     Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true },
 ];
-
-/// A rest pair (crossing in the target's neutral) is acted on when its curve grows by more
-/// than this fraction in the shape.
-const REST_GROWTH: f64 = 0.05;
 
 /// Excess over the template's curve (in bbox diagonals) below which a shape meets the
 /// criterion: a tenth of the report's tolerance, so that float noise in the sums of a shape
