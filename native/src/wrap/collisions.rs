@@ -15,11 +15,11 @@
 //! criterion's allowance ([`AddedCurve::excess_parts`]); worse means an excess over
 //! [`CarryParams::collision_tolerance`] x the character's bbox diagonal.
 //!
-//! **Holds.** For each pair of the part in excess that crosses in the result and not at rest,
-//! each free (non-static) corner `u` of one triangle is tested against the other: against a
-//! piece that is static in the shape (teeth, an eyeball), at its closest point on that piece
-//! (the side read along that triangle's normal, at rest and now): on the other side than at
-//! rest, or nearer than the margin, `t_u` is that closest point plus the margin along the
+//! **Holds.** For each pair of the part in excess that crosses in the result and not at rest
+//! (or with more curve than at rest, Deviations), each free (non-static) corner `u` of one
+//! triangle is tested against the other: against a piece that is static in the shape (teeth,
+//! an eyeball), at its closest point on that piece (the side read along that triangle's
+//! normal, at rest and now): on the other side than at rest, or nearer than the margin, `t_u` is that closest point plus the margin along the
 //! normal, on the rest side. Against a surface that moves too (lip through lip), along the
 //! other triangle's unit normal `n` now: `t_u = x_u + (s m_u - h) n` (`s` the side of the
 //! triangle's plane `u` had at rest, `h` its signed height now), half of it when the other
@@ -45,8 +45,12 @@
 //!   plain carry holds every such corner at the margin; a third holds every free corner of a
 //!   crossing pair halfway back along its own motion, again each round (a lip that turns over
 //!   goes through the other lip's plane on the side it rested on, so the side test pushes it
-//!   the wrong way; halving its motion never crosses where the rest does not). The least
-//!   excess is kept.
+//!   the wrong way; halving its motion never crosses where the rest does not); a fourth puts
+//!   the corners of skin triangles that cross the static piece at rest back to rest (a lip
+//!   resting in the teeth that slides deeper into them: mouthPucker), taken only when it
+//!   clears the shape. The least excess is kept.
+//! - **Rest pairs that grow are held**: a pair crossing at rest is acted on once its curve
+//!   grows by [`REST_GROWTH`], as in the transfer's pass.
 //! - **All rounds run**: a round that does not lower the excess can be followed by one that
 //!   clears the shape.
 //! - **Left worse**: the rolled lips (the lip turns over, so the side of the other triangle's
