@@ -16,17 +16,17 @@
 //! [`CarryParams::collision_tolerance`] x the character's bbox diagonal.
 //!
 //! **Holds.** For each pair of the part in excess that crosses in the result and not at rest
-//! (in the last attempt, or with more curve than at rest: Deviations), each free (non-static) corner `u` of one
-//! triangle is tested against the other: against a piece that is static in the shape (teeth, an
-//! eyeball), at its closest point on that piece (the side read along that triangle's normal, at
-//! rest and now): on the other side than at rest, or nearer than the margin, `t_u` is that
-//! closest point plus the margin along the normal, on the rest side. Against a surface that
-//! moves too (lip through lip), along the other triangle's unit normal `n` now:
-//! `t_u = x_u + (s m_u - h) n` (`s` the side of the triangle's plane `u` had at rest, `h` its signed height
-//! now), half of it when the other triangle moves (its corners get the other half from the pair
-//! seen the other way round). `m_u` is `collision_margin` x the mean length of the edges at `u`
-//! (at least 1e-3 of the diagonal). A vertex held by several pairs takes its largest push;
-//! targets accumulate over the rounds.
+//! (in the last attempt, or with more curve than at rest: Deviations), each free (non-static)
+//! corner `u` of one triangle is tested against the other: against a piece that is static in
+//! the shape (teeth, an eyeball), at its closest point on that piece (the side read along that
+//! triangle's normal, at rest and now): on the other side than at rest, or nearer than the
+//! margin, `t_u` is that closest point plus the margin along the normal, on the rest side.
+//! Against a surface that moves too (lip through lip), along the other triangle's unit normal
+//! `n` now: `t_u = x_u + (s m_u - h) n` (`s` the side of the triangle's plane `u` had at rest, `h`
+//! its signed height now), half of it when the other triangle moves (its corners get the other
+//! half from the pair seen the other way round). `m_u` is `collision_margin` x the mean length
+//! of the edges at `u` (at least 1e-3 of the diagonal). A vertex held by several pairs takes
+//! its largest push; targets accumulate over the rounds.
 //!
 //! **Re-solve.** The energy gains `w_u |d_u - (t_u - x_u^0)|^2`, `w_u = stiffness x A_uu`
 //! (a scalar weight: the diagonal of the x, y and z systems, so one factor serves the three).
