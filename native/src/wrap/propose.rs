@@ -1,7 +1,7 @@
-//! Point pairs proposed, not clicked: the same named features (eye and mouth corners, nose tip
-//! and wings, chin) found on the template and on the character, so that Wrap works on a new
-//! character with no click. Lid and lip centres and brows are not proposed: found the same way
-//! they made the carried keys worse (docs/design.md, "Proposed pairs").
+//! Point pairs proposed, not clicked: the same named features (eye and mouth corners, nose tip,
+//! chin) found on the template and on the character, so that Wrap works on a new character
+//! with no click. Lid and lip centres, brows and the nose wings are not proposed: found the
+//! same way they made the carried keys worse (docs/design.md, "Proposed pairs").
 //!
 //! How (geometry only on the character; the template's rig only tells where its face is):
 //! 1. **The template's frame.** Front and up from the rig ([`find_front`]: where its shapes
@@ -24,8 +24,7 @@
 //!    the margin's widest connected run is the opening, its lateral extremes the corners. The
 //!    nose tip is the most frontal skin on the symmetry plane between the upper lip and the
 //!    eyes; the chin the bulge of the midline profile below the mouth past the hollow under
-//!    the lower lip; a nose wing the skin farthest out to the side and front between the lip
-//!    and the tip.
+//!    the lower lip.
 //! 4. A feature found on both meshes is a pair (template vertex, character vertex); one
 //!    missing on either (a closed scan without openings) is left out and named.
 
@@ -386,7 +385,6 @@ struct Features {
     eyes: [Option<Opening>; 2],
     mouth: Option<Opening>,
     nose_tip: Option<u32>,
-    nose_wings: [Option<u32>; 2],
     chin: Option<u32>,
 }
 
@@ -411,9 +409,6 @@ impl Features {
         out.push(("mouth corner left".into(), self.mouth.map(|m| m.corners[1])));
         out.push(("mouth corner right".into(), self.mouth.map(|m| m.corners[0])));
         out.push(("nose tip".into(), self.nose_tip));
-        for (s, side) in SIDES.iter().enumerate() {
-            out.push((format!("nose wing {side}"), self.nose_wings[s]));
-        }
         out.push(("chin".into(), self.chin));
         out
     }
@@ -446,15 +441,6 @@ fn find_features(mesh: &Mesh, frame: &Frame, seeds: &Seeds) -> Features {
     let lip = mouth_y + 0.2 * width;
     features.nose_tip = best(&|p| p[0].abs() < band && p[1] > lip && p[1] < eye_y, &|p| p[2]);
     features.chin = profile_peak(mesh, &local, &|p| p[0].abs() < band, mouth_y, -1.0, 1.8 * width, 0.05 * width);
-    let Some(tip) = features.nose_tip else { return features };
-    let tip = local[tip as usize];
-    for s in 0..2 {
-        let sign = if s == 0 { 1.0 } else { -1.0 };
-        features.nose_wings[s] = best(
-            &|p| sign * p[0] > 0.0 && sign * p[0] < 0.45 * width && p[1] > lip + 0.25 * (tip[1] - lip) && p[1] < tip[1],
-            &|p| sign * p[0] + p[2],
-        );
-    }
     features
 }
 
