@@ -44,7 +44,7 @@ def proposal_errors(proposal, truth_of_template_vertex, diagonal):
 
 FEATURES = [
     "eye corner inner left", "eye corner outer left", "eye corner inner right", "eye corner outer right",
-    "mouth corner left", "mouth corner right", "nose tip", "nose wing left", "nose wing right", "chin",
+    "mouth corner left", "mouth corner right", "nose tip", "chin",
 ]
 
 

@@ -1,5 +1,5 @@
 """Propose Pairs: the character's point pairs filled from the same features found on both
-heads (eye and mouth corners, nose tip and wings, chin), for the rigger to review and move
+heads (eye and mouth corners, nose tip, chin), for the rigger to review and move
 instead of clicking each."""
 
 import bpy
@@ -13,7 +13,7 @@ class SHAPESMITH_OT_propose_point_pairs(bpy.types.Operator):
     bl_label = "Propose Pairs"
     bl_description = (
         "Replace the point pairs with ones found on both heads: eye and mouth corners, "
-        "nose tip and wings, and chin (the template's from its keys and shape, the character's from its shape)"
+        "nose tip and chin (the template's from its keys and shape, the character's from its shape)"
     )
     bl_options = {"REGISTER", "UNDO"}
 

@@ -63,7 +63,7 @@ fn wrap_template<'py>(
 /// propose_pairs(template_neutral, template_deltas, template_triangles, names, character_neutral,
 ///               character_triangles, *, progress=None) -> dict
 ///
-/// Point pairs found on both heads (eye and mouth corners, nose tip and wings, chin): `pairs`
+/// Point pairs found on both heads (eye and mouth corners, nose tip, chin): `pairs`
 /// (each `name`, `template_vertex`, `character_vertex`, `template`, `character`: vertices and
 /// their rest points), `missing` (features not found on
 /// both), the alignment they were found through (`similarity`, `alignment_distance`), both
