@@ -26,7 +26,7 @@ from test_wrap import (
 from wrap_copies import moving_error  # noqa: E402  (scripts/ is on the path: test_wrap)
 
 # Each proposed character point lies within this fraction of the character's diagonal of the
-# template point's true place (measured: on the sample character median 0.6%, the largest
+# template point's true place (measured: on the sample character median 0.5%, the largest
 # 1.4%, the nose tip of a decimated nose; on the turned decimated Template median 0.07%, the
 # largest 2.7%, the chin, whose bulge is flat along the profile).
 PAIR_TOLERANCE = 0.03
@@ -93,9 +93,8 @@ def test_pairs_proposed_on_a_decimated_turned_rescaled_template(sample, shapesmi
 def test_keys_from_proposed_pairs_are_as_close_to_the_truth_as_from_hand_pairs(sample, shapesmith):
     """The decimated identity in centimetres with Y up of test_wrap, once with its hand pairs
     (exact by construction) and once with pairs proposed: the keys' error against the
-    same-topology transfer. Measured 1.68e-3 proposed against 1.45e-3 hand (the symmetric fit
-    gains more from exact pairs than from proposed ones), 16% more: the goal of 10% is not met;
-    the bound is 25%, a margin over that measurement."""
+    same-topology transfer, within 10% of the hand pairs' (measured 1.62e-3 proposed against
+    1.53e-3 hand, 5.5% more)."""
     wrap = module(shapesmith, "blender.wrap")
     transfer = module(shapesmith, "blender.transfer")
     template = bpy.data.objects["Template"]
@@ -111,7 +110,7 @@ def test_keys_from_proposed_pairs_are_as_close_to_the_truth_as_from_hand_pairs(s
         reference = sampled_truth(shapesmith, motion, obj, truth)
         errors[label] = moving_error(key_deltas(obj, names), reference, wrapped.report["diagonal"])
     print(errors)
-    assert errors["proposed"] <= 1.25 * errors["hand"], errors
+    assert errors["proposed"] <= 1.10 * errors["hand"], errors
 
 
 def test_the_button_fills_the_pairs_list_in_one_undo_step_and_wrap_proposes_when_there_are_none(sample, shapesmith):
