@@ -79,7 +79,7 @@ impl TemplateContacts {
     /// its neutral has. The piece test goes first: the contact test reads two one-rings a pair,
     /// for the tens of thousands of pairs that moving lashes carry.
     pub(super) fn acts_on(&self, guard: &CollisionGuard, attempt: &Attempt, (a, b): (u32, u32), (p, q): (u32, u32)) -> bool {
-        attempt.follow || attempt.clear || attempt.contacts || (attempt.rest && p != q && self.adds_none(p, q)) || !self.near(guard, a, b)
+        attempt.follow || attempt.clear || attempt.contacts || attempt.along_path || (attempt.rest && p != q && self.adds_none(p, q)) || !self.near(guard, a, b)
     }
 
     /// Whether the pair `(a, b)` is the artist's own: some triangle sharing a corner with `a`

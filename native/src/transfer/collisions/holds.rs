@@ -59,6 +59,9 @@ impl DeformationTransfer {
             let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
         };
+        if attempt.along_path {
+            return self.along_path_holds(guard, positions, pairs, free);
+        }
         for &(a, b) in pairs {
             for (side, obstacle) in [(a, b), (b, a)] {
                 for &u in &self.triangles[side as usize] {
@@ -122,6 +125,33 @@ impl DeformationTransfer {
             }
         }
         pushes.into_iter().map(|(u, push)| (u, add(positions[u], push))).collect()
+    }
+
+    /// The along-path attempt's holds: each free corner of a pair inside one piece whose
+    /// triangles lie beside a pair the template's neutral crosses (lips resting through each
+    /// other) a quarter of the way back along its own motion, `t_u = x_u + (B0_u - x_u) / 4`,
+    /// renewed each round. Where the template's lips rest crossed, the side of the other
+    /// lip's plane a corner rested on says nothing of where it belongs, and the rest-side
+    /// pushes add curve round after round; stopping short along the way it came does not.
+    fn along_path_holds(&self, guard: &CollisionGuard, positions: &[Vec3], pairs: &[(u32, u32)], free: &[bool]) -> Targets {
+        let resting: HashSet<u32> = guard
+            .template_rest_pairs
+            .iter()
+            .filter(|&&(a, b, _)| self.triangle_piece(a) == self.triangle_piece(b))
+            .flat_map(|&(a, b, _)| [a, b])
+            .collect();
+        let beside = |t: u32| guard.around(t).iter().any(|s| resting.contains(s));
+        let mut targets = Targets::new();
+        for &(a, b) in pairs.iter().filter(|&&(a, b)| self.triangle_piece(a) == self.triangle_piece(b) && (beside(a) || beside(b))) {
+            for &u in self.triangles[a as usize].iter().chain(&self.triangles[b as usize]) {
+                let u = u as usize;
+                let back = sub(self.target_neutral[u], positions[u]);
+                if free[u] && length(back) > 0.0 {
+                    targets.insert(u, add(positions[u], scale(back, 0.25)));
+                }
+            }
+        }
+        targets
     }
 
     /// Per triangle, whether the virtual-edge springs `springs` folded it over in the plain
@@ -513,11 +543,11 @@ mod tests {
     }
 
     #[test]
-    fn the_last_attempt_acts_beside_the_templates_own_contacts_and_still_follows_them() {
+    fn the_contacts_attempt_acts_beside_the_templates_own_contacts_and_still_follows_them() {
         // The template presses its lips 0.02 into each other where the bump exceeds 0.83; the
         // target's, closed by 0.045 each across 0.04, cross wider (bump over 0.44). The first
         // attempt leaves the target's pairs within two one-rings of the template's contacts
-        // alone; the last acts on them too, so it holds more, yet none of the vertices the
+        // alone; the contacts attempt acts on them too, so it holds more, yet none of the vertices the
         // template itself takes through the other lip.
         let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
         let moved = vec![true; dt.triangles.len()];
@@ -526,8 +556,8 @@ mod tests {
             pairs.iter().copied().filter(|&(a, b)| contacts.acts_on(&guard, attempt, (a, b), (piece(a), piece(b)))).collect()
         };
         let pressed = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.06), &moved);
-        let last = ATTEMPTS.last().expect("attempts");
-        assert!(last.contacts && last.strip && !last.follow && !last.clear);
+        let last = ATTEMPTS.iter().find(|a| a.contacts).expect("a contacts attempt");
+        assert!(last.strip && !last.follow && !last.clear && !last.along_path);
         let (first, beside) = (acted(&pressed, &ATTEMPTS[0]), acted(&pressed, last));
         assert_eq!(beside, pairs);
         assert!(!first.is_empty() && first.len() < pairs.len(), "{} of {}", first.len(), pairs.len());
@@ -543,6 +573,35 @@ mod tests {
     }
 
     #[test]
+    fn the_along_path_attempt_holds_lips_back_along_their_motion_only_where_the_templates_rest_crossed() {
+        // The target's lips (0.04 apart) closed by 0.045 each cross in the middle. Under a
+        // template whose neutral's lips rest pressed 0.02 into each other there, every corner of
+        // a crossing pair is held a quarter of the way back to its rest; under a template whose
+        // lips rest apart, the attempt holds nothing (the rest sides are read there).
+        let (source, tris) = lips(0.1);
+        let (target, _) = lips(0.04);
+        let crossed: Vec<[f32; 3]> = source.iter().zip(lip_closing(&source, 0.1, 0.06)).map(|(p, d)| [p[0], p[1], p[2] + d[2]]).collect();
+        let dt = DeformationTransfer::new(&crossed, &target, &tris, &TransferParams::default()).unwrap();
+        let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+        assert!(!guard.template_rest_pairs.is_empty());
+        let positions = posed(&dt.target_neutral, lip_closing(&target, 0.04, 0.045));
+        let bvh = TriangleBvh::build(&positions, &tris);
+        let pairs: Vec<(u32, u32)> = crossings(&positions, &tris, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        let free = vec![true; positions.len()];
+        let held = dt.along_path_holds(&guard, &positions, &pairs, &free);
+        assert!(!held.is_empty());
+        let corners: Vec<usize> = pairs.iter().flat_map(|&(a, b)| tris[a as usize].into_iter().chain(tris[b as usize])).map(|v| v as usize).collect();
+        for (&u, at) in &held {
+            assert!(corners.contains(&u), "vertex {u} is not a corner of a crossing pair");
+            let expected = [0, 1, 2].map(|k| positions[u][k] + 0.25 * (dt.target_neutral[u][k] - positions[u][k]));
+            assert!((0..3).all(|k| (at[k] - expected[k]).abs() < 1e-12), "vertex {u}: {at:?} against {expected:?}");
+        }
+        let (_, clean, clean_guard, _, _) = closed_target_lips(0.045);
+        assert!(clean_guard.template_rest_pairs.is_empty());
+        assert!(clean.along_path_holds(&clean_guard, &positions, &pairs, &free).is_empty());
+    }
+
+    #[test]
     fn the_strip_attempt_also_holds_lip_vertices_nearer_than_the_margin() {
         // The target's lips (0.04 apart) closed by 0.02 each where the bump is full: they
         // touch in the middle and cross nowhere else, so near the crossing some vertices are
@@ -553,7 +612,7 @@ mod tests {
         // The template's shape leaves its lips apart: nothing is filtered.
         let template = dt.template_contacts(&guard, &vec![[0.0; 3]; positions.len()], &vec![true; dt.triangles.len()]);
         let held = |strip: bool| {
-            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false, contacts: false };
+            let attempt = Attempt { stiffness: 1.0, margin: 1.0, strip, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false };
             dt.offending_vertices(&guard, &positions, &pairs, &free, &[false], &attempt, &template)
         };
         let (through, strip) = (held(false), held(true));

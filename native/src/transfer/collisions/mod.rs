@@ -47,11 +47,14 @@
 //! contacts, the skin resting across a static piece kept where it rests (kept only when it
 //! clears the shape), every vertex that went through held on its rest side, the template's
 //! contacts not followed (a template whose neutral's lips cross presses its shapes' lips
-//! through each other, which the target need not copy), and last the whole contact strip
-//! held with the pairs next to the template's own contacts acted on too, its vertices that
-//! cross as the template's still following it (a target pressing its lips along a longer
-//! contact than the template's adds its excess right beside the template's contacts, which the
-//! other attempts leave alone). The next runs only while the shape is still worse; the plain
+//! through each other, which the target need not copy), the whole contact strip held with the
+//! pairs next to the template's own contacts acted on too, its vertices that cross as the
+//! template's still following it (a target pressing its lips along a longer contact than the
+//! template's adds its excess right beside the template's contacts, which the other attempts
+//! leave alone), and last, beside where the template's neutral itself crosses inside a piece
+//! (lips resting through each other, where a rest side says nothing), each corner of a pair held
+//! a quarter of the way back along its own motion each round (kept only when it clears the
+//! shape). The next runs only while the shape is still worse; the plain
 //! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
 //! run two side by side and are taken in order, so the result is that of a serial run.
 //!
@@ -209,7 +212,7 @@ impl DeformationTransfer {
                 let (next, next_excess, again) = tried?;
                 solves += next.solves;
                 // The embedded attempt's holds are taken only when they clear the shape.
-                let taken = !attempt.embedded || worse(next_excess).is_none();
+                let taken = !(attempt.embedded || attempt.along_path) || worse(next_excess).is_none();
                 if taken && next_excess.is_some_and(|e| e < least) {
                     *out = again;
                     outcome = CollisionOutcome { new_pairs: outcome.new_pairs, ..next };
@@ -557,7 +560,9 @@ impl PlainRound {
 /// kept only when it clears the shape; with `clear`, the template's own contacts are not
 /// followed: every vertex of a pair in excess that went through is held on its rest side; with
 /// `contacts`, the pairs near the template's own contacts are acted on too (its vertices
-/// crossing as the template's are still left alone).
+/// crossing as the template's are still left alone); with `along_path`, the corners of pairs
+/// inside a piece beside where the template's neutral crosses are held back along their own
+/// motion (`along_path_holds`), and the attempt is kept only when it clears the shape.
 pub(super) struct Attempt {
     stiffness: f64,
     margin: f64,
@@ -567,21 +572,23 @@ pub(super) struct Attempt {
     pub(super) embedded: bool,
     pub(super) clear: bool,
     pub(super) contacts: bool,
+    pub(super) along_path: bool,
 }
 
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the three bundled targets, each later attempt
 /// clears shapes the earlier ones leave (module docs).
-const ATTEMPTS: [Attempt; 9] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true },
+const ATTEMPTS: [Attempt; 10] = [
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true, along_path: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: true },
 ];
 
 /// Excess over the template's curve (in bbox diagonals) below which a shape meets the
