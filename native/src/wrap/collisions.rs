@@ -16,17 +16,17 @@
 //! [`CarryParams::collision_tolerance`] x the character's bbox diagonal.
 //!
 //! **Holds.** For each pair of the part in excess that crosses in the result and not at rest
-//! (in the last attempt, or with more curve than at rest: Deviations), each free (non-static)
-//! corner `u` of one triangle is tested against the other: against a piece that is static in
-//! the shape (teeth, an eyeball), at its closest point on that piece (the side read along that
-//! triangle's normal, at rest and now): on the other side than at rest, or nearer than the
-//! margin, `t_u` is that closest point plus the margin along the normal, on the rest side.
-//! Against a surface that moves too (lip through lip), along the other triangle's unit normal
-//! `n` now: `t_u = x_u + (s m_u - h) n` (`s` the side of the triangle's plane `u` had at rest, `h`
-//! its signed height now), half of it when the other triangle moves (its corners get the other
-//! half from the pair seen the other way round). `m_u` is `collision_margin` x the mean length
-//! of the edges at `u` (at least 1e-3 of the diagonal). A vertex held by several pairs takes
-//! its largest push; targets accumulate over the rounds.
+//! (in the last attempt also one crossing at rest with more curve than then: Deviations), each
+//! free (non-static) corner `u` of one triangle is tested against the other: against a piece
+//! that is static in the shape (teeth, an eyeball), at its closest point on that piece (the
+//! side read along that triangle's normal, at rest and now): on the other side than at rest, or
+//! nearer than the margin, `t_u` is that closest point plus the margin along the normal, on the
+//! rest side. Against a surface that moves too (lip through lip), along the other triangle's
+//! unit normal `n` now: `t_u = x_u + (s m_u - h) n` (`s` the side of the triangle's plane `u`
+//! had at rest, `h` its signed height now), half of it when the other triangle moves (its
+//! corners get the other half from the pair seen the other way round). `m_u` is
+//! `collision_margin` x the mean length of the edges at `u` (at least 1e-3 of the diagonal). A
+//! vertex held by several pairs takes its largest push; targets accumulate over the rounds.
 //!
 //! **Re-solve.** The energy gains `w_u |d_u - (t_u - x_u^0)|^2`, `w_u = stiffness x A_uu`
 //! (a scalar weight: the diagonal of the x, y and z systems, so one factor serves the three).
@@ -49,9 +49,7 @@
 //!   also on the pairs crossing at rest whose curve grows by [`REST_GROWTH`] (as the
 //!   transfer's pass does) and puts the corners of skin triangles that cross the static piece
 //!   at rest back to rest (a lip resting in the teeth that slides deeper into them:
-//!   mouthPucker), taken only when it clears the shape. The least excess is kept. (Acting on
-//!   growing rest pairs in every attempt clears the 10k character's mouthPucker by holds its
-//!   mirror image does not meet: 97% mirror miss instead of 3%.)
+//!   mouthPucker), taken only when it clears the shape. The least excess is kept.
 //! - **All rounds run**: a round that does not lower the excess can be followed by one that
 //!   clears the shape.
 //! - **Left worse**: the rolled lips (the lip turns over, so the side of the other triangle's
@@ -59,6 +57,7 @@
 //!   excesses in squints and brows.
 
 use std::collections::{BTreeMap, HashSet};
+use std::sync::OnceLock;
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
@@ -153,8 +152,9 @@ pub(super) struct Guard<'a> {
     bvh: TriangleBvh,
     /// Crossing pairs at rest, `(a, b, length)` sorted.
     rest_pairs: Vec<(u32, u32, f64)>,
-    /// `(triangle, piece)`: the triangle crosses that other piece at rest.
-    embedded: HashSet<(u32, u32)>,
+    /// `(triangle, piece)`: the triangle crosses that other piece at rest; made when the
+    /// embedded attempt first asks.
+    embedded: OnceLock<HashSet<(u32, u32)>>,
     /// Each triangle's unit normal at rest (`None` when degenerate).
     rest_normal: Vec<Option<Vec3>>,
     rest: Penetration,
@@ -192,11 +192,6 @@ impl<'a> Guard<'a> {
         let rest_normal = triangles.iter().map(|t| unit_normal(t.map(|w| points[w as usize]))).collect();
         let triangle_piece: Vec<u32> = triangles.iter().map(|t| vertex_piece[t[0] as usize]).collect();
         let rest = shape_penetration(&rest_pairs, &[], &vec![true; triangles.len()], &triangle_piece);
-        let embedded = rest_pairs
-            .iter()
-            .filter(|&&(a, b, _)| triangle_piece[a as usize] != triangle_piece[b as usize])
-            .flat_map(|&(a, b, _)| [(a, triangle_piece[b as usize]), (b, triangle_piece[a as usize])])
-            .collect();
         let adjacency = Adjacency::from_triangles(points.len(), triangles);
         let margin = adjacency.mean_edge_lengths(points).iter().map(|mean| (params.collision_margin * mean).max(1e-3 * diagonal)).collect();
         let mut rank = vec![0usize; order.len()];
@@ -207,7 +202,7 @@ impl<'a> Guard<'a> {
             triangles,
             bvh,
             rest_pairs,
-            embedded,
+            embedded: OnceLock::new(),
             rest_normal,
             rest,
             triangle_piece,
@@ -349,6 +344,12 @@ impl<'a> Guard<'a> {
             self.rest_pairs.binary_search_by_key(&(a, b), |p| (p.0, p.1)).is_ok_and(|i| l <= self.rest_pairs[i].2 * growth)
         };
         let mut pushes: BTreeMap<usize, Vec3> = BTreeMap::new();
+        let embedded = || {
+            self.embedded.get_or_init(|| {
+                let piece = |t: u32| self.triangle_piece[t as usize];
+                self.rest_pairs.iter().filter(|&&(a, b, _)| piece(a) != piece(b)).flat_map(|&(a, b, _)| [(a, piece(b)), (b, piece(a))]).collect()
+            })
+        };
         for &(a, b, l) in swept {
             let inside = self.triangle_piece[a as usize] == self.triangle_piece[b as usize];
             let part_excess = if inside { parts.inside } else { parts.between };
@@ -366,7 +367,7 @@ impl<'a> Guard<'a> {
                         let back = scale(sub(self.points[u], posed[u]), 0.5);
                         (length(back) > 1e-3 * self.margin[u]).then_some(back)
                     } else if !inside && !piece_moves[other_piece as usize] {
-                        if rule == HoldRule::Embedded && self.embedded.contains(&(mine, other_piece)) {
+                        if rule == HoldRule::Embedded && embedded().contains(&(mine, other_piece)) {
                             let back = sub(self.points[u], posed[u]);
                             (length(back) > 0.0).then_some(back)
                         } else {

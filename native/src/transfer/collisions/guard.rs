@@ -56,6 +56,8 @@ pub(in crate::transfer) struct CollisionGuard {
     rest_sides: [SideMemo; 2],
     /// The (triangle, piece) pairs crossing at the target's rest, made on first use.
     embedded: OnceLock<HashSet<(u32, u32)>>,
+    /// The triangles of pairs crossing inside one piece at the template's rest, when asked.
+    template_resting: OnceLock<HashSet<u32>>,
 }
 
 /// Which of the two neutrals a query reads.
@@ -105,6 +107,7 @@ impl CollisionGuard {
             piece_nodes: [0, 1].map(|_| (0..n_pieces).map(|_| OnceLock::new()).collect()),
             rest_sides: [SideMemo::default(), SideMemo::default()],
             embedded: OnceLock::new(),
+            template_resting: OnceLock::new(),
             params,
             diagonal,
             written_neutral: written_neutral.to_vec(),
@@ -158,6 +161,14 @@ impl CollisionGuard {
     /// triangles with the other's piece.
     pub(super) fn embedded(&self, piece_of: impl Fn(u32) -> u32) -> &HashSet<(u32, u32)> {
         self.embedded.get_or_init(|| self.rest_pairs.iter().flat_map(|&(a, b)| [(a, piece_of(b)), (b, piece_of(a))]).collect())
+    }
+
+    /// The triangles of the pairs crossing inside one piece at the template's rest (lips
+    /// resting through each other), found once per transfer.
+    pub(super) fn template_resting(&self, piece_of: impl Fn(u32) -> u32) -> &HashSet<u32> {
+        self.template_resting.get_or_init(|| {
+            self.template_rest_pairs.iter().filter(|&&(a, b, _)| piece_of(a) == piece_of(b)).flat_map(|&(a, b, _)| [a, b]).collect()
+        })
     }
 
     /// [`DeformationTransfer::written_positions`] of the vertices `vertices` only, whose

@@ -134,12 +134,7 @@ impl DeformationTransfer {
     /// lip's plane a corner rested on says nothing of where it belongs, and the rest-side
     /// pushes add curve round after round; stopping short along the way it came does not.
     fn along_path_holds(&self, guard: &CollisionGuard, positions: &[Vec3], pairs: &[(u32, u32)], free: &[bool]) -> Targets {
-        let resting: HashSet<u32> = guard
-            .template_rest_pairs
-            .iter()
-            .filter(|&&(a, b, _)| self.triangle_piece(a) == self.triangle_piece(b))
-            .flat_map(|&(a, b, _)| [a, b])
-            .collect();
+        let resting = guard.template_resting(|t| self.triangle_piece(t));
         let beside = |t: u32| guard.around(t).iter().any(|s| resting.contains(s));
         let mut targets = Targets::new();
         for &(a, b) in pairs.iter().filter(|&&(a, b)| self.triangle_piece(a) == self.triangle_piece(b) && (beside(a) || beside(b))) {
@@ -547,18 +542,18 @@ mod tests {
         // The template presses its lips 0.02 into each other where the bump exceeds 0.83; the
         // target's, closed by 0.045 each across 0.04, cross wider (bump over 0.44). The first
         // attempt leaves the target's pairs within two one-rings of the template's contacts
-        // alone; the contacts attempt acts on them too, so it holds more, yet none of the vertices the
-        // template itself takes through the other lip.
+        // alone; the contacts attempt acts on them too, so it holds more, yet none of the
+        // vertices the template itself takes through the other lip.
         let (source, dt, guard, positions, pairs) = closed_target_lips(0.045);
         let moved = vec![true; dt.triangles.len()];
-        let piece = |t: u32| dt.piece[dt.triangles[t as usize][0] as usize];
         let acted = |contacts: &TemplateContacts, attempt: &Attempt| -> Vec<(u32, u32)> {
-            pairs.iter().copied().filter(|&(a, b)| contacts.acts_on(&guard, attempt, (a, b), (piece(a), piece(b)))).collect()
+            let pieces = |a: u32, b: u32| (dt.triangle_piece(a), dt.triangle_piece(b));
+            pairs.iter().copied().filter(|&(a, b)| contacts.acts_on(&guard, attempt, (a, b), pieces(a, b))).collect()
         };
         let pressed = dt.template_contacts(&guard, &lip_closing(&source, 0.1, 0.06), &moved);
-        let last = ATTEMPTS.iter().find(|a| a.contacts).expect("a contacts attempt");
-        assert!(last.strip && !last.follow && !last.clear && !last.along_path);
-        let (first, beside) = (acted(&pressed, &ATTEMPTS[0]), acted(&pressed, last));
+        let beside_contacts = ATTEMPTS.iter().find(|a| a.contacts).expect("a contacts attempt");
+        assert!(beside_contacts.strip && !beside_contacts.follow && !beside_contacts.clear && !beside_contacts.along_path);
+        let (first, beside) = (acted(&pressed, &ATTEMPTS[0]), acted(&pressed, beside_contacts));
         assert_eq!(beside, pairs);
         assert!(!first.is_empty() && first.len() < pairs.len(), "{} of {}", first.len(), pairs.len());
         assert!(pairs.iter().filter(|p| !first.contains(p)).all(|&(a, b)| pressed.near(&guard, a, b)));
@@ -567,7 +562,7 @@ mod tests {
         assert!(ATTEMPTS.iter().all(|attempt| acted(&apart, attempt) == pairs));
         let free = vec![true; positions.len()];
         let held = |pairs: &[(u32, u32)], attempt: &Attempt| dt.offending_vertices(&guard, &positions, pairs, &free, &[false], attempt, &pressed);
-        let (held_first, held_last) = (held(&first, &ATTEMPTS[0]), held(&beside, last));
+        let (held_first, held_last) = (held(&first, &ATTEMPTS[0]), held(&beside, beside_contacts));
         assert!(held_first.keys().all(|v| held_last.contains_key(v)) && held_last.len() > held_first.len());
         assert!(held_last.keys().all(|&v| bump(&source[v]) < 0.95), "{held_last:?}");
     }
