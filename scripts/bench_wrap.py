@@ -35,7 +35,7 @@ vertices, beside the nearest-vertex copy's (no fit error in either).
 
 Proposals (`run_proposals`; `-- --proposals-only` runs them alone): point pairs proposed (no
 click) on the sample character and on a glTF avatar copy of it (metres, each piece an
-object): each proposed point's distance from where its template point truly
+object), each also with its eye sockets cut open at the lids as an avatar's are: each proposed point's distance from where its template point truly
 lies, the pieces and openings matched, and the keys' error from proposed against hand pairs.
 """
 
@@ -57,6 +57,8 @@ from wrap_copies import barycentric_copy, moving_error, nearest_vertex_copy  # n
 IDENTITY = "Target_OldMan"
 SIZES = {"10k": 10_000, "25k": 25_000}
 SCALE, SHIFT = 100.0, np.array([5.0, 160.0, -3.0])  # centimetres, Y up, moved
+# An avatar's lid holes: the skin within this many eyeball radii of each eyeball cut away.
+LID_HOLE_RADII = 1.15
 
 
 def to_character(points):
@@ -366,28 +368,69 @@ def gltf_character(shapesmith, source):
     return head, np.array(head.matrix_world.inverted()) @ np.array(source.matrix_world)
 
 
-def run_proposals(shapesmith, young_truth):
-    """Proposed against hand pairs on the sample character (keys against the same-topology
-    transfer onto Target_YoungWoman) and on its glTF avatar copy in metres with separate
-    pieces (pairs and matches only)."""
-    character = bpy.data.objects["Character_YoungWoman"]
-    identity = bpy.data.objects["Target_YoungWoman"]
-    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
-    identity_points = positions(identity)
+def open_lids(shapesmith, obj, radii=LID_HOLE_RADII):
+    """Cuts `obj`'s eye sockets open at the lids, as an avatar's are (its eyes seen through
+    holes in the skin): the skin (its largest piece) within `radii` eyeball radii of each
+    eyeball removed, the eyeballs its two largest round pieces (vertices' distances from the
+    piece's centre varying by under 15% of their mean). Returns the vertices removed."""
+    nat = shapesmith.native.module()
+    rest = positions(obj)
+    faces = [list(p.vertices) for p in obj.data.polygons]
+    triangles = np.array([[f[0], f[i], f[i + 1]] for f in faces for i in range(1, len(f) - 1)], dtype=np.int32)
+    labels = np.asarray(nat.mesh_parts(len(rest), triangles)[0])
+    skin = np.argmax(np.bincount(labels))
+    balls = []
+    for piece in set(labels.tolist()) - {skin}:
+        members = rest[labels == piece]
+        distance = np.linalg.norm(members - members.mean(0), axis=1)
+        if len(members) >= 8 and distance.std() < 0.15 * distance.mean():
+            balls.append((distance.mean(), members.mean(0)))
+    cut = np.zeros(len(rest), dtype=bool)
+    for radius, centre in sorted(balls, key=lambda b: -b[0])[:2]:
+        cut |= (labels == skin) & (np.linalg.norm(rest - centre, axis=1) < radii * radius)
+    mesh = bmesh.new()
+    mesh.from_mesh(obj.data)
+    mesh.verts.ensure_lookup_table()
+    bmesh.ops.delete(mesh, geom=[mesh.verts[int(v)] for v in np.flatnonzero(cut)], context="VERTS")
+    mesh.to_mesh(obj.data)
+    mesh.free()
+    obj.data.update()
+    return int(cut.sum())
+
+
+def young_reference(shapesmith, character, young_truth):
+    """The same-topology keys onto Target_YoungWoman sampled at `character`'s vertices (a copy
+    of the sample character, in its frame): the truth its carried keys are measured against."""
     from importlib import import_module
 
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
-    nat = shapesmith.native.module()
-    points = positions(character)
-    back = points / scale
+    identity = bpy.data.objects["Target_YoungWoman"]
+    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
+    back = positions(character) / scale
     back = np.stack([back[:, 0], -back[:, 2], back[:, 1]], axis=1)
-    reference = barycentric_copy(nat, back, identity_points, mesh_arrays.read_triangles(identity), young_truth)
-    reference = np.stack([makehuman.character_frame(r, scale) for r in reference])
-    rows = {"Character_YoungWoman": proposal_row(
-        shapesmith, character, lambda v: makehuman.character_frame(identity_points[[v]], scale)[0], reference)}
-    head, to_head = gltf_character(shapesmith, character)
-    to_local = lambda v: (to_head @ np.append(makehuman.character_frame(identity_points[[v]], scale)[0], 1.0))[:3]  # noqa: E731
-    rows["glTF avatar (metres, separate pieces)"] = proposal_row(shapesmith, head, to_local)
+    reference = barycentric_copy(shapesmith.native.module(), back, positions(identity), mesh_arrays.read_triangles(identity), young_truth)
+    return np.stack([makehuman.character_frame(r, scale) for r in reference])
+
+
+def run_proposals(shapesmith, young_truth):
+    """Proposed against hand pairs on the sample character (keys against the same-topology
+    transfer onto Target_YoungWoman), on its glTF avatar copy in metres with separate pieces
+    (pairs and matches only), and on both with the eye sockets open at the lids (`open_lids`)."""
+    character = bpy.data.objects["Character_YoungWoman"]
+    identity_points = positions(bpy.data.objects["Target_YoungWoman"])
+    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
+    true_point = lambda v: makehuman.character_frame(identity_points[[v]], scale)[0]  # noqa: E731
+    opened = character.copy()
+    opened.data = character.data.copy()
+    opened.name = "Character_YoungWoman_LidsOpen"
+    bpy.context.scene.collection.objects.link(opened)
+    open_lids(shapesmith, opened)
+    rows = {}
+    for label, obj in (("Character_YoungWoman", character), (f"the same, lids open ({LID_HOLE_RADII} eyeball radii cut)", opened)):
+        rows[label] = proposal_row(shapesmith, obj, true_point, young_reference(shapesmith, obj, young_truth))
+    for label, obj in (("glTF avatar (metres, separate pieces)", character), ("glTF avatar, lids open", opened)):
+        head, to_head = gltf_character(shapesmith, obj)
+        rows[label] = proposal_row(shapesmith, head, lambda v, to_head=to_head: (to_head @ np.append(true_point(v), 1.0))[:3])
     return rows
 
 

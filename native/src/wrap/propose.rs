@@ -21,7 +21,8 @@
 //!    free, whose neighbour is hidden (by the lid, the lips, the eyeball; or turned away, as
 //!    the inner side of a parted lip) or which lie on an open boundary (a lid or lip hole).
 //!    Around each opening's seed (on the character: where the aligned template's opening is)
-//!    the margin's widest connected run is the opening, its lateral extremes the corners. The
+//!    the margin's connected run nearest the seed among the wide ones is the opening, its
+//!    lateral extremes the corners. The
 //!    nose tip is the most frontal skin on the symmetry plane between the upper lip and the
 //!    eyes; the chin the bulge of the midline profile below the mouth past the hollow under
 //!    the lower lip.
@@ -64,6 +65,9 @@ const FACING: f64 = 0.1;
 /// A piece is round (an eyeball) when its vertices' distances from its centre have a standard
 /// deviation under this fraction of their mean (a sphere's: 0).
 const ROUND_PIECE: f64 = 0.15;
+/// A margin run is an opening's candidate when it is at least this fraction as wide as the
+/// widest run around the seed (a closed mouth's lips against a fold's run 15% wider).
+const WIDE_RUN: f64 = 0.5;
 /// Half-width of the band about the symmetry plane the nose tip and chin are looked for in.
 const PLANE_BAND: f64 = 0.02;
 
@@ -424,10 +428,10 @@ fn find_features(mesh: &Mesh, frame: &Frame, seeds: &Seeds) -> Features {
         features.eyes[s] = seeds.eyes[s].and_then(|seed| {
             let near: Vec<u32> = candidates(mesh, &margin, seed, EYE_RADIUS).into_iter().filter(|&v| sign * local[v as usize][0] > 0.0).collect();
             // Inner corner first: the one nearer the symmetry plane.
-            opening(mesh, &local, &near).map(|o| if sign > 0.0 { o } else { Opening { corners: [o.corners[1], o.corners[0]] } })
+            opening(mesh, &local, &near, frame.local(seed)).map(|o| if sign > 0.0 { o } else { Opening { corners: [o.corners[1], o.corners[0]] } })
         });
     }
-    features.mouth = seeds.mouth.and_then(|seed| opening(mesh, &local, &candidates(mesh, &margin, seed, MOUTH_RADIUS)));
+    features.mouth = seeds.mouth.and_then(|seed| opening(mesh, &local, &candidates(mesh, &margin, seed, MOUTH_RADIUS), frame.local(seed)));
     let (Some(mouth), Some(left), Some(right)) = (features.mouth, features.eyes[0], features.eyes[1]) else { return features };
     let y = |v: u32| local[v as usize][1];
     let mouth_y = 0.5 * (y(mouth.corners[0]) + y(mouth.corners[1]));
@@ -478,9 +482,12 @@ fn candidates(mesh: &Mesh, margin: &[bool], seed: Vec3, radius: f64) -> Vec<u32>
     mesh.skin.iter().copied().filter(|&v| margin[v as usize] && length(sub(mesh.points[v as usize], seed)) < reach).collect()
 }
 
-/// The opening among `near` margin vertices: their connected run (through paths of one or two
-/// skin edges) of widest lateral extent, and its lateral extremes (lowest `x` first).
-fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32]) -> Option<Opening> {
+/// The opening among `near` margin vertices: of their connected runs (through paths of one or
+/// two skin edges) at least [`WIDE_RUN`] as wide laterally as the widest, the one whose centre
+/// lies nearest `seed` (in `frame`); its lateral extremes are the corners (lowest `x` first).
+/// The widest alone can be a fold: the hollow under the lower lip, hidden from the front by
+/// the lip above it, runs wider than a closed mouth on an avatar whose lids are open holes.
+fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32], seed: Vec3) -> Option<Opening> {
     if near.len() < 3 {
         return None;
     }
@@ -499,11 +506,15 @@ fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32]) -> Option<Opening> {
         let xs = near.iter().zip(&label).filter(|(_, &m)| m == l).map(|(&v, _)| local[v as usize][0]);
         xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)))
     };
-    let widest = (0..count as u32).max_by(|&a, &b| {
-        let (ea, eb) = (extent(a), extent(b));
-        (ea.1 - ea.0).total_cmp(&(eb.1 - eb.0))
-    })?;
-    let run: Vec<u32> = near.iter().zip(&label).filter(|(_, &m)| m == widest).map(|(&v, _)| v).collect();
+    let width = |l: u32| extent(l).1 - extent(l).0;
+    let widest = (0..count as u32).map(width).fold(0.0, f64::max);
+    let members = |l: u32| near.iter().zip(&label).filter(move |(_, &m)| m == l).map(|(&v, _)| v);
+    let from_seed = |l: u32| {
+        let (sum, n) = members(l).fold(([0.0; 3], 0.0), |(sum, n), v| (add(sum, local[v as usize]), n + 1.0));
+        length(sub(scale(sum, 1.0 / n), seed))
+    };
+    let chosen = (0..count as u32).filter(|&l| width(l) >= WIDE_RUN * widest).min_by(|&a, &b| from_seed(a).total_cmp(&from_seed(b)))?;
+    let run: Vec<u32> = members(chosen).collect();
     let x = |v: &u32| local[*v as usize][0];
     let low = *run.iter().min_by(|a, b| x(a).total_cmp(&x(b)))?;
     let high = *run.iter().max_by(|a, b| x(a).total_cmp(&x(b)))?;
@@ -669,6 +680,32 @@ mod tests {
             })
             .collect();
         Mesh::new(bumped, &triangles)
+    }
+
+    #[test]
+    fn the_opening_is_the_wide_run_nearest_the_seed_not_the_widest() {
+        // A flat grid, x across, y up: a mouth's margin run (row 6, columns 3-15) at the seed
+        // and a fold's (row 2, columns 1-17) wider and lower, as the hollow under the lower
+        // lip of an avatar whose lids are open.
+        let (columns, rows) = (19, 9);
+        let points: Vec<Vec3> = (0..rows).flat_map(|r| (0..columns).map(move |c| [c as f64 - 9.0, r as f64, 0.0])).collect();
+        let at = |r: usize, c: usize| (r * columns + c) as u32;
+        let mut triangles = Vec::new();
+        for r in 0..rows - 1 {
+            for c in 0..columns - 1 {
+                triangles.push([at(r, c), at(r, c + 1), at(r + 1, c + 1)]);
+                triangles.push([at(r, c), at(r + 1, c + 1), at(r + 1, c)]);
+            }
+        }
+        let mesh = Mesh::new(points.clone(), &triangles);
+        let mut near: Vec<u32> = (3..16).map(|c| at(6, c)).collect();
+        near.extend((1..18).map(|c| at(2, c)));
+        let found = opening(&mesh, &points, &near, [0.0, 6.2, 0.0]).unwrap();
+        assert_eq!(found.corners, [at(6, 3), at(6, 15)]);
+        // Seeded at the fold, the fold; a run under half the widest's width is never taken.
+        assert_eq!(opening(&mesh, &points, &near, [0.0, 2.0, 0.0]).unwrap().corners, [at(2, 1), at(2, 17)]);
+        let narrow: Vec<u32> = (8..11).map(|c| at(6, c)).chain((1..18).map(|c| at(2, c))).collect();
+        assert_eq!(opening(&mesh, &points, &narrow, [0.0, 6.0, 0.0]).unwrap().corners, [at(2, 1), at(2, 17)]);
     }
 
     #[test]
