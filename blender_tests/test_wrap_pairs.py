@@ -9,6 +9,7 @@ import json
 
 import bpy
 import numpy as np
+import pytest
 
 from conftest import make_active, run_batch
 from test_wrap import (
@@ -29,9 +30,12 @@ from wrap_copies import moving_error  # noqa: E402  (scripts/ is on the path: te
 # Each proposed character point lies within this fraction of the character's diagonal of the
 # template point's true place (measured: on the sample character median 0.5%, the largest
 # 1.4%, the nose tip of a decimated nose; on the turned decimated Template median 0.07%, the
-# largest 2.7%, the chin, whose bulge is flat along the profile).
+# largest 0.34%, the chin).
 PAIR_TOLERANCE = 0.03
 MEDIAN_TOLERANCE = 0.008
+# On a coarse avatar with lids open the holes' outer ends lie farther from the lids' corners
+# and the chin is found on a section of few edges (measured 3.1% and 3.3%).
+COARSE_HOLE_TOLERANCE = 0.035
 
 
 def proposal_errors(proposal, truth_of_template_vertex, diagonal):
@@ -73,17 +77,21 @@ def test_pairs_proposed_on_the_sample_character_lie_on_the_template_points_featu
     assert np.dot(proposal["character_front"], [0, 0, 1]) > 0.98 and np.dot(proposal["character_up"], [0, 1, 0]) > 0.98
 
 
-def test_pairs_proposed_on_the_sample_character_with_its_lids_open(sample, shapesmith):
+@pytest.mark.parametrize("ratio", [None, 0.45])
+def test_pairs_proposed_on_the_sample_character_with_its_lids_open(sample, shapesmith, ratio):
     """An avatar's eye sockets are open at the lids: its eye corners are where the holes end,
     and the mouth and chin are still found where they are (with the lids open, the hollow
-    under the lower lip seen from the front runs wider than the closed mouth; measured before
-    the fix: the mouth corners 10-11% of the diagonal off, the chin 19%)."""
+    under the lower lip seen from the front runs wider than the closed mouth: the mouth
+    corners were proposed 10-11% of the diagonal off, the chin 19%); also on a coarser copy
+    (1.1k vertices), which the alignment's screening of 4 steps a turn left face down."""
     import makehuman  # scripts/ is on the path (conftest)
-    from bench_wrap import open_lids
+    from bench_wrap import decimate, open_lids
 
     wrap = module(shapesmith, "blender.wrap")
     obj = bpy.data.objects["Character_YoungWoman"]
-    assert open_lids(shapesmith, obj) > 100
+    if ratio is not None:
+        decimate(obj, ratio)
+    assert open_lids(shapesmith, obj) > 50
     identity = positions(bpy.data.objects["Target_YoungWoman"])
     proposal = wrap.propose_pairs(bpy.data.objects["Template"], obj)
     points = positions(obj)
@@ -95,7 +103,7 @@ def test_pairs_proposed_on_the_sample_character_with_its_lids_open(sample, shape
     # corners (measured), so the median is not the uncut character's; every pair is still
     # within the tolerance, and the mouth's corners as close as on the uncut character.
     assert sorted(errors) == sorted(FEATURES), proposal["missing"]
-    assert max(errors.values()) < PAIR_TOLERANCE, errors
+    assert max(errors.values()) < (COARSE_HOLE_TOLERANCE if ratio else PAIR_TOLERANCE), errors
     assert max(errors["mouth corner left"], errors["mouth corner right"]) < MEDIAN_TOLERANCE, errors
 
 
@@ -120,8 +128,8 @@ def test_pairs_proposed_on_a_decimated_turned_rescaled_template(sample, shapesmi
 def test_keys_from_proposed_pairs_are_as_close_to_the_truth_as_from_hand_pairs(sample, shapesmith):
     """The decimated identity in centimetres with Y up of test_wrap, once with its hand pairs
     (exact by construction) and once with pairs proposed: the keys' error against the
-    same-topology transfer, within 10% of the hand pairs' (measured 1.62e-3 proposed against
-    1.53e-3 hand, 5.5% more)."""
+    same-topology transfer, within 10% of the hand pairs' (measured 1.64e-3 proposed against
+    1.53e-3 hand, 7.1% more)."""
     wrap = module(shapesmith, "blender.wrap")
     transfer = module(shapesmith, "blender.transfer")
     template = bpy.data.objects["Template"]

@@ -35,7 +35,8 @@ vertices, beside the nearest-vertex copy's (no fit error in either).
 
 Proposals (`run_proposals`; `-- --proposals-only` runs them alone): point pairs proposed (no
 click) on the sample character and on a glTF avatar copy of it (metres, each piece an
-object), each also with its eye sockets cut open at the lids as an avatar's are: each proposed point's distance from where its template point truly
+object), each also with its eye sockets cut open at the lids as an avatar's are (and the
+first also decimated to about 1.1k vertices): each proposed point's distance from where its template point truly
 lies, the pieces and openings matched, and the keys' error from proposed against hand pairs.
 """
 
@@ -59,6 +60,8 @@ SIZES = {"10k": 10_000, "25k": 25_000}
 SCALE, SHIFT = 100.0, np.array([5.0, 160.0, -3.0])  # centimetres, Y up, moved
 # An avatar's lid holes: the skin within this many eyeball radii of each eyeball cut away.
 LID_HOLE_RADII = 1.15
+# A coarser avatar: the sample character decimated to this share of its faces.
+COARSE_RATIO = 0.45
 
 
 def to_character(points):
@@ -83,13 +86,19 @@ def build_character(identity, name, vertices):
     mesh.free()
     obj = bpy.data.objects.new(name, data)
     bpy.context.scene.collection.objects.link(obj)
-    obj.modifiers.new("Decimate", "DECIMATE").ratio = vertices / len(data.vertices)
+    decimate(obj, vertices / len(data.vertices))
+    obj.data.vertices.foreach_set("co", to_character(positions(obj)).astype(np.float32).ravel())
+    obj.data.update()
+    return obj
+
+
+def decimate(obj, ratio):
+    """`obj`'s mesh collapse-decimated to `ratio` of its faces (Blender's Decimate modifier,
+    applied)."""
+    obj.modifiers.new("Decimate", "DECIMATE").ratio = ratio
     decimated = bpy.data.meshes.new_from_object(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))
     obj.modifiers.clear()
     obj.data = decimated
-    decimated.vertices.foreach_set("co", to_character(positions(obj)).astype(np.float32).ravel())
-    decimated.update()
-    return obj
 
 
 def roughness(deltas, edges, reference, diagonal):
@@ -415,18 +424,23 @@ def young_reference(shapesmith, character, young_truth):
 def run_proposals(shapesmith, young_truth):
     """Proposed against hand pairs on the sample character (keys against the same-topology
     transfer onto Target_YoungWoman), on its glTF avatar copy in metres with separate pieces
-    (pairs and matches only), and on both with the eye sockets open at the lids (`open_lids`)."""
+    (pairs and matches only), and on both with the eye sockets open at the lids (`open_lids`),
+the first also decimated to about half its vertices."""
     character = bpy.data.objects["Character_YoungWoman"]
     identity_points = positions(bpy.data.objects["Target_YoungWoman"])
     scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
     true_point = lambda v: makehuman.character_frame(identity_points[[v]], scale)[0]  # noqa: E731
-    opened = character.copy()
-    opened.data = character.data.copy()
-    opened.name = "Character_YoungWoman_LidsOpen"
-    bpy.context.scene.collection.objects.link(opened)
-    open_lids(shapesmith, opened)
+    opened, coarse = character.copy(), character.copy()
+    for obj, name in ((opened, "Character_YoungWoman_LidsOpen"), (coarse, "Character_YoungWoman_Coarse")):
+        obj.data = character.data.copy()
+        obj.name = name
+        bpy.context.scene.collection.objects.link(obj)
+    decimate(coarse, COARSE_RATIO)
+    for obj in (opened, coarse):
+        open_lids(shapesmith, obj)
     rows = {}
-    for label, obj in (("Character_YoungWoman", character), (f"the same, lids open ({LID_HOLE_RADII} eyeball radii cut)", opened)):
+    for label, obj in (("Character_YoungWoman", character), (f"the same, lids open ({LID_HOLE_RADII} eyeball radii cut)", opened),
+                       (f"the same, lids open, decimated to {len(coarse.data.vertices)} vertices", coarse)):
         rows[label] = proposal_row(shapesmith, obj, true_point, young_reference(shapesmith, obj, young_truth))
     for label, obj in (("glTF avatar (metres, separate pieces)", character), ("glTF avatar, lids open", opened)):
         head, to_head = gltf_character(shapesmith, obj)
