@@ -54,9 +54,22 @@
 //! leave alone), and last, beside where the template's neutral itself crosses inside a piece
 //! (lips resting through each other, where a rest side says nothing), each corner of a pair held
 //! a quarter of the way back along its own motion each round (kept only when it clears the
-//! shape). The next runs only while the shape is still worse; the plain
-//! solve's sweep and the template's contacts are found once (`PlainRound`); the later attempts
-//! run two side by side and are taken in order, so the result is that of a serial run.
+//! shape; `ALONG_PATH_ROUNDS` times the rounds of the others). The
+//! next runs only while the shape is still worse; the plain solve's sweep and the template's
+//! contacts are found once (`PlainRound`); the later attempts run two side by side and are taken
+//! in order, so the result is that of a serial run.
+//!
+//! **Chains.** Where the along-path attempt does not clear the shape it often brings the lips
+//! within their allowance inside while the skin still goes through the teeth (between pieces),
+//! which it does not act on; every attempt from the plain solve instead presses the lips
+//! further into each other round after round (a rest-side push across the other lip's plane
+//! where the lips are pressed together crosses them elsewhere). So its best state is continued
+//! from (`Held`: the deltas, the holds, region and released springs that gave them, and their
+//! crossing pairs, swept once): each of `CHAINED` (skin back to rest against static pieces,
+//! following the template's contacts, skin resting across a static piece kept at rest) starts
+//! there with those holds and is taken when it lowers the chain's excess; the chain is kept
+//! only when it clears the shape. A template whose neutral crosses nowhere inside (the warp
+//! ground truth) never gets here: the along-path attempt holds nothing there.
 //!
 //! **Re-sweeps.** A round changes its region's rows only, so its hierarchy is refitted there
 //! (`TriangleBvh::refit_listed`) and only triangles with a corner written elsewhere are swept
@@ -176,9 +189,10 @@ impl DeformationTransfer {
         factor: &RestrictedFactor,
         out: &mut Vec<Vec3>,
     ) -> ShapesmithResult<CollisionOutcome> {
-        let plain = out.clone();
-        let shared = PlainRound::new(self, guard, shape, factor);
-        let (mut outcome, mut excess) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0], None)?;
+        let shared = PlainRound::new(self, guard, shape, factor, out.clone());
+        let plain = &shared.plain;
+        let rounds = guard.params.max_iterations;
+        let (mut outcome, mut excess, _) = self.collision_rounds(guard, shape, &shared, out, &ATTEMPTS[0], None, None, rounds)?;
         let mut solves = outcome.solves;
         let worse = |excess: Option<f64>| excess.filter(|&e| e > JUDGE_TOLERANCE * guard.diagonal);
         if worse(excess).is_none() {
@@ -192,14 +206,17 @@ impl DeformationTransfer {
         // next round (or does not start, when it waits for the same thread), so the other
         // shapes get the thread.
         let first_cleared = AtomicBool::new(false);
+        // The along-path attempt's best state when it does not clear the shape: the lips it
+        // brought back inside their allowance, the chain's start (below).
+        let mut along: Option<(Option<f64>, Held)> = None;
         let run = |(index, attempt): (usize, &Attempt)| {
             let mut again = plain.clone();
             let dropped = (index == 1).then_some(&first_cleared);
-            let tried = self.collision_rounds(guard, shape, &shared, &mut again, attempt, dropped);
-            if index == 0 && matches!(tried, Ok((_, Some(e))) if worse(Some(e)).is_none()) {
+            let tried = self.collision_rounds(guard, shape, &shared, &mut again, attempt, dropped, None, attempt.rounds(rounds));
+            if index == 0 && matches!(tried, Ok((_, Some(e), _)) if worse(Some(e)).is_none()) {
                 first_cleared.store(true, Ordering::Relaxed);
             }
-            tried.map(|(next, next_excess)| (next, next_excess, again))
+            tried.map(|(next, next_excess, held)| (next, next_excess, again, held))
         };
         for pair in ATTEMPTS[1..].chunks(2) {
             if worse(excess).is_none() {
@@ -209,7 +226,7 @@ impl DeformationTransfer {
             for (tried, attempt) in later.into_iter().zip(pair) {
                 // Only a shape still worse than the template (its excess known) tries again.
                 let Some(least) = worse(excess) else { break };
-                let (next, next_excess, again) = tried?;
+                let (next, next_excess, again, held) = tried?;
                 solves += next.solves;
                 // The embedded attempt's holds are taken only when they clear the shape.
                 let taken = !(attempt.embedded || attempt.along_path) || worse(next_excess).is_none();
@@ -217,17 +234,47 @@ impl DeformationTransfer {
                     *out = again;
                     outcome = CollisionOutcome { new_pairs: outcome.new_pairs, ..next };
                     excess = next_excess;
+                } else if attempt.along_path {
+                    along = held.map(|h| (next_excess, h));
                 }
             }
+        }
+        if worse(excess).is_none() {
+            return Ok(CollisionOutcome { solves, ..outcome });
+        }
+        // Chained attempts (module docs' "Chains"): from the along-path attempt's best state,
+        // each of `CHAINED` continues from the chain's state with the holds that gave it, and is
+        // taken when it lowers the chain's excess; the chain is kept only when it clears the
+        // shape.
+        let Some((mut chain_excess, start)) = along else { return Ok(CollisionOutcome { solves, ..outcome }) };
+        let mut state = Some(start);
+        let mut chained = None;
+        for attempt in CHAINED {
+            let Some(start) = state.as_ref().filter(|_| worse(chain_excess).is_some()) else { break };
+            let mut again = start.deltas.clone();
+            let (next, next_excess, held) = self.collision_rounds(guard, shape, &shared, &mut again, attempt, None, Some(start), attempt.rounds(rounds))?;
+            solves += next.solves;
+            if next_excess.is_some_and(|e| chain_excess.is_none_or(|c| e < c)) {
+                chain_excess = next_excess;
+                state = held.or(state);
+                chained = Some((again, next));
+            }
+        }
+        if let Some((again, next)) = chained.filter(|_| worse(chain_excess).is_none()) {
+            *out = again;
+            outcome = CollisionOutcome { new_pairs: outcome.new_pairs, ..next };
         }
         Ok(CollisionOutcome { solves, ..outcome })
     }
 
-    /// One attempt of the pass: up to `max_iterations` rounds of judging, holding and
-    /// re-solving, from the plain solve in `out`; leaves the best round in `out` and returns
-    /// its excess over the template (`None` when the template's numbers were never needed:
-    /// nothing new crosses, or the plain solve meets the criterion). Once `dropped` is set
-    /// (the caller will not take this attempt) it stops before its next round.
+    /// One attempt of the pass: up to `rounds` rounds of judging, holding and re-solving, from
+    /// the plain solve in `out`, or from `start` (its deltas in `out`) with its holds (a chain's
+    /// step); leaves the best round in `out` and returns its excess over the template (`None`
+    /// when the template's numbers were never needed: nothing new crosses, or the plain solve
+    /// meets the criterion) and, for the along-path attempt and a chain's steps, the state of
+    /// that round when it is a re-solve. Once `dropped` is set (the caller will not take this
+    /// attempt) it stops before its next round.
+    #[allow(clippy::too_many_arguments)]
     fn collision_rounds(
         &self,
         guard: &CollisionGuard,
@@ -236,7 +283,9 @@ impl DeformationTransfer {
         out: &mut Vec<Vec3>,
         attempt: &Attempt,
         dropped: Option<&AtomicBool>,
-    ) -> ShapesmithResult<(CollisionOutcome, Option<f64>)> {
+        start: Option<&Held>,
+        rounds: usize,
+    ) -> ShapesmithResult<(CollisionOutcome, Option<f64>, Option<Held>)> {
         let PlainRound { moved, free, static_piece, swept_rest, swept_rest_pairs, .. } = shared;
         let mut outcome = CollisionOutcome::default();
         let piece_of = |t: u32| self.triangle_piece(t);
@@ -244,10 +293,10 @@ impl DeformationTransfer {
         let tolerance = JUDGE_TOLERANCE * guard.diagonal;
         let meets = |added: &AddedCurve, template: &Option<AddedCurve>| template.is_some_and(|t| added.excess(&t) <= tolerance);
         let mut allowed = shape.allowed;
-        let mut targets = Targets::new();
-        let mut region = vec![false; out.len()];
+        let mut targets = start.map_or_else(Targets::new, |s| s.targets.clone());
+        let mut region = start.map_or_else(|| vec![false; out.len()], |s| s.region.clone());
         // Where the virtual-edge springs are released: around the pairs the springs folded.
-        let mut release = vec![false; out.len()];
+        let mut release = start.map_or_else(|| vec![false; out.len()], |s| s.release.clone());
         let mut crossing: Vec<(u32, u32, f64)> = Vec::new();
         // The vertices whose written position the last re-solve changed.
         let mut changed_vertices: Vec<usize> = Vec::new();
@@ -257,9 +306,9 @@ impl DeformationTransfer {
         let mut sweep_bvh: Option<TriangleBvh> = None;
         let plain = out.clone();
         // The least excess over the template so far (the least added curve while the
-        // template's is not known), the deltas that add it (empty: the plain solve), the
-        // new pairs left in them and their crossing pairs.
-        let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>)> = None;
+        // template's is not known), the deltas that add it (empty: the start), the new pairs
+        // left in them, their crossing pairs and the holds that gave them (when kept).
+        let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>, Option<(Targets, Vec<bool>, Vec<bool>)>)> = None;
         let mut first: Option<AddedCurve> = None;
         // Whether any vertices were sought: only then can another attempt differ.
         let mut held = false;
@@ -268,17 +317,21 @@ impl DeformationTransfer {
         // changes its region's rows only, and only those are computed again.
         let mut positions: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
         let mut written = self.written_positions(guard, out);
-        // The plain solve, swept once per shape: every attempt starts from it.
+        // The plain solve, swept once per shape: every attempt but a chain's steps starts from it.
         let (plain_crossing, plain_bvh) = shared.crossing.get_or_init(|| {
             let bvh = guard.bvh.refitted(&written, &self.triangles);
             (crossings(&written, &self.triangles, &bvh, Some(moved)), bvh)
         });
-        for round in 0..=guard.params.max_iterations {
+        // A chain's step re-sweeps from its start's positions.
+        if start.is_some() {
+            sweep_bvh = Some(guard.bvh.refitted(&written, &self.triangles));
+        }
+        for round in 0..=rounds {
             if dropped.is_some_and(|d| d.load(Ordering::Relaxed)) {
                 break;
             }
             crossing = if round == 0 {
-                plain_crossing.clone()
+                start.map_or_else(|| plain_crossing.clone(), |s| s.crossing.clone())
             } else {
                 // After a re-solve, only triangles with a corner written elsewhere than
                 // at the last sweep are tested again (against every triangle); the others
@@ -313,9 +366,12 @@ impl DeformationTransfer {
                 first = Some(added);
             }
             let score = |a: &AddedCurve| allowed.map_or(a.inside + a.between, |t| a.excess(&t));
-            let improved = best.as_ref().is_none_or(|(b, _, _, _)| score(&added) < *b);
+            let improved = best.as_ref().is_none_or(|(b, _, _, _, _)| score(&added) < *b);
             if improved {
-                best = Some((score(&added), if round == 0 { Vec::new() } else { out.clone() }, 0, crossing.clone()));
+                // The holds that gave it, for the chain to continue from (module docs' "Chains").
+                let holds = (round > 0 && (attempt.along_path || start.is_some())).then(|| (targets.clone(), region.clone(), release.clone()));
+                let kept = if round == 0 { Vec::new() } else { out.clone() };
+                best = Some((score(&added), kept, 0, crossing.clone(), holds));
             }
             // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
             // the teeth adds curve by sliding deeper along pairs that already cross.
@@ -342,7 +398,7 @@ impl DeformationTransfer {
                     // Only the plain solve was judged so far (by added curve): judge it by
                     // its excess over the template.
                     allowed = Some(contacts.allowed);
-                    best = best.map(|(_, kept, left, pairs)| (first.map_or(0.0, |f| f.excess(&contacts.allowed)), kept, left, pairs));
+                    best = best.map(|(_, kept, left, pairs, holds)| (first.map_or(0.0, |f| f.excess(&contacts.allowed)), kept, left, pairs, holds));
                 }
                 template = Some(contacts);
                 if meets(&added, &allowed) {
@@ -384,10 +440,10 @@ impl DeformationTransfer {
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
-            if let Some((_, _, left, _)) = best.as_mut().filter(|_| improved) {
+            if let Some((_, _, left, _, _)) = best.as_mut().filter(|_| improved) {
                 *left = new_pairs.len();
             }
-            if new_pairs.is_empty() || round == guard.params.max_iterations {
+            if new_pairs.is_empty() || round == rounds {
                 break;
             }
             // The template's contacts are known once a round gets here (judged above).
@@ -397,7 +453,7 @@ impl DeformationTransfer {
             // springs are released around them instead of their corners held.
             let folds = shared.folds.get_or_init(|| {
                 let springs = shared.springs.get_or_init(|| self.springs(shape.delta));
-                self.spring_folds(springs, &plain, &contacts.positions)
+                self.spring_folds(springs, &shared.plain, &contacts.positions)
             });
             let folded = |t: u32| folds[t as usize];
             let (fold_pairs, new_pairs): (Vec<_>, Vec<_>) = new_pairs.into_iter().partition(|&(a, b)| folded(a) || folded(b));
@@ -447,7 +503,7 @@ impl DeformationTransfer {
             // later round (same positions, pairs and holds). They are counted, not run: about a
             // quarter of the rounds on the 25k head.
             if same_targets && members.len() == outcome.region_vertices {
-                outcome.solves += guard.params.max_iterations - round;
+                outcome.solves += rounds - round;
                 break;
             }
             let constraints: Vec<(usize, f64, Vec3)> = targets
@@ -485,13 +541,17 @@ impl DeformationTransfer {
         // The plain solve's, once per shape (every attempt starts from it).
         let plain_penetration = *shared.penetration.get_or_init(|| penetration(plain_crossing));
         outcome.plain_penetration = Some(plain_penetration);
-        if let Some((_, kept, left, pairs)) = best {
-            outcome.penetration = Some(if kept.is_empty() { plain_penetration } else { penetration(&pairs) });
+        let mut reached = None;
+        if let Some((_, kept, left, pairs, holds)) = best {
+            outcome.penetration = Some(if kept.is_empty() && start.is_none() { plain_penetration } else { penetration(&pairs) });
             outcome.remaining_pairs = left;
-            outcome.applied = !kept.is_empty();
+            outcome.applied = !kept.is_empty() || start.is_some();
+            if let Some((targets, region, release)) = holds {
+                reached = Some(Held { deltas: kept.clone(), targets, region, release, crossing: pairs });
+            }
             *out = if kept.is_empty() { plain } else { kept };
         }
-        Ok((outcome, excess))
+        Ok((outcome, excess, reached))
     }
 
     /// `target neutral + out` where it is written: in the target's own frame, added in f32
@@ -509,6 +569,8 @@ impl DeformationTransfer {
 /// solve's crossing pairs and the template shape's contacts, so that a later attempt does not
 /// sweep them again.
 struct PlainRound {
+    /// The plain solve's deltas.
+    plain: Vec<Vec3>,
     moved: Vec<bool>,
     free: Vec<bool>,
     /// Per piece: none of its vertices moves, so it is an obstacle exactly where the target's
@@ -531,7 +593,7 @@ struct PlainRound {
 }
 
 impl PlainRound {
-    fn new(dt: &DeformationTransfer, guard: &CollisionGuard, shape: &ShapeSystem<'_>, factor: &RestrictedFactor) -> Self {
+    fn new(dt: &DeformationTransfer, guard: &CollisionGuard, shape: &ShapeSystem<'_>, factor: &RestrictedFactor, plain: Vec<Vec3>) -> Self {
         let moved: Vec<bool> = dt.triangles.iter().map(|t| t.iter().any(|&v| shape.moving[v as usize])).collect();
         // A floating piece (lashes riding on a lid, teeth on the jaw) is placed by the source
         // piece's motion, not by the skin it rides on, so it crosses what the template's does
@@ -547,8 +609,19 @@ impl PlainRound {
         let rest_pairs = guard.rest_pairs.iter().zip(&guard.rest_lengths).map(|(&(a, b), &l)| (a, b, l));
         let swept_rest_pairs: Vec<(u32, u32, f64)> = rest_pairs.filter(|&(a, b, _)| moved[a as usize] || moved[b as usize]).collect();
         let swept_rest = AddedCurve::of(swept_rest_pairs.iter().copied(), |t| dt.triangle_piece(t), AddedCurve::default());
-        Self { moved, free, static_piece, swept_rest, swept_rest_pairs, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
+        Self { plain, moved, free, static_piece, swept_rest, swept_rest_pairs, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
     }
+}
+
+/// A re-solved state of one shape a later attempt continues from: its deltas, the holds,
+/// region and released springs that gave it, and its crossing pairs (swept where written).
+#[derive(Clone)]
+struct Held {
+    deltas: Vec<Vec3>,
+    targets: Targets,
+    region: Vec<bool>,
+    release: Vec<bool>,
+    crossing: Vec<(u32, u32, f64)>,
 }
 
 /// One way of holding the vertices that went through (see the module's "Attempts"): the
@@ -575,6 +648,13 @@ pub(super) struct Attempt {
     pub(super) along_path: bool,
 }
 
+impl Attempt {
+    /// The rounds the attempt takes at most, `max_iterations` those of the first.
+    fn rounds(&self, max_iterations: usize) -> usize {
+        if self.along_path { ALONG_PATH_ROUNDS * max_iterations } else { max_iterations }
+    }
+}
+
 /// The attempts, in order; the next is tried (from the plain solve) only while the shape is
 /// still worse than the template. Measured on the heads of `examples/collision_counts.rs`,
 /// each later attempt clears shapes the earlier ones leave (module docs).
@@ -590,6 +670,17 @@ const ATTEMPTS: [Attempt; 10] = [
     Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true, along_path: false },
     Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: true },
 ];
+
+/// The attempts chained after [`ATTEMPTS`] (module docs' "Chains"): skin back to rest against
+/// static pieces, following the template's contacts, and with the skin resting across a static
+/// piece kept where it rests.
+const CHAINED: [&Attempt; 3] = [&ATTEMPTS[4], &ATTEMPTS[5], &ATTEMPTS[6]];
+
+/// Rounds of the along-path attempt, in multiples of [`CollisionParams::max_iterations`]: each
+/// round moves its corners a quarter of the way back, so lips pressed far through each other
+/// need more of them (the crossing-lips template's mouth shapes on the dense heads come within
+/// their allowance inside after 8 to 13).
+const ALONG_PATH_ROUNDS: usize = 4;
 
 /// Excess over the template's curve (in bbox diagonals) below which a shape meets the
 /// criterion: a tenth of the report's tolerance, so that float noise in the sums of a shape
