@@ -421,7 +421,7 @@ fn projection(p: [Vec3; 3], q: Vec3) -> Option<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Attempt, CollisionGuard, CollisionParams, ATTEMPTS, CHAINED};
+    use super::super::{Attempt, CollisionGuard, CollisionParams, ATTEMPTS};
     use super::TemplateContacts;
     use crate::geometry::bvh::TriangleBvh;
     use crate::geometry::penetration::crossings;
@@ -594,17 +594,6 @@ mod tests {
         let (_, clean, clean_guard, _, _) = closed_target_lips(0.045);
         assert!(clean_guard.template_rest_pairs.is_empty());
         assert!(clean.along_path_holds(&clean_guard, &positions, &pairs, &free).is_empty());
-    }
-
-    #[test]
-    fn the_chain_continues_the_along_path_attempt_with_the_holds_against_static_pieces() {
-        // The along-path attempt acts only inside a piece: the chain's steps are the attempts
-        // that hold skin off static pieces (back to rest, following the template, embedded),
-        // and the along-path attempt takes more rounds than the others.
-        assert!(CHAINED.iter().all(|a| !a.along_path && !a.clear && !a.contacts));
-        assert!(CHAINED[0].rest && CHAINED[1].follow && CHAINED[2].follow && CHAINED[2].embedded);
-        let along = ATTEMPTS.iter().find(|a| a.along_path).expect("an along-path attempt");
-        assert!(along.rounds(4) > ATTEMPTS[0].rounds(4) && ATTEMPTS[0].rounds(4) == 4);
     }
 
     #[test]
