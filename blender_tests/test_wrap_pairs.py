@@ -1,9 +1,9 @@
 """Point pairs proposed, not clicked: on characters whose correspondence with the template is
 known by construction (the sample's decimated identity, also with its lids open as an
 avatar's, a decimated identity in centimetres with Y up, a decimated Template turned and
-rescaled), every proposed character point lies
-near where the template point's feature truly is, the keys from the proposed pairs are as good
-as those from the hand pairs, and the button, Wrap with no pairs and the batch all propose."""
+rescaled), every proposed character point lies near where the template point's feature truly
+is, the keys from the proposed pairs are as good as those from the hand pairs, and the button,
+Wrap with no pairs and the batch all propose."""
 
 import json
 

@@ -36,8 +36,9 @@ vertices, beside the nearest-vertex copy's (no fit error in either).
 Proposals (`run_proposals`; `-- --proposals-only` runs them alone): point pairs proposed (no
 click) on the sample character and on a glTF avatar copy of it (metres, each piece an
 object), each also with its eye sockets cut open at the lids as an avatar's are (and the
-first also decimated to about 1.1k vertices): each proposed point's distance from where its template point truly
-lies, the pieces and openings matched, and the keys' error from proposed against hand pairs.
+first also decimated to about 1.1k vertices): each proposed point's distance from where its
+template point truly lies, the pieces and openings matched, and the keys' error from proposed
+against hand pairs.
 """
 
 import argparse
@@ -334,6 +335,14 @@ def proposal_row(shapesmith, character, true_point, reference=None):
     return row
 
 
+def piece_labels(shapesmith, obj):
+    """Per vertex of `obj`, the loose piece it belongs to (the add-on's `mesh_parts`)."""
+    from importlib import import_module
+
+    landmarks = import_module(shapesmith.__name__ + ".blender.landmarks")
+    return np.asarray(landmarks.mesh_parts(obj)["part_of_vertex"])
+
+
 def gltf_character(shapesmith, source):
     """`source` (one mesh with its pieces) as an avatar export brings it: each piece an object
     of its own, in metres and the scene's axes, through Blender's glTF exporter (Y up in the
@@ -342,11 +351,9 @@ def gltf_character(shapesmith, source):
     from importlib import import_module
 
     face_parts = import_module(shapesmith.__name__ + ".blender.face_parts")
-    nat = shapesmith.native.module()
     rest = positions(source)
     faces = [list(p.vertices) for p in source.data.polygons]
-    triangles = np.array([[f[0], f[i], f[i + 1]] for f in faces for i in range(1, len(f) - 1)], dtype=np.int32)
-    labels = np.asarray(nat.mesh_parts(len(rest), triangles)[0])
+    labels = piece_labels(shapesmith, source)
     order = np.argsort(-np.bincount(labels), kind="stable")
     exported = []
     for rank, piece in enumerate(order):
@@ -382,11 +389,8 @@ def open_lids(shapesmith, obj, radii=LID_HOLE_RADII):
     holes in the skin): the skin (its largest piece) within `radii` eyeball radii of each
     eyeball removed, the eyeballs its two largest round pieces (vertices' distances from the
     piece's centre varying by under 15% of their mean). Returns the vertices removed."""
-    nat = shapesmith.native.module()
     rest = positions(obj)
-    faces = [list(p.vertices) for p in obj.data.polygons]
-    triangles = np.array([[f[0], f[i], f[i + 1]] for f in faces for i in range(1, len(f) - 1)], dtype=np.int32)
-    labels = np.asarray(nat.mesh_parts(len(rest), triangles)[0])
+    labels = piece_labels(shapesmith, obj)
     skin = np.argmax(np.bincount(labels))
     balls = []
     for piece in set(labels.tolist()) - {skin}:
@@ -425,7 +429,7 @@ def run_proposals(shapesmith, young_truth):
     """Proposed against hand pairs on the sample character (keys against the same-topology
     transfer onto Target_YoungWoman), on its glTF avatar copy in metres with separate pieces
     (pairs and matches only), and on both with the eye sockets open at the lids (`open_lids`),
-the first also decimated to about half its vertices."""
+    the first also decimated to about half its vertices."""
     character = bpy.data.objects["Character_YoungWoman"]
     identity_points = positions(bpy.data.objects["Target_YoungWoman"])
     scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]

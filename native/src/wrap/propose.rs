@@ -530,22 +530,21 @@ fn opening(mesh: &Mesh, local: &[Vec3], near: &[u32], seed: Vec3) -> Option<Open
         }
     }
     let (label, count) = connected_components(near.len(), &edges);
-    let extent = |l: u32| -> (f64, f64) {
-        let xs = near.iter().zip(&label).filter(|(_, &m)| m == l).map(|(&v, _)| local[v as usize][0]);
-        xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)))
-    };
-    let width = |l: u32| extent(l).1 - extent(l).0;
-    let widest = (0..count as u32).map(width).fold(0.0, f64::max);
-    let members = |l: u32| near.iter().zip(&label).filter(move |(_, &m)| m == l).map(|(&v, _)| v);
-    let from_seed = |l: u32| {
-        let (sum, n) = members(l).fold(([0.0; 3], 0.0), |(sum, n), v| (add(sum, local[v as usize]), n + 1.0));
-        length(sub(scale(sum, 1.0 / n), seed))
-    };
-    let chosen = (0..count as u32).filter(|&l| width(l) >= WIDE_RUN * widest).min_by(|&a, &b| from_seed(a).total_cmp(&from_seed(b)))?;
-    let run: Vec<u32> = members(chosen).collect();
+    let mut runs: Vec<Vec<u32>> = vec![Vec::new(); count];
+    for (&v, &l) in near.iter().zip(&label) {
+        runs[l as usize].push(v);
+    }
     let x = |v: &u32| local[*v as usize][0];
-    let low = *run.iter().min_by(|a, b| x(a).total_cmp(&x(b)))?;
-    let high = *run.iter().max_by(|a, b| x(a).total_cmp(&x(b)))?;
+    // Each run's lateral extremes, lowest `x` first.
+    let ends = |run: &[u32]| Some((*run.iter().min_by(|a, b| x(a).total_cmp(&x(b)))?, *run.iter().max_by(|a, b| x(a).total_cmp(&x(b)))?));
+    let width = |run: &[u32]| ends(run).map_or(0.0, |(low, high)| x(&high) - x(&low));
+    let widest = runs.iter().map(|r| width(r)).fold(0.0, f64::max);
+    let from_seed = |run: &[u32]| {
+        let sum = run.iter().fold([0.0; 3], |sum, &v| add(sum, local[v as usize]));
+        length(sub(scale(sum, 1.0 / run.len() as f64), seed))
+    };
+    let chosen = runs.iter().filter(|r| width(r) >= WIDE_RUN * widest).min_by(|a, b| from_seed(a).total_cmp(&from_seed(b)))?;
+    let (low, high) = ends(chosen)?;
     (x(&high) > x(&low)).then_some(Opening { corners: [low, high] })
 }
 

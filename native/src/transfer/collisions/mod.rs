@@ -305,10 +305,9 @@ impl DeformationTransfer {
         // next re-solve moves triangles.
         let mut sweep_bvh: Option<TriangleBvh> = None;
         let plain = out.clone();
-        // The least excess over the template so far (the least added curve while the
-        // template's is not known), the deltas that add it (empty: the start), the new pairs
-        // left in them, their crossing pairs and the holds that gave them (when kept).
-        let mut best: Option<(f64, Vec<Vec3>, usize, Vec<(u32, u32, f64)>, Option<(Targets, Vec<bool>, Vec<bool>)>)> = None;
+        // The round with the least excess over the template so far (the least added curve
+        // while the template's is not known).
+        let mut best: Option<BestRound> = None;
         let mut first: Option<AddedCurve> = None;
         // Whether any vertices were sought: only then can another attempt differ.
         let mut held = false;
@@ -366,12 +365,12 @@ impl DeformationTransfer {
                 first = Some(added);
             }
             let score = |a: &AddedCurve| allowed.map_or(a.inside + a.between, |t| a.excess(&t));
-            let improved = best.as_ref().is_none_or(|(b, _, _, _, _)| score(&added) < *b);
+            let improved = best.as_ref().is_none_or(|b| score(&added) < b.score);
             if improved {
                 // The holds that gave it, for the chain to continue from (module docs' "Chains").
                 let holds = (round > 0 && (attempt.along_path || start.is_some())).then(|| (targets.clone(), region.clone(), release.clone()));
                 let kept = if round == 0 { Vec::new() } else { out.clone() };
-                best = Some((score(&added), kept, 0, crossing.clone(), holds));
+                best = Some(BestRound { score: score(&added), deltas: kept, left: 0, crossing: crossing.clone(), holds });
             }
             // New pairs, and rest pairs whose curve grew: skin resting against an eyeball or
             // the teeth adds curve by sliding deeper along pairs that already cross.
@@ -398,7 +397,9 @@ impl DeformationTransfer {
                     // Only the plain solve was judged so far (by added curve): judge it by
                     // its excess over the template.
                     allowed = Some(contacts.allowed);
-                    best = best.map(|(_, kept, left, pairs, holds)| (first.map_or(0.0, |f| f.excess(&contacts.allowed)), kept, left, pairs, holds));
+                    if let Some(b) = best.as_mut() {
+                        b.score = first.map_or(0.0, |f| f.excess(&contacts.allowed));
+                    }
                 }
                 template = Some(contacts);
                 if meets(&added, &allowed) {
@@ -440,8 +441,8 @@ impl DeformationTransfer {
             if round == 0 {
                 outcome.new_pairs = new_pairs.len();
             }
-            if let Some((_, _, left, _, _)) = best.as_mut().filter(|_| improved) {
-                *left = new_pairs.len();
+            if let Some(b) = best.as_mut().filter(|_| improved) {
+                b.left = new_pairs.len();
             }
             if new_pairs.is_empty() || round == rounds {
                 break;
@@ -533,7 +534,7 @@ impl DeformationTransfer {
         outcome.constrained_vertices = targets.len();
         // The round that adds least curve wins; when that is the plain solve, the shape comes
         // out exactly as without the pass.
-        let excess = if held { allowed.and(best.as_ref().map(|b| b.0)) } else { None };
+        let excess = if held { allowed.and(best.as_ref().map(|b| b.score)) } else { None };
         let penetration = |pairs: &[(u32, u32, f64)]| {
             let rest: Vec<(u32, u32, f64)> = rest_pairs().collect();
             shape_penetration(pairs, &rest, moved, &guard.triangle_piece)
@@ -542,14 +543,14 @@ impl DeformationTransfer {
         let plain_penetration = *shared.penetration.get_or_init(|| penetration(plain_crossing));
         outcome.plain_penetration = Some(plain_penetration);
         let mut reached = None;
-        if let Some((_, kept, left, pairs, holds)) = best {
-            outcome.penetration = Some(if kept.is_empty() && start.is_none() { plain_penetration } else { penetration(&pairs) });
+        if let Some(BestRound { deltas, left, crossing, holds, .. }) = best {
+            outcome.penetration = Some(if deltas.is_empty() && start.is_none() { plain_penetration } else { penetration(&crossing) });
             outcome.remaining_pairs = left;
-            outcome.applied = !kept.is_empty() || start.is_some();
+            outcome.applied = !deltas.is_empty() || start.is_some();
             if let Some((targets, region, release)) = holds {
-                reached = Some(Held { deltas: kept.clone(), targets, region, release, crossing: pairs });
+                reached = Some(Held { deltas: deltas.clone(), targets, region, release, crossing });
             }
-            *out = if kept.is_empty() { plain } else { kept };
+            *out = if deltas.is_empty() { plain } else { deltas };
         }
         Ok((outcome, excess, reached))
     }
@@ -611,6 +612,18 @@ impl PlainRound {
         let swept_rest = AddedCurve::of(swept_rest_pairs.iter().copied(), |t| dt.triangle_piece(t), AddedCurve::default());
         Self { plain, moved, free, static_piece, swept_rest, swept_rest_pairs, crossing: OnceLock::new(), penetration: OnceLock::new(), template: OnceLock::new(), springs: OnceLock::new(), folds: OnceLock::new() }
     }
+}
+
+/// The best round of one attempt so far: its score (excess over the template, or added curve
+/// while the template's is not known), its deltas (empty: the attempt's start), the new pairs
+/// left in them, their crossing pairs, and the holds, region and released springs that gave
+/// them (kept for the along-path attempt and a chain's steps, which a chain continues from).
+struct BestRound {
+    score: f64,
+    deltas: Vec<Vec3>,
+    left: usize,
+    crossing: Vec<(u32, u32, f64)>,
+    holds: Option<(Targets, Vec<bool>, Vec<bool>)>,
 }
 
 /// A re-solved state of one shape a later attempt continues from: its deltas, the holds,
