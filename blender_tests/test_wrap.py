@@ -617,8 +617,8 @@ def test_a_symmetric_template_on_symmetric_characters_carries_mirrored_pairs(sam
     pair and each self-symmetric key mirrors within MIRROR_FACTOR times the template's own
     miss (its keys on its vertex map) plus the measure's floor on the character (what
     interpolating an image twice across the character's triangles costs the same keys), a
-    bound the chain without symmetry breaks, but for the pairs the report lists as held apart
-    by the collision pass. No key carried onto Character_YoungWoman is worse than the
+    bound the chain without symmetry breaks, the pairs the collision pass held apart
+    differently included. No key carried onto Character_YoungWoman is worse than the
     template, and onto the copy no more than without symmetry."""
     native = module(shapesmith, "native").module()
     triangles_of = module(shapesmith, "blender.mesh_arrays").read_triangles
@@ -659,12 +659,12 @@ def test_a_symmetric_template_on_symmetric_characters_carries_mirrored_pairs(sam
         broken = [row[:2] for row in rows if row[3] > MIRROR_FACTOR * (row[4] + row[5])]
         assert len(broken) >= 5, rows
         # A pair the collision pass held apart differently, with no mirrored version meeting the
-        # criterion, keeps the pass's results (the report says which): at most two here.
+        # criterion, is re-solved from its average (the report says which): at most one here,
+        # and it too within the bound.
         held_apart = {(row["first_name"], row["second_name"]) for row in carry_symmetry["shapes"] if row["held_apart"]}
-        assert len(held_apart) <= 2, held_apart
+        assert len(held_apart) <= 1, held_apart
         for first, second, miss, _, own, floor in rows:
-            if (first, second) not in held_apart:
-                assert miss <= MIRROR_FACTOR * (own + floor), (obj.name, first, second, miss, own, floor)
+            assert miss <= MIRROR_FACTOR * (own + floor), (obj.name, first, second, miss, own, floor)
         worse_than_template = module(shapesmith, "blender.transfer").worse_than_template
         worse, plain_worse = worse_than_template(result.report), worse_than_template(plain_result.report)
         print(f"{obj.name}: worse than the template {worse}, without symmetry {plain_worse}")

@@ -5,7 +5,8 @@
 //!     cargo run --release --example carry_counts -- DIR/<character>
 //!
 //! Prints, per shape the pass acted on, its plain and kept excess (/ diagonal), its re-solves
-//! and held vertices, and the shapes still worse; and the carry's seconds.
+//! and held vertices, and the shapes still worse; the largest mirror miss of the carried
+//! Left/Right pairs and the pairs the pass held apart; and the carry's seconds.
 
 use shapesmith_native::wrap::{AddedCurve, CarryParams, TemplateCurve};
 use shapesmith_native::NoProgress;
@@ -51,6 +52,13 @@ fn main() {
             .map(|(k, e)| format!("{} {:.4}/{:.4}", names[k], e.inside / diagonal, e.between / diagonal))
             .collect();
         println!("{} pass {pass}: {} worse in {seconds:.2} s: {}", dir, worse.len(), worse.join(", "));
+        if let Some(symmetry) = result.symmetry.as_ref().filter(|s| s.symmetric) {
+            let worst = symmetry.shapes.iter().max_by(|a, b| a.carried.total_cmp(&b.carried));
+            let held: Vec<String> = symmetry.shapes.iter().filter(|m| m.held_apart).map(|m| format!("{}/{} {:.1}%", names[m.first], names[m.second], 100.0 * m.carried)).collect();
+            if let Some(m) = worst {
+                println!("  largest mirror miss {:.1}% ({} / {}); held apart: {}", 100.0 * m.carried, names[m.first], names[m.second], held.join(", "));
+            }
+        }
         if pass {
             for (k, c) in result.collisions.iter().enumerate() {
                 if c.plain_excess > 0.0 && only.as_deref().is_none_or(|o| names[k].contains(o)) {

@@ -33,6 +33,7 @@ use crate::sparse::SymmetricMatrix;
 use super::collisions::{AddedCurve, CarryCollision, CarryPenetration, Guard, TemplateCurve};
 use crate::geometry::penetration::{Penetration, PenetrationBaseline};
 use super::pieces::ANY_PART;
+use super::symmetric_pass::{symmetric_holds, PairOutcome};
 use super::symmetry::{self, MirrorPlane, SurfaceMirror};
 
 /// Knobs of [`carry_shapes`].
@@ -353,7 +354,7 @@ pub fn carry_shapes(
             // the pass re-solves around held vertices as it does for any carried shape.
             let shapes: Vec<CarriedShape> = deltas
                 .into_par_iter()
-                .zip(static_vertex)
+                .zip(static_vertex.clone())
                 .enumerate()
                 .map(|(k, (deltas, static_vertex))| {
                     let rhs = if guard.is_some() { apply_points(&laplacian, &deltas) } else { Vec::new() };
@@ -364,7 +365,8 @@ pub fn carry_shapes(
             let mut held_apart = Vec::new();
             if let (Some(guard), Some(curve)) = (&guard, template_curve) {
                 let allowed = |k: usize| curve[k].allowed(&AddedCurve::crossing(&guard.rest()));
-                held_apart = symmetric_holds(&mut shapes, &symmetric, guard, allowed);
+                let outcomes = symmetric_holds(&mut shapes, &symmetric, guard, allowed, &static_vertex, &laplacian)?;
+                held_apart = outcomes.into_iter().filter(|(_, outcome)| *outcome == PairOutcome::HeldApart).map(|(pair, _)| pair).collect();
             }
             let kept: Vec<Vec<Vec3>> = shapes.iter().map(|(d, _)| d.iter().map(to_f64).collect()).collect();
             fill(&mut report, &symmetric.mirror, &plain, &kept, &held_apart);
@@ -408,65 +410,6 @@ pub fn carry_shapes(
     })
 }
 
-/// The collision pass made symmetric: the pass holds each shape on its own, so for a mirror
-/// pair of shapes it changed (either one) the pair is replaced by the first of these whose
-/// every side meets the criterion or adds no more than the pass's own result: each averaged
-/// with the mirror of the other's (the holds of both sides act on both), Right as the mirror
-/// of Left, Left as the mirror of Right; a self-symmetric shape by its average with its own
-/// mirror. Otherwise the pass's results stay (`symmetry`; the collision rows then describe
-/// what was kept). Returns the pairs left as the pass held them.
-fn symmetric_holds(
-    shapes: &mut [CarriedShape],
-    symmetric: &SymmetricCarry,
-    guard: &Guard,
-    allowed: impl Fn(usize) -> AddedCurve + Sync,
-) -> Vec<(usize, usize)> {
-    let applied = |k: usize| shapes[k].1.is_some_and(|(outcome, _)| outcome.applied);
-    let changed: Vec<(usize, usize)> = symmetric.pairs.iter().copied().filter(|&(i, j)| applied(i) || applied(j)).collect();
-    let field = |k: usize| -> Vec<Vec3> { shapes[k].0.iter().map(to_f64).collect() };
-    let mirror = &symmetric.mirror;
-    let mirrored = |other: &[Vec3], own: &[Vec3]| -> Vec<[f32; 3]> {
-        (0..own.len()).map(|v| mirror.mirrored(other, v).unwrap_or(own[v]).map(|x| x as f32)).collect()
-    };
-    let averaged = |own: &[Vec3], other: &[Vec3]| -> Vec<[f32; 3]> {
-        (0..own.len()).map(|v| mirror.mirrored(other, v).map_or(own[v], |image| scale(add(own[v], image), 0.5)).map(|x| x as f32)).collect()
-    };
-    let current = |k: usize| shapes[k].1.map_or(0.0, |(outcome, _)| outcome.excess);
-    let replacements: Vec<Vec<(usize, Vec<[f32; 3]>, (f64, bool, Penetration))>> = changed
-        .par_iter()
-        .map(|&(i, j)| {
-            let (di, dj) = (field(i), field(j));
-            let candidates: Vec<Vec<(usize, Vec<[f32; 3]>)>> = if i == j {
-                vec![vec![(i, averaged(&di, &di))]]
-            } else {
-                vec![vec![(i, averaged(&di, &dj)), (j, averaged(&dj, &di))], vec![(j, mirrored(&di, &dj))], vec![(i, mirrored(&dj, &di))]]
-            };
-            for candidate in candidates {
-                let mut judged = Vec::new();
-                for (k, deltas) in candidate {
-                    let verdict = guard.judge(&deltas, &allowed(k));
-                    if !(verdict.1 || verdict.0 <= current(k)) {
-                        judged.clear();
-                        break;
-                    }
-                    judged.push((k, deltas, verdict));
-                }
-                if !judged.is_empty() {
-                    return judged;
-                }
-            }
-            Vec::new()
-        })
-        .collect();
-    let held_apart = changed.iter().zip(&replacements).filter(|(_, r)| r.is_empty()).map(|(pair, _)| *pair).collect();
-    for (k, deltas, (excess, _, penetration)) in replacements.into_iter().flatten() {
-        if let Some((outcome, _)) = shapes[k].1 {
-            shapes[k] = (deltas, Some((CarryCollision { excess, applied: true, ..outcome }, penetration)));
-        }
-    }
-    held_apart
-}
-
 /// One shape's plain carry (the solve phase): deltas (static vertices zero), the normal
 /// equations' right-hand side (empty without screening) and the static vertices.
 struct Solved {
@@ -476,7 +419,7 @@ struct Solved {
 }
 
 /// `A d` per coordinate.
-fn apply_points(matrix: &SymmetricMatrix, deltas: &[Vec3]) -> Vec<Vec3> {
+pub(super) fn apply_points(matrix: &SymmetricMatrix, deltas: &[Vec3]) -> Vec<Vec3> {
     let columns: Vec<Vec<f64>> = (0..3).map(|a| matrix.apply(&deltas.iter().map(|d| d[a]).collect::<Vec<_>>())).collect();
     (0..deltas.len()).map(|v| [columns[0][v], columns[1][v], columns[2][v]]).collect()
 }
@@ -512,14 +455,15 @@ pub struct MirrorMiss {
     pub plain: f64,
     pub carried: f64,
     /// The collision pass held the pair's sides apart differently and no mirrored version of
-    /// the pair met the criterion: the pass's results were kept.
+    /// the pair met the criterion: its holds stay, re-solved from the pair's average when that
+    /// misses less (`symmetric_pass`).
     pub held_apart: bool,
 }
 
 /// The character's surface mirror and the shapes' mirror pairs, when symmetric.
-struct SymmetricCarry<'a> {
-    mirror: SurfaceMirror<'a>,
-    pairs: Vec<(usize, usize)>,
+pub(super) struct SymmetricCarry<'a> {
+    pub(super) mirror: SurfaceMirror<'a>,
+    pub(super) pairs: Vec<(usize, usize)>,
 }
 
 /// The carry's symmetry: the template's vertex map (from its rest, `template_neutral`), the
@@ -579,7 +523,7 @@ fn carry_mirror<'a>(
 
 /// A carried shape's deltas, and with the collision pass what it did and the kept result's
 /// penetration.
-type CarriedShape = (Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>);
+pub(super) type CarriedShape = (Vec<[f32; 3]>, Option<(CarryCollision, Penetration)>);
 
 /// One template shape on the wrapped template.
 struct Shape<'a> {

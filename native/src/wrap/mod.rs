@@ -67,6 +67,7 @@ mod nricp;
 mod pieces;
 mod propose;
 mod rims;
+mod symmetric_pass;
 mod symmetry;
 #[cfg(test)]
 pub(crate) mod tests;
