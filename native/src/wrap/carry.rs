@@ -272,7 +272,7 @@ pub fn carry_shapes(
         _ => None,
     };
     let mirror = template_neutral.map(|neutral| {
-        let character = (&points[..], character_triangles, &vertex_normals[..], &parts.character_vertex[..], &parts.character_triangle[..]);
+        let character = (&points[..], character_triangles, &vertex_normals[..]);
         carry_mirror(neutral, &template, template_triangles, template_deltas, character, cos_max_angle, diagonal)
     });
     let setup_seconds = started.elapsed().as_secs_f64();
@@ -475,7 +475,7 @@ fn carry_mirror<'a>(
     wrapped: &[Vec3],
     template_triangles: &[[u32; 3]],
     template_deltas: &[[f32; 3]],
-    (points, triangles, normals, vertex_part, triangle_part): (&[Vec3], &'a [[u32; 3]], &[Vec3], &[u32], &[u32]),
+    (points, triangles, normals): (&[Vec3], &'a [[u32; 3]], &[Vec3]),
     cos_max_angle: f64,
     diagonal: f64,
 ) -> (CarrySymmetry, Option<SymmetricCarry<'a>>) {
@@ -507,14 +507,17 @@ fn carry_mirror<'a>(
             MirrorMiss { first: i, second: j, template, ..Default::default() }
         })
         .collect();
-    // Each character vertex's image on its own surface: skin onto skin, a piece onto any
-    // piece (the left eye's image is on the right eye), facing the reflected normal's way.
+    // Each character vertex's image on its own surface: on its piece's mirror piece (the skin
+    // onto the skin, the left eye onto the right eye), facing the reflected normal's way.
     let bvh = TriangleBvh::build(points, triangles);
     let images: Vec<Vec3> = points.iter().map(|p| plane.reflect(*p)).collect();
     let image_normals: Vec<Vec3> = normals.iter().map(|n| plane.reflect_vector(*n)).collect();
-    let image_part: Vec<u32> = vertex_part.iter().map(|&p| if p == 0 { 0 } else { ANY_PART }).collect();
+    let (piece, n_pieces) = connected_components(points.len(), triangles);
+    let image_piece = symmetry::mirror_pieces(points, &piece, n_pieces, &plane);
+    let image_part: Vec<u32> = piece.iter().map(|&k| image_piece[k as usize]).collect();
+    let triangle_piece: Vec<u32> = triangles.iter().map(|t| piece[t[0] as usize]).collect();
     let tolerance = (symmetry::SURFACE_TOLERANCE * diagonal).powi(2);
-    let images = bind_facing(&images, &image_normals, &image_part, &bvh, &triangle_normals(points, triangles), triangle_part, cos_max_angle)
+    let images = bind_facing(&images, &image_normals, &image_part, &bvh, &triangle_normals(points, triangles), &triangle_piece, cos_max_angle)
         .into_iter()
         .map(|hit| (hit.distance_squared <= tolerance).then_some(hit))
         .collect();
