@@ -67,8 +67,8 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
         return Vec::new();
     }
     let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
-    let tree = PointTree::new(neutral);
-    let (labels, _) = connected_components(n, triangles);
+    let (labels, n_pieces) = connected_components(n, triangles);
+    let trees = PieceTrees::new(neutral, &labels, n_pieces);
     let graph = EdgeGraph::new(&points, triangles);
 
     // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
@@ -80,7 +80,7 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
             || (SurfaceSearch::new(n), Vec::new(), Vec::new()),
             |(mut search, mut ball, mut open), i| {
                 ball.clear();
-                ball.extend(tree.within(points[i], radius).into_iter().filter(|&(j, d)| j != i && d < radius && labels[j] == labels[i]));
+                ball.extend(trees.within(labels[i], points[i], radius).filter(|&(j, d)| j != i && d < radius));
                 search.not_proven_close(&graph, i, &ball, params.tau_r, &mut open);
                 (search, ball, open)
             },
@@ -150,6 +150,34 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
         next = last + 1;
     }
     edges
+}
+
+/// One k-d tree per connected piece, so that a vertex's ball is gathered from its own piece
+/// alone: on a head whose pieces crowd the skin (lashes copied over the lids, eyeballs and
+/// gums crossing it) a tree over every vertex returned the other pieces' vertices too, only
+/// for them to be dropped.
+struct PieceTrees {
+    trees: Vec<PointTree>,
+    /// Per piece, its vertices' indices in the mesh, in the order of its tree's items.
+    members: Vec<Vec<usize>>,
+}
+
+impl PieceTrees {
+    fn new(points: &[[f32; 3]], labels: &[u32], n_pieces: usize) -> Self {
+        let mut members = vec![Vec::new(); n_pieces];
+        for (v, &label) in labels.iter().enumerate() {
+            members[label as usize].push(v);
+        }
+        let trees = members.iter().map(|piece| PointTree::new(&piece.iter().map(|&v| points[v]).collect::<Vec<_>>())).collect();
+        Self { trees, members }
+    }
+
+    /// The vertices of piece `label` within `radius` of `query` (inclusive), with their
+    /// distances.
+    fn within(&self, label: u32, query: [f64; 3], radius: f64) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let piece = &self.members[label as usize];
+        self.trees[label as usize].within(query, radius).into_iter().map(move |(k, d)| (piece[k], d))
+    }
 }
 
 /// The pairs the thinning proved close, with the length of the path that proved each: a
