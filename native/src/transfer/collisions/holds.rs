@@ -5,7 +5,7 @@
 //! module docs' "Folds").
 
 use std::cmp;
-use std::collections::{BTreeMap, BinaryHeap, HashSet};
+use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet};
 
 use super::contacts::TemplateContacts;
 use super::{Attempt, CollisionGuard, Neutral, Targets};
@@ -55,6 +55,11 @@ impl DeformationTransfer {
         // With `attempt.embedded`, the (triangle, piece) pairs crossing at the target's rest.
         let no_pairs = HashSet::new();
         let embedded = if attempt.embedded { guard.embedded(|t| self.triangle_piece(t)) } else { &no_pairs };
+        // A vertex meets the same piece in several pairs (each of its triangles, each of theirs
+        // crossing the piece) and again in the flood: its push off that piece, a closest-point
+        // query, is found once per call (the same positions and margin throughout).
+        let mut pushed_off: HashMap<(usize, u32), Option<Vec3>> = HashMap::new();
+        let mut push_off_piece = |u: usize, piece: u32| *pushed_off.entry((u, piece)).or_insert_with(|| self.push_off_piece(guard, positions, u, piece, margin));
         let obstacle_piece = |u: usize, t: u32| {
             let p = self.triangle_piece(t);
             (p != self.piece[u] && static_piece[p as usize]).then_some(p)
@@ -82,14 +87,14 @@ impl DeformationTransfer {
                         Some(piece)
                             if attempt.embedded
                                 && moved_by > 0.0
-                                && (embedded.contains(&(side, piece)) || self.push_off_piece(guard, positions, u, piece, margin).is_none()) =>
+                                && (embedded.contains(&(side, piece)) || push_off_piece(u, piece).is_none()) =>
                         {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
                         Some(piece) if attempt.rest && moved_by > 0.0 && template.adds_none(self.piece[u], piece) => {
                             Some(sub(self.target_neutral[u], positions[u]))
                         }
-                        Some(piece) => hold(u, obstacle, Some(piece), self.push_off_piece(guard, positions, u, piece, margin)),
+                        Some(piece) => hold(u, obstacle, Some(piece), push_off_piece(u, piece)),
                         None => self.lip_hold(guard, positions, u, obstacle, free, attempt, template_positions, &hold),
                     };
                     if let Some(push) = push {
@@ -105,7 +110,7 @@ impl DeformationTransfer {
                     continue;
                 }
                 if let Some(piece) = obstacle_piece(w, obstacle) {
-                    let push = match self.push_off_piece(guard, positions, w, piece, margin) {
+                    let push = match push_off_piece(w, piece) {
                         // Gone through the piece, where the template's shape adds no curve
                         // against it: back to rest, as the pairs' corners.
                         Some(_) if attempt.rest && template.adds_none(self.piece[w], piece) => {
