@@ -71,6 +71,14 @@
 //! only when it clears the shape. A template whose neutral crosses nowhere inside (the warp
 //! ground truth) never gets here: the along-path attempt holds nothing there.
 //!
+//! **Backing off.** A shape neither the attempts nor the chain clear is tried once more from
+//! its plain solve: each skin corner of a pair against a static piece (the teeth) held an
+//! eighth of the way back along its own motion each round, kept only when it clears the shape.
+//! The crossing-lips template's mouthLeft/Right on the dense heads leave skin that rests across
+//! the teeth sliding onto new teeth triangles with no corner changing side, which every
+//! rest-side hold misses; held back along the way it came, it ends crossing as at rest. Only a
+//! shape that would otherwise stay worse gets here, so every other shape comes out as before.
+//!
 //! **Re-sweeps.** A round changes its region's rows only, so its hierarchy is refitted there
 //! (`TriangleBvh::refit_listed`) and only triangles with a corner written elsewhere are swept
 //! again (`crossings_of`); every number equals a full sweep's to the bit (tested in `geometry/`).
@@ -246,21 +254,32 @@ impl DeformationTransfer {
         // each of `CHAINED` continues from the chain's state with the holds that gave it, and is
         // taken when it lowers the chain's excess; the chain is kept only when it clears the
         // shape.
-        let Some((mut chain_excess, start)) = along else { return Ok(CollisionOutcome { solves, ..outcome }) };
-        let mut state = Some(start);
-        let mut chained = None;
-        for attempt in CHAINED {
-            let Some(start) = state.as_ref().filter(|_| worse(chain_excess).is_some()) else { break };
-            let mut again = start.deltas.clone();
-            let (next, next_excess, held) = self.collision_rounds(guard, shape, &shared, &mut again, attempt, None, Some(start), attempt.rounds(rounds))?;
-            solves += next.solves;
-            if next_excess.is_some_and(|e| chain_excess.is_none_or(|c| e < c)) {
-                chain_excess = next_excess;
-                state = held.or(state);
-                chained = Some((again, next));
+        if let Some((mut chain_excess, start)) = along {
+            let mut state = Some(start);
+            let mut chained = None;
+            for attempt in CHAINED {
+                let Some(start) = state.as_ref().filter(|_| worse(chain_excess).is_some()) else { break };
+                let mut again = start.deltas.clone();
+                let (next, next_excess, held) = self.collision_rounds(guard, shape, &shared, &mut again, attempt, None, Some(start), attempt.rounds(rounds))?;
+                solves += next.solves;
+                if next_excess.is_some_and(|e| chain_excess.is_none_or(|c| e < c)) {
+                    chain_excess = next_excess;
+                    state = held.or(state);
+                    chained = Some((again, next));
+                }
+            }
+            if let Some((again, next)) = chained.filter(|_| worse(chain_excess).is_none()) {
+                *out = again;
+                return Ok(CollisionOutcome { new_pairs: outcome.new_pairs, solves, ..next });
             }
         }
-        if let Some((again, next)) = chained.filter(|_| worse(chain_excess).is_none()) {
+        // Last (module docs' "Backing off"): from the plain solve, the skin going through a
+        // static piece held back along its own motion an eighth of the way each round, kept
+        // only when it clears the shape.
+        let mut again = plain.clone();
+        let (next, next_excess, _) = self.collision_rounds(guard, shape, &shared, &mut again, &BACK_OFF_PIECES, None, None, BACK_OFF_PIECES.rounds(rounds))?;
+        solves += next.solves;
+        if next_excess.is_some() && worse(next_excess).is_none() {
             *out = again;
             outcome = CollisionOutcome { new_pairs: outcome.new_pairs, ..next };
         }
@@ -659,6 +678,7 @@ pub(super) struct Attempt {
     pub(super) clear: bool,
     pub(super) contacts: bool,
     pub(super) along_path: bool,
+    pub(super) between: bool,
 }
 
 impl Attempt {
@@ -672,17 +692,22 @@ impl Attempt {
 /// still worse than the template. Measured on the heads of `examples/collision_counts.rs`,
 /// each later attempt clears shapes the earlier ones leave (module docs).
 const ATTEMPTS: [Attempt; 10] = [
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true, along_path: false },
-    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: true },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 2.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 10.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: true, follow: false, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: false, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: true, embedded: true, clear: false, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: true, contacts: false, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: true, rest: false, follow: false, embedded: false, clear: false, contacts: true, along_path: false, between: false },
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: true, between: false },
 ];
+
+/// The last attempt, when neither [`ATTEMPTS`] nor the chain clears the shape (module docs'
+/// "Backing off").
+const BACK_OFF_PIECES: Attempt =
+    Attempt { stiffness: 1.0, margin: 1.0, strip: false, rest: false, follow: false, embedded: false, clear: false, contacts: false, along_path: true, between: true };
 
 /// The attempts chained after [`ATTEMPTS`] (module docs' "Chains"): skin back to rest against
 /// static pieces, following the template's contacts, and with the skin resting across a static
