@@ -146,12 +146,8 @@ impl DeformationTransfer {
         let beside = |t: u32| guard.around(t).iter().any(|s| resting.contains(s));
         let mut targets = Targets::new();
         for &(a, b) in pairs.iter().filter(|&&(a, b)| self.triangle_piece(a) == self.triangle_piece(b) && (beside(a) || beside(b))) {
-            for &u in self.triangles[a as usize].iter().chain(&self.triangles[b as usize]) {
-                let u = u as usize;
-                let back = sub(self.target_neutral[u], positions[u]);
-                if free[u] && length(back) > 0.0 {
-                    targets.insert(u, add(positions[u], scale(back, 0.25)));
-                }
+            for t in [a, b] {
+                self.hold_back_along_motion(t, ALONG_PATH_STEP, positions, free, &mut targets);
             }
         }
         targets
@@ -172,19 +168,24 @@ impl DeformationTransfer {
                 continue;
             }
             for (side, other) in [(a, q), (b, p)] {
-                if !static_piece[other as usize] {
-                    continue;
-                }
-                for &u in &self.triangles[side as usize] {
-                    let u = u as usize;
-                    let back = sub(self.target_neutral[u], positions[u]);
-                    if free[u] && length(back) > 0.0 {
-                        targets.insert(u, add(positions[u], scale(back, BACK_OFF_STEP)));
-                    }
+                if static_piece[other as usize] {
+                    self.hold_back_along_motion(side, BACK_OFF_STEP, positions, free, &mut targets);
                 }
             }
         }
         targets
+    }
+
+    /// Holds each free corner `u` of `triangle` that moved a `share` of the way back along its
+    /// own motion: `t_u = x_u + (B0_u - x_u) * share`.
+    fn hold_back_along_motion(&self, triangle: u32, share: f64, positions: &[Vec3], free: &[bool], targets: &mut Targets) {
+        for &u in &self.triangles[triangle as usize] {
+            let u = u as usize;
+            let back = sub(self.target_neutral[u], positions[u]);
+            if free[u] && length(back) > 0.0 {
+                targets.insert(u, add(positions[u], scale(back, share)));
+            }
+        }
     }
 
     /// Per triangle, whether the virtual-edge springs `springs` folded it over in the plain
@@ -439,6 +440,10 @@ const REGION_SPREAD: f64 = 3.0;
 /// lips already cross their eyeballs and teeth at rest, and a sub-millimetre drift there
 /// (the solve spreading a mouth shape up to the lids) adds centimetres of curve.
 const REST_SNAP: f64 = 0.5;
+
+/// The share of its own motion a lip vertex of the along-path attempt is held back by each
+/// round ([`DeformationTransfer::along_path_holds`]).
+const ALONG_PATH_STEP: f64 = 0.25;
 
 /// The share of its own motion a vertex of the last attempt is held back by each round
 /// ([`DeformationTransfer::along_path_off_pieces`]).

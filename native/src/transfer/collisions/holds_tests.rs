@@ -235,6 +235,75 @@ fn the_follow_attempt_holds_lip_vertices_where_the_templates_own_shape_has_them(
     }
 }
 
+/// The skin over teeth of `collision_tests` (template teeth top at 0.2, the target's at
+/// 0.02) with the skin moved by `skin_delta` of each of its rest points: the transfer, its
+/// guard, the posed target and the crossing pairs that were not there at rest.
+struct PosedSkinOverTeeth {
+    tris: Vec<[u32; 3]>,
+    dt: DeformationTransfer,
+    guard: CollisionGuard,
+    delta: Vec<[f32; 3]>,
+    positions: Vec<Vec3>,
+    rest: Vec<(u32, u32)>,
+    pairs: Vec<(u32, u32)>,
+    free: Vec<bool>,
+    skin: u32,
+    teeth: u32,
+}
+
+/// The skin's vertices are the first 15 x 15 of `skin_over_teeth`'s.
+const SKIN_VERTICES: usize = 15 * 15;
+
+/// The skin moved by `skin_delta`, the teeth kept.
+fn skin_moved(source: &[[f32; 3]], skin_delta: impl Fn(&[f32; 3]) -> [f32; 3]) -> Vec<[f32; 3]> {
+    source.iter().enumerate().map(|(v, p)| if v < SKIN_VERTICES { skin_delta(p) } else { [0.0; 3] }).collect()
+}
+
+fn posed_skin_over_teeth(skin_delta: impl Fn(&[f32; 3]) -> [f32; 3]) -> PosedSkinOverTeeth {
+    let (source, tris) = skin_over_teeth(0.2);
+    let (target, _) = skin_over_teeth(0.02);
+    let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
+    let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
+    let delta = skin_moved(&source, skin_delta);
+    let positions = posed(&dt.target_neutral, delta.clone());
+    let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
+        crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
+    };
+    let rest = sweep(&dt.target_neutral);
+    let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
+    assert!(!pairs.is_empty());
+    let (skin, teeth) = (dt.piece[0], dt.piece[source.len() - 1]);
+    let free: Vec<bool> = dt.piece.iter().map(|&piece| piece == skin).collect();
+    PosedSkinOverTeeth { tris, dt, guard, delta, positions, rest, pairs, free, skin, teeth }
+}
+
+impl PosedSkinOverTeeth {
+    /// Only the teeth static.
+    fn teeth_static(&self) -> Vec<bool> {
+        let mut static_piece = vec![false; 2];
+        static_piece[self.teeth as usize] = true;
+        static_piece
+    }
+
+    /// The skin corners of the new pairs (skin triangles come first, so they are a pair's
+    /// first), sorted, once each.
+    fn skin_corners(&self) -> Vec<usize> {
+        let mut corners: Vec<usize> = self.pairs.iter().flat_map(|&(a, _)| self.tris[a as usize].map(|v| v as usize)).collect();
+        corners.sort_unstable();
+        corners.dedup();
+        corners
+    }
+
+    fn at_rest(&self, u: usize, at: &Vec3) -> bool {
+        (0..3).all(|a| (at[a] - self.dt.target_neutral[u][a]).abs() < 1e-9)
+    }
+}
+
+/// A slide of 0.06 along y: more than half an edge, less than one.
+fn slide(_: &[f32; 3]) -> [f32; 3] {
+    [0.0, 0.06, 0.0]
+}
+
 #[test]
 fn the_rest_attempt_sends_skin_through_a_piece_the_template_adds_nothing_to_back_to_rest() {
     // The skin plane rests inside the teeth (it cuts their walls). A rise of `height` in
@@ -242,35 +311,19 @@ fn the_rest_attempt_sends_skin_through_a_piece_the_template_adds_nothing_to_back
     // stays as at rest), of 0.06: it stays inside the template's teeth (top at 0.2) and
     // pokes through the target's (0.02). Only the middle vertex moves more than half an
     // edge (0.07): its neighbours go back to rest in every attempt.
-    let (source, tris) = skin_over_teeth(0.2);
-    let (target, _) = skin_over_teeth(0.02);
-    let n = source.len();
-    let rise = |height: f32| -> Vec<[f32; 3]> {
-        let bump = |p: &[f32; 3]| (1.0 - ((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).max(0.0).powi(2);
-        (0..n).map(|v| if v < 15 * 15 { [0.0, 0.0, height * bump(&source[v])] } else { [0.0; 3] }).collect()
-    };
-    let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
-    let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
-    let positions = posed(&dt.target_neutral, rise(0.06));
-    let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
-    let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
-        crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
-    };
-    let rest = sweep(&dt.target_neutral);
-    let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
-    assert!(!pairs.is_empty());
-    let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
-    let mut static_piece = vec![false; 2];
-    static_piece[teeth as usize] = true;
-    let moved = vec![true; tris.len()];
+    let bump = |p: &[f32; 3]| (1.0 - ((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2)) / 0.01).max(0.0).powi(2);
+    let rise = |height: f32| move |p: &[f32; 3]| [0.0, 0.0, height * bump(p)];
+    let fixture = posed_skin_over_teeth(rise(0.06));
+    let PosedSkinOverTeeth { dt, guard, positions, pairs, free, skin, teeth, .. } = &fixture;
+    let (source, _) = skin_over_teeth(0.2);
+    let static_piece = fixture.teeth_static();
+    let moved = vec![true; fixture.tris.len()];
     let held = |height: f32, attempt: &Attempt| {
-        let contacts = dt.template_contacts(&guard, &rise(height), &moved);
-        let targets = dt.offending_vertices(&guard, &positions, &pairs, &free, &static_piece, attempt, &contacts);
-        (contacts.adds_none(skin, teeth), targets)
+        let contacts = dt.template_contacts(guard, &skin_moved(&source, rise(height)), &moved);
+        let targets = dt.offending_vertices(guard, positions, pairs, free, &static_piece, attempt, &contacts);
+        (contacts.adds_none(*skin, *teeth), targets)
     };
-    let at_rest = |targets: &super::super::Targets| {
-        targets.iter().all(|(&u, t)| (0..3).all(|a| (t[a] - dt.target_neutral[u][a]).abs() < 1e-9))
-    };
+    let at_rest = |targets: &super::super::Targets| targets.iter().all(|(&u, t)| fixture.at_rest(u, t));
     // The template's rise adds no curve against its teeth: the first attempt pushes the
     // middle to the target's teeth top (a margin inside, the side it rests on); the rest
     // attempt sends it back to rest, where it crosses the teeth exactly as in the neutral.
@@ -288,95 +341,56 @@ fn the_rest_attempt_sends_skin_through_a_piece_the_template_adds_nothing_to_back
 
 #[test]
 fn the_embedded_attempt_puts_skin_resting_across_a_static_piece_back_at_rest() {
-    // The skin plane cuts the teeth's walls at rest. Sliding it 0.06 along y (more than
-    // half an edge, less than one) takes the triangles straddling the wall x = 0.3 across
-    // the wall's diagonal: new pairs whose corners all stay on the side of the teeth they
-    // rest on, so the follow attempt holds none of them. The embedded attempt puts the
-    // corners of a triangle that crosses the teeth at rest back at rest, and every corner
-    // that kept its side.
-    let (source, tris) = skin_over_teeth(0.2);
-    let (target, _) = skin_over_teeth(0.02);
-    let n = source.len();
-    let slide: Vec<[f32; 3]> = (0..n).map(|v| if v < 15 * 15 { [0.0, 0.06, 0.0] } else { [0.0; 3] }).collect();
-    let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
-    let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
-    let positions = posed(&dt.target_neutral, slide.clone());
-    let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
-    let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
-        crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
-    };
-    let rest = sweep(&dt.target_neutral);
-    let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
-    let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
-    let mut static_piece = vec![false; 2];
-    static_piece[teeth as usize] = true;
-    let moved = vec![true; tris.len()];
-    let contacts = dt.template_contacts(&guard, &slide, &moved);
-    let held = |attempt: &Attempt| dt.offending_vertices(&guard, &positions, &pairs, &free, &static_piece, attempt, &contacts);
+    // The skin plane cuts the teeth's walls at rest. Sliding it takes the triangles
+    // straddling the wall x = 0.3 across the wall's diagonal: new pairs whose corners all
+    // stay on the side of the teeth they rest on, so the follow attempt holds none of them.
+    // The embedded attempt puts the corners of a triangle that crosses the teeth at rest
+    // back at rest, and every corner that kept its side.
+    let fixture = posed_skin_over_teeth(slide);
+    let PosedSkinOverTeeth { tris, dt, guard, delta, positions, rest, pairs, free, .. } = &fixture;
+    let static_piece = fixture.teeth_static();
+    let contacts = dt.template_contacts(guard, delta, &vec![true; tris.len()]);
+    let held = |attempt: &Attempt| dt.offending_vertices(guard, positions, pairs, free, &static_piece, attempt, &contacts);
     let (follow, embedded) = (held(&ATTEMPTS[5]), held(&ATTEMPTS[6]));
     assert!(ATTEMPTS[6].embedded && !ATTEMPTS[5].embedded);
-    // The skin corners of the new pairs whose skin triangle crosses the teeth at rest
-    // (skin triangles come first, so they are a pair's first).
+    let held_at_rest = |u: usize| {
+        let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
+        assert!(fixture.at_rest(u, at), "vertex {u} held at {at:?}");
+    };
+    // The skin corners of the new pairs whose skin triangle crosses the teeth at rest.
     let resting: Vec<usize> = pairs
         .iter()
         .filter(|&&(a, _)| rest.iter().any(|&(r, _)| r == a))
         .flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize))
         .collect();
     assert!(!resting.is_empty(), "{pairs:?}");
-    for &u in &resting {
-        let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
-        assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
-    }
+    resting.iter().for_each(|&u| held_at_rest(u));
     assert!(resting.iter().any(|u| !follow.contains_key(u)), "{follow:?}");
     // Every other skin corner of a new pair on the side of the teeth (inside the box's
     // walls or outside) it rests on goes back to rest too: the teeth's edge went through
     // its triangle, not the corner through the teeth.
     let inside = |p: &Vec3| (0.3..=0.7).contains(&p[0]) && (0.3..=0.7).contains(&p[1]);
-    let kept_side: Vec<usize> = pairs
-        .iter()
-        .flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize))
+    let kept_side: Vec<usize> = fixture
+        .skin_corners()
+        .into_iter()
         .filter(|&u| inside(&dt.target_neutral[u]) == inside(&positions[u]) && !resting.contains(&u))
         .collect();
     assert!(!kept_side.is_empty());
-    for &u in &kept_side {
-        let at = embedded.get(&u).unwrap_or_else(|| panic!("vertex {u} is not held"));
-        assert!((0..3).all(|a| (at[a] - dt.target_neutral[u][a]).abs() < 1e-9), "vertex {u} held at {at:?}");
-    }
+    kept_side.iter().for_each(|&u| held_at_rest(u));
 }
 
 #[test]
 fn the_last_attempt_holds_skin_through_a_static_piece_an_eighth_back_along_its_motion() {
-    // The skin plane cuts the teeth's walls at rest; sliding it 0.06 along y takes the
-    // triangles straddling a wall across the wall's diagonal without any corner changing side.
-    // Each skin corner of a new pair is held an eighth of the way back to rest, 0.0525 along y;
-    // nothing of the teeth (not free) and nothing at all when the teeth move too.
-    let (source, tris) = skin_over_teeth(0.2);
-    let (target, _) = skin_over_teeth(0.02);
-    let n = source.len();
-    let slide: Vec<[f32; 3]> = (0..n).map(|v| if v < 15 * 15 { [0.0, 0.06, 0.0] } else { [0.0; 3] }).collect();
-    let dt = DeformationTransfer::new(&source, &target, &tris, &TransferParams::default()).unwrap();
-    let guard = CollisionGuard::new(&dt.source_neutral, &dt.target_neutral, &target, &tris, CollisionParams::default());
-    let positions = posed(&dt.target_neutral, slide.clone());
-    let (skin, teeth) = (dt.piece[0], dt.piece[n - 1]);
-    let sweep = |p: &[Vec3]| -> Vec<(u32, u32)> {
-        crossings(p, &tris, &TriangleBvh::build(p, &tris), None).into_iter().map(|(a, b, _)| (a, b)).collect()
-    };
-    let rest = sweep(&dt.target_neutral);
-    let pairs: Vec<(u32, u32)> = sweep(&positions).into_iter().filter(|p| !rest.contains(p)).collect();
-    assert!(!pairs.is_empty());
-    let free: Vec<bool> = (0..n).map(|v| dt.piece[v] == skin).collect();
-    let mut static_piece = vec![false; 2];
-    let moved = vec![true; tris.len()];
-    let contacts = dt.template_contacts(&guard, &slide, &moved);
-    let held = |static_piece: &[bool]| dt.offending_vertices(&guard, &positions, &pairs, &free, static_piece, &BACK_OFF_PIECES, &contacts);
-    assert!(held(&static_piece).is_empty());
-    static_piece[teeth as usize] = true;
-    let targets = held(&static_piece);
-    // Skin triangles come first, so a skin corner of a new pair is in the pair's first.
-    let mut corners: Vec<usize> = pairs.iter().flat_map(|&(a, _)| tris[a as usize].map(|v| v as usize)).collect();
-    corners.sort_unstable();
-    corners.dedup();
-    assert_eq!(targets.keys().copied().collect::<Vec<_>>(), corners);
+    // The same slide: no corner changes side. Each skin corner of a new pair is held an
+    // eighth of the way back to rest, 0.0525 along y; nothing of the teeth (not free) and
+    // nothing at all when the teeth move too.
+    let fixture = posed_skin_over_teeth(slide);
+    let PosedSkinOverTeeth { tris, dt, guard, delta, positions, pairs, free, .. } = &fixture;
+    let contacts = dt.template_contacts(guard, delta, &vec![true; tris.len()]);
+    let held = |static_piece: &[bool]| dt.offending_vertices(guard, positions, pairs, free, static_piece, &BACK_OFF_PIECES, &contacts);
+    assert!(held(&[false; 2]).is_empty());
+    let targets = held(&fixture.teeth_static());
+    assert_eq!(targets.keys().copied().collect::<Vec<_>>(), fixture.skin_corners());
     for (&u, at) in &targets {
         let back = [dt.target_neutral[u][0], dt.target_neutral[u][1] + 0.0525, dt.target_neutral[u][2]];
         assert!((0..3).all(|a| (at[a] - back[a]).abs() < 1e-6), "vertex {u} held at {at:?}, not {back:?}");
