@@ -22,11 +22,12 @@ without it (the plain carry of the same wrapped keys, timed in the same run).
 Symmetry (the identity is mirror-symmetric across x = 0, so the characters are across the
 image of that plane): per mirror pair of shapes (as the carry paired them), the worst vertex's
 miss between the mirror of one carried key and the other, in % of the larger one's largest
-motion, each vertex's image at its closest point on the character (`mirror_misses`), beside
-the same measure of the barycentric copy of the wrapped template's keys (what it reads for
-keys as symmetric as the wrapped template's on a mesh whose triangles are not mirrored), and
-for the chain fitted and carried as if nothing were symmetric (`ignore_symmetry`), with its
-shapes worse and its error.
+motion, each vertex's image at its closest point on the character's skin facing its mirrored
+normal's way (`mirror_misses`), beside the same measure of the barycentric copy of the
+wrapped template's keys, of the same-topology keys sampled at the character's vertices (what
+it reads for keys exactly as symmetric as the identity's on a mesh whose triangles are not
+mirrored: the measure's floor), and of the chain fitted and carried as if nothing were
+symmetric (`ignore_symmetry`), with its shapes worse and its error.
 
 Perfect alignment (`run_perfect`): the template collapse-decimated to half its faces, in the
 character frame, the template itself placed exactly on it as the wrapped template and its own
@@ -118,26 +119,38 @@ def roughness(deltas, edges, reference, diagonal):
     return float(np.mean(values))
 
 
+def vertex_normals(points, triangles):
+    """Area-weighted vertex normals, unit length."""
+    face = np.cross(points[triangles[:, 1]] - points[triangles[:, 0]], points[triangles[:, 2]] - points[triangles[:, 0]])
+    normals = np.zeros_like(points)
+    for corner in range(3):
+        np.add.at(normals, triangles[:, corner], face)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-30)[:, None]
+
+
 def mirror_misses(nat, points, triangles, keys, names, pairs):
     """Per pair (first, second) of `names`, the worst skin vertex's miss between the mirror of
     key `first` and key `second` (`keys`: (K, N, 3) on `points`), / the larger largest motion
     on the skin; mirrored across the character frame's image of x = 0, each skin vertex's image
-    at its closest point on the skin (barycentric; the skin only, so that a lid's image never
-    lands on an eyeball)."""
+    at its closest point on the skin facing the mirrored normal's way (barycentric; the skin
+    only, so that a lid's image never lands on an eyeball, and facing, so that an upper lip's
+    image at the lips' contact never lands on the lower lip)."""
     normal = np.array([1.0, 0.0, 0.0])
     skin = makehuman.largest_piece(len(points), [tuple(t) for t in triangles])
     on_skin = np.zeros(len(points), dtype=bool)
     on_skin[skin] = True
     skin_triangles = triangles[on_skin[triangles[:, 0]]]
-    images = points[skin] - 2.0 * ((points[skin] - SHIFT) @ normal)[:, None] * normal
+    reflect = lambda v: v - 2.0 * (v @ normal)[:, None] * normal  # noqa: E731
+    images = reflect(points[skin] - SHIFT) + SHIFT
+    image_normals = reflect(vertex_normals(points, triangles)[skin])
     triangle, barycentric, _ = nat.bind_to_surface(
-        np.ascontiguousarray(images, dtype=np.float32), np.ascontiguousarray(points, dtype=np.float32), skin_triangles
+        np.ascontiguousarray(images, dtype=np.float32), np.ascontiguousarray(points, dtype=np.float32), skin_triangles,
+        normals=np.ascontiguousarray(image_normals, dtype=np.float32),
     )
     misses = {}
     for first, second in pairs:
         a, b = keys[names.index(first)], keys[names.index(second)]
-        mirrored = np.einsum("vc,vcx->vx", barycentric, a[skin_triangles[triangle]])
-        mirrored -= 2.0 * (mirrored @ normal)[:, None] * normal
+        mirrored = reflect(np.einsum("vc,vcx->vx", barycentric, a[skin_triangles[triangle]]))
         largest = max(np.linalg.norm(a[skin], axis=1).max(), np.linalg.norm(b[skin], axis=1).max())
         misses[first if first == second else f"{first}/{second}"] = float(np.linalg.norm(mirrored - b[skin], axis=1).max() / max(largest, 1e-30))
     return misses
@@ -225,6 +238,7 @@ def run_size(shapesmith, label, vertices, truth):
     misses = {
         "carry": mirror_misses(nat, points, triangles, copies["carry"], names, pairs),
         "barycentric": mirror_misses(nat, points, triangles, copies["barycentric"], names, pairs),
+        "same-topology (sampled)": mirror_misses(nat, points, triangles, reference, names, pairs),
     }
     wrap.remove_object(wrapped_object)
     unsymmetric = wrap.wrap_object(template, character, template_points, character_points,
@@ -541,9 +555,11 @@ def main():
             )
         misses = row["symmetry"]["misses"]
         print(f"    symmetry: fit {row['symmetry']['fit']['symmetric']}, carry {row['symmetry']['carry']['symmetric']}; "
-              "worst-vertex mirror miss, % of the largest motion (carry / barycentric copy / carry without symmetry):")
+              "worst-vertex mirror miss, % of the largest motion (carry / barycentric copy / carry without symmetry / "
+              "same-topology sampled):")
+        columns = ("carry", "barycentric", "carry without symmetry", "same-topology (sampled)")
         for pair in misses["carry"]:
-            print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in ("carry", "barycentric", "carry without symmetry")))
+            print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in columns))
         print(f"    without symmetry: {len(row['symmetry']['worse without symmetry'])} shapes worse "
               f"({', '.join(sorted(row['symmetry']['worse without symmetry']))}), error {row['symmetry']['error without symmetry']:.2e}")
     if not args.proposals_only:

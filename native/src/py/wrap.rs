@@ -8,9 +8,9 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use super::settings::settings as read_settings;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::to_f64;
+use crate::geometry::mat3::{to_f64, unit};
 use crate::rig::RigView;
-use crate::wrap::{bind, carry_shapes as run_carry, propose_pairs as run_propose, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
+use crate::wrap::{bind, bind_facing_normals, carry_shapes as run_carry, propose_pairs as run_propose, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
 ///               template_points, character_points, settings=None, *, progress=None)
@@ -178,21 +178,28 @@ fn carry_shapes<'py>(
     Ok((array.into_any(), arrays::to_python(py, &result)?))
 }
 
-/// bind_to_surface(points, surface_neutral, surface_triangles)
+/// bind_to_surface(points, surface_neutral, surface_triangles, normals=None, max_angle_degrees=60.0)
 ///     -> (triangle int32 (N,), barycentric float32 (N, 3), distance float32 (N,))
 ///
 /// Each point's closest point on the surface: for comparisons (barycentric and nearest-vertex
-/// copies) and pictures.
+/// copies, mirror images) and pictures. With `normals` (float32 (N, 3), one per point) the
+/// closest among the triangles facing within `max_angle_degrees` of the point's normal (the
+/// plain closest point where none does), as the carry binds: a point on one lip never lands
+/// on the other lip it touches.
 #[pyfunction]
+#[pyo3(signature = (points, surface_neutral, surface_triangles, normals=None, max_angle_degrees=60.0))]
 fn bind_to_surface<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f32>,
     surface_neutral: PyReadonlyArray2<'py, f32>,
     surface_triangles: PyReadonlyArray2<'py, i32>,
+    normals: Option<PyReadonlyArray2<'py, f32>>,
+    max_angle_degrees: f64,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let query = arrays::points(&points, "points").map_err(py_err(py))?;
     let surface = arrays::points(&surface_neutral, "surface_neutral").map_err(py_err(py))?;
     let tris = arrays::triangles(&surface_triangles).map_err(py_err(py))?;
+    let normals = normals.as_ref().map(|n| arrays::points(n, "normals")).transpose().map_err(py_err(py))?;
     let hits = detached(py, || {
         crate::rig::validate_points(query, "points")?;
         crate::rig::validate_points(surface, "surface_neutral")?;
@@ -202,7 +209,17 @@ fn bind_to_surface<'py>(
         }
         let surface: Vec<[f64; 3]> = surface.iter().map(to_f64).collect();
         let query: Vec<[f64; 3]> = query.iter().map(to_f64).collect();
-        Ok(bind(&query, &TriangleBvh::build(&surface, &tris)))
+        let bvh = TriangleBvh::build(&surface, &tris);
+        let Some(normals) = normals else { return Ok(bind(&query, &bvh)) };
+        if normals.len() != query.len() {
+            return Err(crate::invalid!("normals has {} rows for {} points", normals.len(), query.len()));
+        }
+        crate::rig::validate_points(normals, "normals")?;
+        if !(0.0..=180.0).contains(&max_angle_degrees) {
+            return Err(crate::invalid!("max_angle_degrees must be within 0-180, got {max_angle_degrees}"));
+        }
+        let normals: Vec<[f64; 3]> = normals.iter().map(|n| unit(to_f64(n)).unwrap_or([0.0; 3])).collect();
+        Ok(bind_facing_normals(&query, &normals, &surface, &tris, &bvh, max_angle_degrees.to_radians().cos()))
     })?;
     let n = hits.len();
     let triangle: Vec<i32> = hits.iter().map(|h| h.triangle as i32).collect();

@@ -122,6 +122,22 @@ pub fn bind(points: &[Vec3], surface: &TriangleBvh) -> Vec<SurfacePoint> {
         .collect()
 }
 
+/// Each point's closest point among the surface triangles (`surface_points`, `triangles`,
+/// its hierarchy `surface`) facing within `cos_max_angle` of the point's normal, the plain
+/// closest point where none does: the carry's binding without parts, so that a point on one
+/// lip never binds to the other lip it touches.
+pub fn bind_facing_normals(
+    points: &[Vec3],
+    normals: &[Vec3],
+    surface_points: &[Vec3],
+    triangles: &[[u32; 3]],
+    surface: &TriangleBvh,
+    cos_max_angle: f64,
+) -> Vec<SurfacePoint> {
+    let any_part = vec![ANY_PART; points.len()];
+    bind_facing(points, normals, &any_part, surface, &triangle_normals(surface_points, triangles), &vec![ANY_PART; triangles.len()], cos_max_angle)
+}
+
 /// Each point's closest point among the surface triangles whose unit normal is within the
 /// angle of the point's normal (`cos_max_angle`) and that lie on the point's part
 /// (`point_part`, `triangle_part`: see [`super::pieces::parts`]); the plain closest point on
@@ -346,7 +362,9 @@ pub fn carry_shapes(
             let solved: Vec<Solved> = (0..n_shapes).into_par_iter().map(|k| { let s = solve(k)?; tick()?; Ok(s) }).collect::<ShapesmithResult<_>>()?;
             let (mut deltas, mut static_vertex): (Vec<Vec<Vec3>>, Vec<Vec<bool>>) = solved.into_iter().map(|s| (s.deltas, s.static_vertex)).unzip();
             let plain: Vec<f64> = symmetric.pairs.iter().map(|&(i, j)| symmetry::worst_miss(&deltas[i], &deltas[j], |f, v| symmetric.mirror.mirrored(f, v))).collect();
-            symmetry::average_with_mirror(&mut deltas, &mut static_vertex, &symmetric.pairs, &symmetric.mirror);
+            for _ in 0..symmetry::MIRROR_AVERAGE_ROUNDS {
+                symmetry::average_with_mirror(&mut deltas, &mut static_vertex, &symmetric.pairs, &symmetric.mirror);
+            }
             // The mapped pieces stay their template piece's motion, not its average with the
             // mirror piece's (the fit may place the two eyes a little differently).
             deltas.iter_mut().zip(&mut static_vertex).enumerate().for_each(|(k, (d, s))| map_pieces(k, d, s));

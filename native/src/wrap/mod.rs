@@ -77,7 +77,7 @@ mod symmetry_tests;
 use std::time::Instant;
 
 pub use align::{similarity_from_pairs, similarity_from_principal_axes, Similarity, MIN_PAIRS};
-pub use carry::{bind, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult, CarrySymmetry, MirrorMiss};
+pub use carry::{bind, bind_facing_normals, carry_shapes as carry_shapes_unchecked, CarryParams, CarryResult, CarrySymmetry, MirrorMiss};
 pub use collisions::{AddedCurve, CarryCollision, TemplateCurve};
 pub use nricp::FitStats;
 pub use symmetry::MirrorPlane;

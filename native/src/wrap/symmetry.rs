@@ -16,7 +16,8 @@
 //! - **Fit and carry averaged with their mirror**: the fit is projected onto the symmetric
 //!   positions after every solve ([`symmetrize`]), the point pairs gain their mirror images;
 //!   each carried shape is averaged with the mirror of its partner's carry (a self-symmetric
-//!   shape with its own mirror, [`average_with_mirror`]) before the carry's collision pass.
+//!   shape with its own mirror, [`average_with_mirror`], [`MIRROR_AVERAGE_ROUNDS`] times)
+//!   before the carry's collision pass.
 //!   The fit alone is not enough: the character's triangles are not mirrored, so each side's
 //!   carry samples the wrapped template differently.
 
@@ -40,6 +41,15 @@ pub const MIN_COVERAGE: f64 = 0.9;
 /// The SPEC 0 mirror test's tolerance, `|M D_i - D_j| / max(|D_i|, |D_j|)`, for the shapes'
 /// pairs on the wrapped template.
 pub const PAIR_TOLERANCE: f64 = 0.25;
+/// Times each carried shape is averaged with its partner's mirror ([`average_with_mirror`]).
+/// The surface mirror interpolates across triangles that are not mirrored, so mirroring twice
+/// is not the identity and one average leaves `(d - M M d) / 2`, largest where the motion
+/// changes within a triangle (a rolled lip's margin); each average shrinks what is left.
+/// Measured (`scripts/bench_wrap.py`, largest worst-vertex miss / keys' error): once, 25k
+/// 18.0% (mouthRollUpper) / 1.396e-3, sample 21.2% / 1.742e-3; three times 11.2% (mouthRollLower,
+/// the wrapped template's own 12.5%) / 1.384e-3, 11.9% / 1.756e-3; eight times the keys
+/// smoothed (sample 1.804e-3) and a 25k shape worse than the template.
+pub const MIRROR_AVERAGE_ROUNDS: usize = 3;
 /// Rounds of the plane's refinement at most: a turned plane slides its matches along the
 /// surface and comes back a little each round (the 25k bench character: 0.5 degrees off
 /// after 10 rounds, 87% covered; within 0.2 degrees, 100%, from a nearer start).
