@@ -63,8 +63,18 @@ pub(super) fn symmetric_holds(
     let mirrored = |other: &[Vec3], own: &[Vec3]| -> Vec<[f32; 3]> {
         (0..own.len()).map(|v| mirror.mirrored(other, v).unwrap_or(own[v]).map(|x| x as f32)).collect()
     };
-    let averaged = |own: &[Vec3], other: &[Vec3]| -> Vec<[f32; 3]> {
-        (0..own.len()).map(|v| mirror.mirrored(other, v).map_or(own[v], |image| scale(add(own[v], image), 0.5)).map(|x| x as f32)).collect()
+    // Each side averaged with the mirror of the other's, as often as the carry averages before
+    // the pass (`symmetry::MIRROR_AVERAGE_ROUNDS`): once leaves what mirroring twice misses.
+    let averaged = |own: &[Vec3], other: &[Vec3]| -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let once = |own: &[Vec3], other: &[Vec3]| -> Vec<Vec3> {
+            (0..own.len()).map(|v| mirror.mirrored(other, v).map_or(own[v], |image| scale(add(own[v], image), 0.5))).collect()
+        };
+        let (mut a, mut b) = (own.to_vec(), other.to_vec());
+        for _ in 0..symmetry::MIRROR_AVERAGE_ROUNDS {
+            (a, b) = (once(&a, &b), once(&b, &a));
+        }
+        let single = |field: Vec<Vec3>| -> Vec<[f32; 3]> { field.into_iter().map(|d| d.map(|x| x as f32)).collect() };
+        (single(a), single(b))
     };
     let miss = |a: &[Vec3], b: &[Vec3]| symmetry::worst_miss(a, b, |f, v| mirror.mirrored(f, v));
     let current = |k: usize| shapes[k].1.map_or(0.0, |(outcome, _)| outcome.excess);
@@ -87,10 +97,11 @@ pub(super) fn symmetric_holds(
         .par_iter()
         .map(|&(i, j)| -> ShapesmithResult<(Vec<Replacement>, PairOutcome)> {
             let (di, dj) = (field(i), field(j));
+            let (ai, aj) = averaged(&di, &dj);
             let candidates: Vec<Vec<(usize, Vec<[f32; 3]>)>> = if i == j {
-                vec![vec![(i, averaged(&di, &di))]]
+                vec![vec![(i, ai)]]
             } else {
-                vec![vec![(i, averaged(&di, &dj)), (j, averaged(&dj, &di))], vec![(j, mirrored(&di, &dj))], vec![(i, mirrored(&dj, &di))]]
+                vec![vec![(i, ai), (j, aj)], vec![(j, mirrored(&di, &dj))], vec![(i, mirrored(&dj, &di))]]
             };
             if let Some(found) = candidates.into_iter().find_map(judged) {
                 return Ok((found, PairOutcome::Mirrored));
@@ -98,7 +109,7 @@ pub(super) fn symmetric_holds(
             let (mut ci, mut cj) = (di.clone(), dj.clone());
             let mut closest: (f64, Vec<Replacement>) = (miss(&di, &dj), Vec::new());
             for _ in 0..SYMMETRIC_ROUNDS {
-                let (ai, aj) = (averaged(&ci, &cj), averaged(&cj, &ci));
+                let (ai, aj) = averaged(&ci, &cj);
                 let average = if i == j { vec![(i, ai)] } else { vec![(i, ai), (j, aj)] };
                 if let Some(found) = judged(average.clone()) {
                     return Ok((found, PairOutcome::Mirrored));
