@@ -24,10 +24,9 @@ image of that plane): per mirror pair of shapes (as the carry paired them), the 
 miss between the mirror of one carried key and the other, in % of the larger one's largest
 motion, each vertex's image at its closest point on the character's skin facing its mirrored
 normal's way (`mirror_misses`), beside the same measure of the barycentric copy of the
-wrapped template's keys, of the same-topology keys sampled at the character's vertices (what
-it reads for keys exactly as symmetric as the identity's on a mesh whose triangles are not
-mirrored: the measure's floor), and of the chain fitted and carried as if nothing were
-symmetric (`ignore_symmetry`), with its shapes worse and its error.
+wrapped template's keys (what it reads for keys as symmetric as the wrapped template's on a
+mesh whose triangles are not mirrored), and of the chain fitted and carried as if nothing
+were symmetric (`ignore_symmetry`), with its shapes worse and its error.
 
 Perfect alignment (`run_perfect`): the template collapse-decimated to half its faces, in the
 character frame, the template itself placed exactly on it as the wrapped template and its own
@@ -238,7 +237,6 @@ def run_size(shapesmith, label, vertices, truth):
     misses = {
         "carry": mirror_misses(nat, points, triangles, copies["carry"], names, pairs),
         "barycentric": mirror_misses(nat, points, triangles, copies["barycentric"], names, pairs),
-        "same-topology (sampled)": mirror_misses(nat, points, triangles, reference, names, pairs),
     }
     wrap.remove_object(wrapped_object)
     unsymmetric = wrap.wrap_object(template, character, template_points, character_points,
@@ -555,11 +553,9 @@ def main():
             )
         misses = row["symmetry"]["misses"]
         print(f"    symmetry: fit {row['symmetry']['fit']['symmetric']}, carry {row['symmetry']['carry']['symmetric']}; "
-              "worst-vertex mirror miss, % of the largest motion (carry / barycentric copy / carry without symmetry / "
-              "same-topology sampled):")
-        columns = ("carry", "barycentric", "carry without symmetry", "same-topology (sampled)")
+              "worst-vertex mirror miss, % of the largest motion (carry / barycentric copy / carry without symmetry):")
         for pair in misses["carry"]:
-            print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in columns))
+            print(f"      {pair}: " + " / ".join(f"{100 * misses[k][pair]:.1f}" for k in ("carry", "barycentric", "carry without symmetry")))
         print(f"    without symmetry: {len(row['symmetry']['worse without symmetry'])} shapes worse "
               f"({', '.join(sorted(row['symmetry']['worse without symmetry']))}), error {row['symmetry']['error without symmetry']:.2e}")
     if not args.proposals_only:

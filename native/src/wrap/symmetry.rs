@@ -45,11 +45,13 @@ pub const PAIR_TOLERANCE: f64 = 0.25;
 /// The surface mirror interpolates across triangles that are not mirrored, so mirroring twice
 /// is not the identity and one average leaves `(d - M M d) / 2`, largest where the motion
 /// changes within a triangle (a rolled lip's margin); each average shrinks what is left.
-/// Measured (`scripts/bench_wrap.py`, largest worst-vertex miss / keys' error): once, 25k
-/// 18.0% (mouthRollUpper) / 1.396e-3, sample 21.2% / 1.742e-3; three times 11.2% (mouthRollLower,
-/// the wrapped template's own 12.5%) / 1.384e-3, 11.9% / 1.756e-3; eight times the keys
-/// smoothed (sample 1.804e-3) and a 25k shape worse than the template.
-pub const MIRROR_AVERAGE_ROUNDS: usize = 3;
+/// Measured (`scripts/bench_wrap.py`, largest worst-vertex miss / keys' error; once, twice,
+/// three times): 25k 18.0% / 1.396e-3, 10.0% / 1.409e-3, 5.5% / 1.384e-3; 10k 9.7%, 7.0%, 5.4%
+/// (error 1.467-1.469e-3); sample 21.2% / 1.742e-3, 10.2% / 1.751e-3, 9.4% / 1.763e-3. Three
+/// times tipped the decimated identity's mouthPucker from proposed pairs (plain carry 1.5 cm
+/// beyond the template's) into a twelve-solve pass twice as far from the truth (keys from
+/// proposed pairs +7.0%, +8.0%, +10.1% over hand pairs; `blender_tests/test_wrap_pairs.py`).
+pub const MIRROR_AVERAGE_ROUNDS: usize = 2;
 /// Rounds of the plane's refinement at most: a turned plane slides its matches along the
 /// surface and comes back a little each round (the 25k bench character: 0.5 degrees off
 /// after 10 rounds, 87% covered; within 0.2 degrees, 100%, from a nearer start).
