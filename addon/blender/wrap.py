@@ -275,8 +275,12 @@ def name_matches(report, template, character):
         row["template_name"] = template_name(row["template_vertex"], row["template_vertices"])
         row["character_name"] = character_name(row["character_vertex"], row["character_vertices"])
     for row in report["hole_matches"]:
-        row["template_name"] = f"{template.name}'s opening at vertex {row['template_vertex']} ({row['template_rim']} rim vertices)"
-        row["character_name"] = f"{character.name}'s at vertex {row['character_vertex']} ({row['character_rim']})"
+        if row["lids"]:
+            row["template_name"] = f"{template.name}'s lids (about {template_name(row['template_vertex'], row['template_rim'])})"
+            row["character_name"] = f"{character.name}'s lid hole at vertex {row['character_vertex']} ({row['character_rim']} rim vertices)"
+        else:
+            row["template_name"] = f"{template.name}'s opening at vertex {row['template_vertex']} ({row['template_rim']} rim vertices)"
+            row["character_name"] = f"{character.name}'s at vertex {row['character_vertex']} ({row['character_rim']})"
 
 
 def match_lines(report):

@@ -63,6 +63,7 @@
 mod align;
 mod carry;
 mod collisions;
+mod lids;
 mod nricp;
 mod pieces;
 mod propose;
@@ -85,7 +86,7 @@ pub use propose::{propose_pairs, Proposal, ProposedPair};
 
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::{add, length, sub, to_f64, Vec3};
+use crate::geometry::mat3::{add, length, scale, sub, to_f64, Vec3};
 use crate::geometry::topology::connected_components;
 use crate::geometry::weld::Weld;
 use crate::invalid;
@@ -94,6 +95,7 @@ use crate::rig::{bbox_diagonal, validate_points, validate_triangle_indices};
 use nricp::{fit_skin, FitMirror, Landmark, TargetSurface};
 use pieces::{carry_pieces, fit_pieces};
 pub use pieces::PieceMatch;
+use lids::LidMeshes;
 use rims::rim_targets;
 pub use rims::HoleMatch;
 
@@ -193,7 +195,8 @@ pub struct WrapReport {
     pub pieces_fitted: usize,
     pub piece_matches: Vec<PieceMatch>,
     /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
-    /// rims the fit lands on the character's (`rims`), and which.
+    /// rims the fit lands on the character's (`rims`), and the character's lid holes the
+    /// template's lids landed on (`lids`), and which.
     pub holes_paired: usize,
     pub symmetry: WrapSymmetry,
     pub hole_matches: Vec<HoleMatch>,
@@ -321,6 +324,32 @@ fn wrap_welded(
         (similarity_from_pairs(&pair_template, &pair_character)?, "pairs")
     };
     let aligned: Vec<Vec3> = template_points.iter().map(|p| similarity.apply(*p)).collect();
+    let mut is_skin = vec![false; template.len()];
+    template_skin.iter().for_each(|&v| is_skin[v as usize] = true);
+    let mut is_character_skin = vec![false; character.len()];
+    character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
+    // An avatar's lid holes (`lids`): their landmarks join the pairs and the alignment is
+    // made again with them, so that the template's lids start on the character's.
+    let (lid_landmarks, lid_holes) = if params.align_only {
+        (Vec::new(), Vec::new())
+    } else {
+        let (_, sockets) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
+        lids::lid_landmarks(
+            &LidMeshes { points: &aligned, triangles: template_triangles, is_skin: &is_skin, skin_triangles: &skin_triangles },
+            &LidMeshes { points: &character_points, triangles: character_triangles, is_skin: &is_character_skin, skin_triangles: &character_skin_triangles },
+            &sockets,
+        )
+    };
+    let (similarity, aligned) = if lid_landmarks.is_empty() || pairs.template.is_empty() {
+        (similarity, aligned)
+    } else {
+        let on_template_lids = lid_landmarks.iter().map(|l| (0..3).fold([0.0; 3], |acc, k| add(acc, scale(template_points[l.corners[k] as usize], l.barycentric[k]))));
+        let both_template: Vec<Vec3> = pair_template.iter().copied().chain(on_template_lids).collect();
+        let both_character: Vec<Vec3> = pair_character.iter().copied().chain(lid_landmarks.iter().map(|l| l.target)).collect();
+        let similarity = similarity_from_pairs(&both_template, &both_character)?;
+        let aligned = template_points.iter().map(|p| similarity.apply(*p)).collect();
+        (similarity, aligned)
+    };
     let residual = |positions: &[Vec3]| -> Vec<f64> {
         on_template
             .iter()
@@ -338,8 +367,6 @@ fn wrap_welded(
 
     // Fit.
     let fitting = Instant::now();
-    let mut is_skin = vec![false; template.len()];
-    template_skin.iter().for_each(|&v| is_skin[v as usize] = true);
     let mut landmarks: Vec<Landmark> = on_template
         .iter()
         .zip(&pair_character)
@@ -373,11 +400,11 @@ fn wrap_welded(
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
         let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
         hole_matches = holes;
+        hole_matches.extend(lid_holes);
+        landmarks.extend(lid_landmarks);
         let (mut fitted, stats) =
             fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, fit_mirror.as_ref(), &stage)?;
         carry_pieces(&aligned, &mut fitted, template_triangles, &is_skin)?;
-        let mut is_character_skin = vec![false; character.len()];
-        character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
         piece_matches = fit_pieces(&aligned, &mut fitted, template_triangles, &is_skin, &character_points, character_triangles, &is_character_skin);
         let every = vec![true; fitted.len()];
         if let Some((partner, plane)) = &mirror {

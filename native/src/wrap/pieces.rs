@@ -48,7 +48,7 @@ fn moments(points: &[Vec3], triangles: &[[u32; 3]]) -> Option<Moments> {
 }
 
 /// The vertices and triangles of each piece whose label is not `skip`.
-fn pieces(n: usize, triangles: &[[u32; 3]], skip: impl Fn(usize) -> bool) -> Vec<(Vec<usize>, Vec<[u32; 3]>)> {
+pub(super) fn pieces(n: usize, triangles: &[[u32; 3]], skip: impl Fn(usize) -> bool) -> Vec<(Vec<usize>, Vec<[u32; 3]>)> {
     let (label, count) = connected_components(n, triangles);
     let mut out = vec![(Vec::new(), Vec::new()); count];
     for v in 0..n {

@@ -172,6 +172,12 @@ fn holes(points: &[Vec3], triangles: &[[u32; 3]], vertices: &[u32]) -> Vec<(Vec<
         .collect()
 }
 
+/// The holes among a skin's boundary loops: each as its vertices in walking order and its
+/// centre and radius.
+pub(super) fn hole_loops(points: &[Vec3], triangles: &[[u32; 3]], vertices: &[u32]) -> Vec<(Vec<u32>, Moments)> {
+    holes(points, triangles, vertices).into_iter().filter_map(|(walk, curve)| curve.moments().map(|m| (walk, m))).collect()
+}
+
 /// The longest axis of a curve's points (unit).
 fn longest_axis(curve: &Curve) -> Option<Vec3> {
     let centre = curve.moments()?.centre;
@@ -196,6 +202,9 @@ pub struct HoleMatch {
     pub template_rim: usize,
     pub character_vertex: u32,
     pub character_rim: usize,
+    /// The character's hole is a lid hole (`lids`): the template's lids landed on its rim
+    /// about the template eyeball holding `template_vertex`, `template_rim` its vertex count.
+    pub lids: bool,
 }
 
 /// Targets on the character's holes for the rim vertices of the template's matching holes.
@@ -232,7 +241,13 @@ pub fn rim_targets(
         let spread = |points: &Vec<Vec3>| points.iter().zip(&template_curve.points).map(|(a, b)| length(sub(*a, *b)).powi(2)).sum::<f64>();
         let best = if spread(&candidates[0]) <= spread(&candidates[1]) { &candidates[0] } else { &candidates[1] };
         targets.extend(walk.iter().zip(best).map(|(&vertex, &target)| RimTarget { vertex, target }));
-        paired.push(HoleMatch { template_vertex: walk[0], template_rim: walk.len(), character_vertex: character_walk[0], character_rim: character_walk.len() });
+        paired.push(HoleMatch {
+            template_vertex: walk[0],
+            template_rim: walk.len(),
+            character_vertex: character_walk[0],
+            character_rim: character_walk.len(),
+            lids: false,
+        });
     }
     (targets, paired)
 }
