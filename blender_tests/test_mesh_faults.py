@@ -1,7 +1,7 @@
 """Faults of real-world meshes, each made on the sample here: refused with a message naming
 the first offender and the mesh left as it was, or handled as documented (loose edges are
 ignored, a key relative to another key is read against the Basis with a warning, a head
-posed by an Armature modifier is read at its Basis)."""
+posed by an Armature modifier is read at its Basis, a wrap character is only a surface)."""
 
 import bmesh
 import bpy
@@ -109,6 +109,22 @@ def test_batch_refuses_a_faulty_file_with_one_line_and_leaves_it_unchanged(sampl
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and lines[0].startswith("shapesmith: error: 'Template' has 1 edge(s)"), proc.stderr
     assert file_digest(path) == digest
+
+
+def test_a_wrap_character_with_a_loose_vertex_is_fitted_and_gets_keys(sample, shapesmith):
+    """A character is a surface to fit: a loose vertex (a cut or an import can leave one) is
+    not refused, and the carry gives it the delta at its closest point on the wrapped
+    template (it made the carry's system singular: a SolverError after the work)."""
+    wrap, shape_keys = shapesmith.blender.wrap, shapesmith.blender.shape_keys
+    template, character = bpy.data.objects["Template"], bpy.data.objects["Character_YoungWoman"]
+    count = len(character.data.vertices)
+    edit(character, add_loose_vertex)
+    assert len(character.data.vertices) == count + 1
+    template_points, character_points = wrap.stored_pairs(character, template)
+    wrapped = wrap.wrap_object(template, character, template_points, character_points)
+    result = wrap.carry_onto_character(template, character, wrap.show_wrapped(wrapped))
+    written, _, _ = shape_keys.write_transferred_keys(result)
+    assert len(written) == 52 and np.isfinite(result.deltas).all()
 
 
 def packed(obj):

@@ -515,7 +515,9 @@ def character_pieces(result):
     """The carried keys for writing, one piece per object of a character with face parts: the
     head takes every key, each part the keys that move it; each key its settings from the
     template object that has it (the head's first). None for a character alone."""
-    character_face = face_of(face_objects(result.target))
+    # The character was read as a surface (`read_surface`): its topology is not checked here
+    # either (a loose vertex takes its barycentric copy in the carry).
+    character_face = face_of(face_objects(result.target, topology=False))
     if len(character_face.objects) == 1:
         return []
     origin = {}

@@ -263,7 +263,9 @@ pub fn carry_shapes(
             t.iter().for_each(|&v| mass[v as usize] += op.area / 3.0);
         }
     }
-    let anchor: Vec<f64> = mass.iter().map(|m| m * screening).collect();
+    // A vertex on no triangle of area (a loose vertex, as a cut or an import can leave) has no
+    // mass and no gradient row: a unit screening row gives it its barycentric copy.
+    let anchor: Vec<f64> = mass.iter().map(|&m| if m > 0.0 || screening == 0.0 { m * screening } else { 1.0 }).collect();
     entries.extend(anchor.iter().enumerate().map(|(v, &w)| (v, v, w)));
     let laplacian = SymmetricMatrix::from_triplets(nc, entries);
     let order = laplacian.fill_reducing_order()?;

@@ -158,6 +158,29 @@ fn carry_reproduces_a_smooth_deformation_far_better_than_nearest_vertex() {
 }
 
 #[test]
+fn a_loose_character_vertex_takes_its_barycentric_copy_and_the_rest_is_as_without_it() {
+    // A cut or an import can leave a vertex on no face: it has no mass and no gradient row,
+    // and the screened system was singular (a SolverError on the sample character with 1.3
+    // eyeball radii of lid skin cut away).
+    let (template, triangles) = lumpy_box(14);
+    let (character, character_triangles) = lumpy_box(37);
+    let deltas: Vec<[f32; 3]> = template.iter().map(|p| local_motion(*p).map(|x| x as f32)).collect();
+    let carry = |points: &[Vec3]| {
+        carry_shapes(&as_f32(&template), &triangles, &deltas, &as_f32(points), &character_triangles, None, None, None, &CarryParams::default(), &NoProgress)
+    };
+    let without = carry(&character).unwrap();
+    // The loose vertex sits on a template vertex that moves, off every character face.
+    let moving = (0..template.len()).max_by(|&a, &b| length(local_motion(template[a])).total_cmp(&length(local_motion(template[b])))).unwrap();
+    let mut loose = character.clone();
+    loose.push(template[moving]);
+    let with = carry(&loose).unwrap();
+    assert_eq!(with.deltas.len(), character.len() + 1);
+    let got = to_f64(&with.deltas[character.len()]);
+    assert!(length(sub(got, to_f64(&deltas[moving]))) < 1e-6 * length(to_f64(&deltas[moving])), "{got:?} vs {:?}", deltas[moving]);
+    assert_eq!(&with.deltas[..character.len()], &without.deltas[..]);
+}
+
+#[test]
 fn principal_axes_without_pairs_are_reported_as_a_guess() {
     let (template, triangles) = lumpy_box(12);
     let motion = Similarity { rotation: rotation(0.4, 0.3), scale: 2.0, translation: [1.0, 0.0, 0.0] };
