@@ -14,7 +14,7 @@
 //! (`docs/design.md`, "Wrap").
 
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::mat3::{add, cross, length, scale, sub, unit, Vec3};
+use crate::geometry::mat3::{add, length, scale, sub, vertex_normals, Vec3};
 
 use super::carry::bind_facing_normals;
 use super::nricp::Landmark;
@@ -59,19 +59,6 @@ fn eyeballs(points: &[Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> Vec<Ey
             (mean > 0.0 && spread < ROUNDNESS * mean).then_some(Eyeball { centre, radius: mean, vertex: members[0] as u32, vertices: members.len() })
         })
         .collect()
-}
-
-/// Area-weighted vertex normals of `triangles` (zero off them).
-fn vertex_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut normals = vec![[0.0; 3]; points.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|v| points[v as usize]);
-        let n = cross(sub(b, a), sub(c, a));
-        for &v in t {
-            normals[v as usize] = add(normals[v as usize], n);
-        }
-    }
-    normals.into_iter().map(|n| unit(n).unwrap_or([0.0; 3])).collect()
 }
 
 /// The template's and the character's meshes as the lid landmarks need them: all points and
@@ -124,6 +111,7 @@ pub(super) fn lid_landmarks(template: &LidMeshes, character: &LidMeshes, matched
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::mat3::unit;
     use crate::wrap::tests::sphere_mesh;
 
     /// A sphere of `radius` about `centre` (rings from the pole at +z, the front).
