@@ -595,7 +595,7 @@ def summary_lines(wrapped):
             f"pieces (eyes, teeth, ...): {report['pieces_fitted']} of {report['pieces']} fitted onto the character's own, "
             "the others follow the skin"
         )
-    lines.append(f"holes (eye and mouth openings) landed on the character's: {report['holes_paired']}")
+    lines.append(f"openings (ear canals, lid holes, open lips) landed on the character's: {report['holes_paired']}")
     symmetry = report["symmetry"]
     if symmetry["symmetric"]:
         lines.append(

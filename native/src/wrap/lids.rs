@@ -1,6 +1,6 @@
 //! Lid holes: an avatar's lids cut open, the skin ending at the lid margins with the eyeballs
-//! showing through, where the template's lids are whole and its eye openings lie deep in the
-//! sockets. No template hole matches such a hole, so its rim is an open boundary whose closest
+//! showing through, where the template's lids are whole (the bundled template's only skin
+//! holes are its ear canals). No template hole matches such a hole, so its rim is an open boundary whose closest
 //! points the fit rejects, and the template's lids slid along the surface: on the sample
 //! character with its lids cut open they landed 1.1% of the diagonal from their true places
 //! (0.3% with the lids closed) and the carried blink closed the holes 60% of the way.

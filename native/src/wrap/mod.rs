@@ -39,9 +39,10 @@
 //!   (`pieces::PieceMapping`): an eyeball's turn stays a turn about its centre.
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected
 //!   (SPEC), which leaves rim vertices without a data term; the skin's small boundary loops
-//!   (eye and mouth openings, not the neck cut) are paired with the character's by place and
-//!   size, and each rim vertex targets its arc-length place on the matching loop (`rims`),
-//!   with weight 1 like a closest point.
+//!   (ear canals, open lids or lips; not the neck cut) are paired with the character's by
+//!   place and size, and each rim vertex targets its arc-length place on the matching loop
+//!   (`rims`), with weight 1 like a closest point. An avatar's lid holes, which no template
+//!   hole matches, land the template's lids about its eyeballs (`lids`).
 //! - **Only the character's largest piece is fitted to by the skin**: its eyes, teeth or
 //!   lashes would otherwise catch the template's eyelids and lips.
 //! - **The carry is screened towards the barycentric copy**, `m_v / l^2 |d_v - c_v|^2` with
@@ -194,9 +195,9 @@ pub struct WrapReport {
     pub pieces: usize,
     pub pieces_fitted: usize,
     pub piece_matches: Vec<PieceMatch>,
-    /// Holes of the template's skin (eye and mouth openings) paired with the character's, whose
-    /// rims the fit lands on the character's (`rims`), and the character's lid holes the
-    /// template's lids landed on (`lids`), and which.
+    /// Holes of the template's skin (ear canals, open lids or lips) paired with the
+    /// character's, whose rims the fit lands on the character's (`rims`), and the character's
+    /// lid holes the template's lids landed on (`lids`), and which.
     pub holes_paired: usize,
     pub symmetry: WrapSymmetry,
     pub hole_matches: Vec<HoleMatch>,
