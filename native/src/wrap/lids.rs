@@ -1,17 +1,19 @@
 //! Lid holes: an avatar's lids cut open, the skin ending at the lid margins with the eyeballs
 //! showing through, where the template's lids are whole (the bundled template's only skin
-//! holes are its ear canals). No template hole matches such a hole, so its rim is an open boundary whose closest
-//! points the fit rejects, and the template's lids slid along the surface: on the sample
-//! character with its lids cut open they landed 1.1% of the diagonal from their true places
-//! (0.3% with the lids closed) and the carried blink closed the holes 60% of the way.
+//! holes are its ear canals). No template hole matches such a hole, so its rim is an open
+//! boundary whose closest points the fit rejects, and the template's lids slid along the
+//! surface: on the sample character with its lids cut open they landed 1.1% of the diagonal
+//! from their true places (0.3% with the lids closed) and the carried blink closed the holes
+//! 60% of the way.
 //!
 //! Each rim vertex `c` of a character hole that an eyeball shows through and that no template
 //! hole matched becomes a landmark of the fit: the template skin point at the same place about
 //! the matching template eyeball, `e_t + (r_t / r_c) (c - e_c)` (`e`, `r`: the eyeballs'
 //! centres and radii), bound to the template's skin facing the rim's way (its outer lid, not
 //! the lid's inner fold). Lids rest on their eyeballs alike, so the place about the eyeball
-//! carries over between identities; the true correspondence as landmarks gave the same keys
-//! (`docs/design.md`, "Wrap").
+//! carries over between identities: as pairs these points gave keys within 1% of the true
+//! correspondence's (`docs/design.md`, "Wrap"). The landmarks also join the user's pairs in a
+//! second alignment, through which they act (in the fit alone they changed nothing).
 
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{add, length, scale, sub, vertex_normals, Vec3};
