@@ -329,16 +329,19 @@ fn wrap_welded(
     template_skin.iter().for_each(|&v| is_skin[v as usize] = true);
     let mut is_character_skin = vec![false; character.len()];
     character_skin.iter().for_each(|&v| is_character_skin[v as usize] = true);
-    // An avatar's lid holes (`lids`): their landmarks join the pairs and the alignment is
-    // made again with them, so that the template's lids start on the character's.
+    // The rims the fit lands on the character's holes (`rims`), from the aligned template.
+    let rim_pairing = |aligned: &[Vec3]| rim_targets(aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
+    let (mut rims, mut hole_matches) = if params.align_only { (Vec::new(), Vec::new()) } else { rim_pairing(&aligned) };
+    // An avatar's lid holes (`lids`: the character's holes no rim paired): their landmarks join
+    // the pairs and the alignment is made again with them, so that the template's lids start
+    // on the character's; the rims are then paired again from there.
     let (lid_landmarks, lid_holes) = if params.align_only {
         (Vec::new(), Vec::new())
     } else {
-        let (_, sockets) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
         lids::lid_landmarks(
             &LidMeshes { points: &aligned, triangles: template_triangles, is_skin: &is_skin, skin_triangles: &skin_triangles },
             &LidMeshes { points: &character_points, triangles: character_triangles, is_skin: &is_character_skin, skin_triangles: &character_skin_triangles },
-            &sockets,
+            &hole_matches,
         )
     };
     let (similarity, aligned) = if lid_landmarks.is_empty() || pairs.template.is_empty() {
@@ -348,9 +351,11 @@ fn wrap_welded(
         let both_template: Vec<Vec3> = pair_template.iter().copied().chain(on_template_lids).collect();
         let both_character: Vec<Vec3> = pair_character.iter().copied().chain(lid_landmarks.iter().map(|l| l.target)).collect();
         let similarity = similarity_from_pairs(&both_template, &both_character)?;
-        let aligned = template_points.iter().map(|p| similarity.apply(*p)).collect();
+        let aligned: Vec<Vec3> = template_points.iter().map(|p| similarity.apply(*p)).collect();
+        (rims, hole_matches) = rim_pairing(&aligned);
         (similarity, aligned)
     };
+    hole_matches.extend(lid_holes);
     let residual = |positions: &[Vec3]| -> Vec<f64> {
         on_template
             .iter()
@@ -394,14 +399,11 @@ fn wrap_welded(
     // again on the fitted template (its plane symmetrises the result).
     let mirror_after_fit = (mirror.is_none() && !params.ignore_symmetry && symmetry.template_coverage >= symmetry::MIN_COVERAGE)
         .then(|| symmetry::template_mirror(template, &is_skin).partner);
-    let (mut piece_matches, mut hole_matches) = (Vec::new(), Vec::new());
+    let mut piece_matches = Vec::new();
     let (fitted, fit) = if params.align_only {
         (aligned.clone(), FitStats::default())
     } else {
         let stage = Stage { whole: progress, start: 0.05, span: 0.9 };
-        let (rims, holes) = rim_targets(&aligned, &skin_triangles, &template_skin, &character_points, &character_skin_triangles, &character_skin);
-        hole_matches = holes;
-        hole_matches.extend(lid_holes);
         landmarks.extend(lid_landmarks);
         let (mut fitted, stats) =
             fit_skin(&aligned, &template_skin, &skin_triangles, &landmarks, &rims, &surface, &params.fit, diagonal, fit_mirror.as_ref(), &stage)?;
