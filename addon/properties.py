@@ -132,23 +132,25 @@ class SHAPESMITH_PG_pack_result(bpy.types.PropertyGroup):
 
 class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
     mu: bpy.props.FloatProperty(
-        name="Threshold (mu)",
-        description="A vertex belongs to a shape's region when it moves at least this fraction of the shape's "
-        "largest displacement (paper: 0.25 to 0.4)",
+        name="Moving Region",
+        description="A vertex belongs to a shape's moving region when it moves at least this fraction of the "
+        "shape's largest motion; two shapes whose regions share a vertex go in different expressions (the "
+        "paper's mu; 0.25 to 0.4)",
         default=_PACK.mu,
         min=0.01,
         max=1.0,
     )
     a: bpy.props.FloatProperty(
-        name="Strength vs Distortion (a)",
-        description="Importance weight of displacement strength; the rest goes to the target's triangle distortion",
+        name="Strong Motion First",
+        description="How much a shape's strength of motion decides its importance; the rest goes to how much it "
+        "distorts the Target head (the paper's a)",
         default=_PACK.a,
         min=0.0,
         max=1.0,
     )
     beta: bpy.props.FloatProperty(
-        name="Uniqueness (beta)",
-        description="Importance weight of shapes unlike those already placed (0: off)",
+        name="Unlike Shapes First",
+        description="Importance bonus for shapes unlike those already placed (0: off; the paper's beta)",
         default=_PACK.beta,
         min=0.0,
         soft_max=2.0,
@@ -160,26 +162,27 @@ class SHAPESMITH_PG_pack(bpy.types.PropertyGroup):
         description="Optional new head of the same topology: shapes that distort it most are packed first",
     )
     limit_expressions: bpy.props.BoolProperty(
-        name="Limit",
-        description="Stop after a maximum number of expressions (J max)",
+        name="At Most",
+        description="Stop after this many expressions (the paper's J max)",
         default=_PACK.max_expressions is not None,
     )
-    max_expressions: bpy.props.IntProperty(name="J max", description="Most expressions to pack", default=10, min=1)
+    max_expressions: bpy.props.IntProperty(name="Expressions", description="Most expressions to pack", default=10, min=1)
     symmetric: bpy.props.BoolProperty(
         name="Symmetric Pairs Together",
         description="Pose left/right partners in the same expression",
         default=_PACK.symmetric,
     )
     antagonist_cosine: bpy.props.FloatProperty(
-        name="Antagonist Cosine",
-        description="Two shapes whose displacements have a cosine below this are never posed together",
+        name="Opposites",
+        description="Two shapes that move the face in opposite directions (the cosine of their motions below "
+        "this: jawLeft and jawRight) are never posed together",
         default=_PACK.antagonist_cosine,
         min=-1.0,
         max=0.0,
     )
     fewest: bpy.props.BoolProperty(
         name="Fewest Possible",
-        description="Also prove the fewest expressions the conflicts allow (shown beside J)",
+        description="Also prove the fewest expressions the conflicts allow (shown beside the count)",
         default=_PACK.fewest,
     )
     collision_conflicts: bpy.props.BoolProperty(
@@ -424,13 +427,15 @@ class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
     """Place Landmarks knobs (SPEC section 2); defaults are the paper's."""
 
     epsilon: bpy.props.FloatProperty(
-        name="Epsilon", description="A vertex is a candidate for a shape when it moves at least this fraction of the "
-        "shape's largest displacement (0.3 to 0.8 is useful)", default=_LANDMARKS.epsilon, min=0.01, max=1.0, soft_min=0.3, soft_max=0.8)
+        name="Strong Motion", description="A vertex can track a shape when it moves at least this fraction of the "
+        "shape's largest motion (the paper's epsilon; 0.3 to 0.8 is useful)", default=_LANDMARKS.epsilon, min=0.01, max=1.0, soft_min=0.3, soft_max=0.8)
     alpha: bpy.props.FloatProperty(
-        name="Alpha", description="Weight of visibility against displacement when choosing among candidates",
+        name="Visible over Moving", description="Among equally good vertices, how much being visible counts against "
+        "moving strongly (the paper's alpha)",
         default=_LANDMARKS.alpha, min=0.0, max=1.0)
     gamma: bpy.props.FloatProperty(
-        name="Gamma", description="Weight of quality against count (0 places the fewest landmarks, ignoring quality)",
+        name="Quality", description="How much the landmarks' quality counts against their number (0 places the fewest, "
+        "ignoring quality; the paper's gamma)",
         default=_LANDMARKS.gamma, min=0.0, soft_max=2.0)
     rays: bpy.props.IntProperty(
         name="Rays", description="Visibility rays per vertex and pose (hemisphere mode)", default=_LANDMARKS.rays, min=1, soft_max=512)
@@ -438,10 +443,11 @@ class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
         name="Symmetric", description="Mirror-symmetric layout across the Rig panel's symmetry axis",
         default=_LANDMARKS.symmetric)
     max_per_shape: bpy.props.IntProperty(
-        name="Max per Shape", description="Rounds of the multi-cover: up to this many landmarks per shape",
+        name="Landmarks per Shape", description="Up to this many landmarks track each shape (rounds of the multi-cover)",
         default=_LANDMARKS.max_per_shape, min=1, max=8)
     radius: bpy.props.FloatProperty(
-        name="Radius", description="Later rounds keep this far from earlier landmarks (fraction of the bbox diagonal)",
+        name="Spacing", description="Landmarks of later rounds keep this far from earlier ones (fraction of the head's "
+        "size, its bounding-box diagonal)",
         default=_LANDMARKS.radius, min=0.0, max=0.5, precision=3)
     camera_source: bpy.props.EnumProperty(
         name="Visibility",

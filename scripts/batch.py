@@ -513,7 +513,7 @@ def add_wrap_args(parser, settings):
     )
     parser.add_argument(
         "--propose-pairs", action="store_true",
-        help="propose the pairs (eye and mouth corners, lids, lips, nose, chin, brows found on both heads), store "
+        help="propose the pairs (eye and mouth corners, nose tip and chin found on both heads), store "
         "them on the character, use them, and write them to the JSON (proposed_pairs)",
     )
     parser.add_argument("--no-transfer", action="store_true", help="wrap only: keep the wrapped template, write no keys")

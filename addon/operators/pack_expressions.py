@@ -38,7 +38,7 @@ class SHAPESMITH_OT_pack_expressions(bpy.types.Operator):
         unproven = sum(not e["optimal"] for e in report["expressions"])
         if unproven:
             self.report({"WARNING"}, f"{unproven} expression(s) not proven optimal (solver time limit)")
-        left = f", {len(report['unplaced'])} shapes left over (J max)" if report["unplaced"] else ""
+        left = f", {len(report['unplaced'])} shapes left over (the At Most limit)" if report["unplaced"] else ""
         reused = report["poseability"].get("pairs_reused", 0)
         cached = f", collision and occlusion results of {reused} pairs reused" if reused else ""
         self.report({"INFO"}, f"{len(report['expressions'])} expressions from {len(report['names'])} shapes{left}{cached}")

@@ -1,5 +1,6 @@
-"""The Pack Expressions panel: parameters, refinements, the packed expressions as a list with
-their members, and what to do with them."""
+"""The Pack Expressions panel: Pack first with the settings a rigger changes, the packed expressions
+as a list with their members and what to do with them; your refinements and the advanced
+settings in sub-panels."""
 
 import json
 
@@ -62,6 +63,8 @@ def _front_text(settings):
 
 
 class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
+    """Pack first, then the few settings a rigger changes; the rest under Advanced."""
+
     bl_label = "Pack Expressions"
     bl_order = 1
     bl_options = {"DEFAULT_CLOSED"}
@@ -73,21 +76,87 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
             layout.label(text="Select a mesh with shape keys", icon="INFO")
             return
         settings = obj.shapesmith.pack
-        col = layout.column(align=True)
-        col.prop(settings, "mu")
-        col.prop(settings, "a")
-        col.prop(settings, "beta")
+        layout.operator("shapesmith.pack_expressions", icon="PACKAGE")
         layout.prop(settings, "target")
-        row = layout.row(align=True)
-        row.prop(settings, "limit_expressions")
-        sub = row.row(align=True)
-        sub.active = settings.limit_expressions
-        sub.prop(settings, "max_expressions")
         layout.prop(settings, "symmetric")
         if settings.symmetric:
             pairs = obj.shapesmith.pairs
             source = f"{len(pairs)} pairs from Analyze Rig" if obj.shapesmith.analysis.done else "pairs found when packing"
             layout.label(text=source, icon="MOD_MIRROR")
+        row = layout.row(align=True)
+        row.prop(settings, "limit_expressions")
+        sub = row.row(align=True)
+        sub.active = settings.limit_expressions
+        sub.prop(settings, "max_expressions")
+        result = settings.result
+        if not result.done:
+            return
+        self.draw_result(layout, settings, result)
+
+    @staticmethod
+    def draw_result(layout, settings, result):
+        count = f"{len(result.expressions)} expressions to scan"
+        if result.fewest:
+            count += f" (fewest possible: {result.fewest}{'' if result.fewest_optimal else ', not proven'})"
+        layout.label(text=count)
+        layout.template_list("SHAPESMITH_UL_expressions", "", result, "expressions", settings, "active_expression", rows=5)
+        if 0 <= settings.active_expression < len(result.expressions):
+            expression = result.expressions[settings.active_expression]
+            box = layout.box()
+            box.label(text=f"{expression.name}: moves {expression.vertices} vertices, importance {expression.importance:.2f}")
+            for member in expression.members:
+                box.label(text=member.name, icon="SHAPEKEY_DATA")
+            _kept_apart(box, result, {m.name for m in expression.members})
+        for title, names in (("Never move", result.inert), ("Excluded", result.excluded), ("Left over", result.unplaced)):
+            if names:
+                layout.label(text=f"{title}: {', '.join(n.name for n in names)}")
+        row = layout.row(align=True)
+        row.operator("shapesmith.preview_expression", icon="HIDE_OFF")
+        row.operator("shapesmith.animate_expressions", icon="KEYFRAME")
+        row.operator("shapesmith.bake_expressions", icon="SHAPEKEY_DATA")
+        row = layout.row(align=True)
+        row.prop(settings, "explain", text="Explain")
+        row.operator("shapesmith.export_shot_list", icon="EXPORT", text="Shot List")
+        row.operator("shapesmith.render_reference_sheet", icon="RENDER_STILL", text="Reference Sheet")
+
+
+class SHAPESMITH_PT_pack_refine(ShapesmithPanel, bpy.types.Panel):
+    """Your own choices, honoured as constraints of the same program."""
+
+    bl_label = "Pin, Keep Apart, Exclude"
+    bl_parent_id = "SHAPESMITH_PT_pack"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def draw(self, context):
+        settings = context.active_object.shapesmith.pack
+        layout = self.layout
+        _refinement_list(layout, settings, "Pin Together", "PIN", "pin_together", "active_pin", "SHAPESMITH_UL_pairs")
+        _refinement_list(layout, settings, "Keep Apart", "APART", "keep_apart", "active_apart", "SHAPESMITH_UL_pairs")
+        _refinement_list(layout, settings, "Exclude", "EXCLUDE", "exclude", "active_exclude", "SHAPESMITH_UL_shape_names")
+
+
+class SHAPESMITH_PT_pack_advanced(ShapesmithPanel, bpy.types.Panel):
+    """What counts as moving, what makes a shape important, and which conflicts keep shapes apart."""
+
+    bl_label = "Advanced"
+    bl_parent_id = "SHAPESMITH_PT_pack"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def draw(self, context):
+        settings = context.active_object.shapesmith.pack
+        layout = self.layout
+        col = layout.column(align=True)
+        col.prop(settings, "mu")
+        col.prop(settings, "a")
+        col.prop(settings, "beta")
         layout.prop(settings, "antagonist_cosine")
         col = layout.column(align=True)
         row = col.row(align=True)
@@ -103,37 +172,6 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
         layout.prop(settings, "front_camera")
         layout.label(text=f"Front: {_front_text(settings)}", icon="VIEW_CAMERA")
         layout.prop(settings, "fewest")
-        box = layout.box()
-        _refinement_list(box, settings, "Pin Together", "PIN", "pin_together", "active_pin", "SHAPESMITH_UL_pairs")
-        _refinement_list(box, settings, "Keep Apart", "APART", "keep_apart", "active_apart", "SHAPESMITH_UL_pairs")
-        _refinement_list(box, settings, "Exclude", "EXCLUDE", "exclude", "active_exclude", "SHAPESMITH_UL_shape_names")
-        layout.operator("shapesmith.pack_expressions", icon="PACKAGE")
-        result = settings.result
-        if not result.done:
-            return
-        count = f"J = {len(result.expressions)}"
-        if result.fewest:
-            count += f"   (fewest possible: {result.fewest}{'' if result.fewest_optimal else ', not proven'})"
-        layout.label(text=count)
-        layout.template_list("SHAPESMITH_UL_expressions", "", result, "expressions", settings, "active_expression", rows=5)
-        if 0 <= settings.active_expression < len(result.expressions):
-            expression = result.expressions[settings.active_expression]
-            box = layout.box()
-            box.label(text=f"{expression.name}: {expression.vertices} vertices, importance {expression.importance:.3f}")
-            for member in expression.members:
-                box.label(text=member.name, icon="SHAPEKEY_DATA")
-            _kept_apart(box, result, {m.name for m in expression.members})
-        for title, names in (("Inert", result.inert), ("Excluded", result.excluded), ("Left over", result.unplaced)):
-            if names:
-                layout.label(text=f"{title}: {', '.join(n.name for n in names)}")
-        row = layout.row(align=True)
-        row.operator("shapesmith.preview_expression", icon="HIDE_OFF")
-        row.operator("shapesmith.animate_expressions", icon="KEYFRAME")
-        row.operator("shapesmith.bake_expressions", icon="SHAPEKEY_DATA")
-        row = layout.row(align=True)
-        row.prop(settings, "explain", text="Explain")
-        row.operator("shapesmith.export_shot_list", icon="EXPORT", text="Shot List")
-        row.operator("shapesmith.render_reference_sheet", icon="RENDER_STILL", text="Reference Sheet")
 
 
 register, unregister = bpy.utils.register_classes_factory(
@@ -141,5 +179,7 @@ register, unregister = bpy.utils.register_classes_factory(
         SHAPESMITH_UL_expressions,
         SHAPESMITH_UL_shape_names,
         SHAPESMITH_PT_pack,
+        SHAPESMITH_PT_pack_refine,
+        SHAPESMITH_PT_pack_advanced,
     )
 )

@@ -43,7 +43,8 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        layout.label(text=native.STATUS, icon="CHECKMARK" if native.STATUS.startswith("native core ") else "ERROR")
+        if not native.STATUS.startswith("native core "):
+            layout.label(text=native.STATUS, icon="ERROR")
         settings = context.scene.shapesmith
         row = layout.row(align=True)
         row.prop(settings, "symmetry_axis", expand=True)
@@ -102,21 +103,16 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         settings = context.scene.shapesmith.landmarks
-        col = layout.column(align=True)
-        for name in ("epsilon", "alpha", "gamma", "max_per_shape", "radius"):
-            col.prop(settings, name)
-        layout.prop(settings, "camera_source")
-        if settings.camera_source == "HEMISPHERE":
-            layout.prop(settings, "rays")
-        elif settings.camera_source == "COLLECTION":
-            layout.prop(settings, "camera_collection")
+        layout.operator("shapesmith.place_landmarks", icon="EMPTY_DATA")
         layout.prop(settings, "symmetric", text=f"Symmetric (across {'XYZ'[int(context.scene.shapesmith.symmetry_axis)]} = 0)")
+        layout.prop(settings, "camera_source")
+        if settings.camera_source == "COLLECTION":
+            layout.prop(settings, "camera_collection")
         layout.prop(settings, "design")
         if settings.design == "COUNT":
             layout.prop(settings, "landmarks")
         elif settings.design == "TARGET":
             layout.prop(settings, "target_error")
-        layout.operator("shapesmith.place_landmarks", icon="EMPTY_DATA")
         obj = context.active_object
         if obj is None or obj.type != "MESH":
             return
@@ -127,8 +123,9 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
             col.label(text=f"{result.count} landmarks, {result.rounds} round(s)")
             col.label(text="Proven optimal" if result.optimal else "Not proven optimal",
                       icon="CHECKMARK" if result.optimal else "ERROR")
-            col.label(text=f"Error: mean {result.mean_error:.2%}, max {result.max_error:.2%} of diagonal")
-            col.label(text=f"Predicted error: {result.predicted_error:.3%} (RMS)")
+            col.label(text=f"Rebuilt from noisy tracks: mean error {result.mean_error:.2%} of the head's size, "
+                           f"worst {result.max_error:.2%}")
+            col.label(text=f"Predicted error: {result.predicted_error:.3%} of the head's size (lower is better)")
             document = json.loads(result.document) if result.document else {}
             if result.design_stop:
                 col.label(text=f"{result.added} added for reconstruction: {STOP_REASONS[result.design_stop]}")
@@ -162,11 +159,28 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
                            f"mean {score.mean_error:.2%}, max {score.max_error:.2%}")
 
 
+class SHAPESMITH_PT_landmarks_advanced(ShapesmithPanel, bpy.types.Panel):
+    """What makes a vertex a good landmark, and how many per shape."""
+
+    bl_label = "Advanced"
+    bl_parent_id = "SHAPESMITH_PT_landmarks"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        settings = context.scene.shapesmith.landmarks
+        col = self.layout.column(align=True)
+        for name in ("epsilon", "alpha", "gamma", "max_per_shape", "radius"):
+            col.prop(settings, name)
+        if settings.camera_source == "HEMISPHERE":
+            self.layout.prop(settings, "rays")
+
+
 register, unregister = bpy.utils.register_classes_factory(
     (
         SHAPESMITH_UL_pairs,
         SHAPESMITH_UL_face_parts,
         SHAPESMITH_PT_rig,
         SHAPESMITH_PT_landmarks,
+        SHAPESMITH_PT_landmarks_advanced,
     )
 )
