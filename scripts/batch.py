@@ -725,7 +725,7 @@ def run_import_capture(args):
     print(f"{report['frames']} frames of {report['format']} onto '{obj.name}' (frames {report['first_frame']:g} to "
           f"{report['last_frame']:g}, capture {report['capture_fps']} fps, scene {report['scene_fps']:g} fps); "
           f"{len(report['columns_used'])} columns used, unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}, "
-          f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}")
+          f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}; {capture.lost_tracking_line(report)}")
     save_copy(args.output)
     report.update(input=os.path.abspath(args.input))
     write_json(args.json, report)

@@ -39,6 +39,7 @@ class SHAPESMITH_OT_import_capture(bpy.types.Operator):
             f"{len(report['columns_used'])} columns used",
             f"unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}",
             f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}",
+            capture.lost_tracking_line(report),
         ]
         settings.done = True
         settings.summary = "\n".join(lines)
