@@ -5,7 +5,7 @@ write."""
 import bpy
 import numpy as np
 
-from .mesh_arrays import MeshDataError, report_key
+from .mesh_arrays import MeshDataError, group_weights, report_key
 
 
 def plan_keys(target, names, overwrite):
@@ -119,6 +119,18 @@ def write_vertex_groups(target, groups, overwrite):
     return warnings
 
 
+def unmasked(delta, weights):
+    """The delta to store on a key its vertex group masks so that Blender shows `delta`: the
+    tools read and transfer the masked shape (delta times weight), and Blender multiplies the
+    stored key by the weight again, so the stored key is `delta / weight` where the weight is
+    not 0 (where it is 0 Blender shows nothing whatever is stored)."""
+    if weights is None:
+        return delta
+    scale = np.ones_like(weights)
+    np.divide(1.0, weights, out=scale, where=weights > 0.0)
+    return delta * scale[:, None]
+
+
 def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
     """Writes `transfer` (a solved `transfer.Transfer`) onto its target: a Basis first when
     the target has no shape keys; then each template key with the template's name, slider
@@ -169,9 +181,11 @@ def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
             target.shape_key_add(name=name, from_mix=False)
             created.add(name)
     order = {name: k for k, name in enumerate(transfer.names)}
+    masks = group_weights(target, [source_blocks[n].vertex_group for n in written if source_blocks[n].vertex_group])
     for done, name in enumerate(written, start=1):
         block = keys.key_blocks[name]
-        block.points.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
+        delta = unmasked(transfer.deltas[order[name]], masks.get(source_blocks[name].vertex_group))
+        block.points.foreach_set("co", (transfer.target_neutral + delta).ravel())
         _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x

@@ -10,7 +10,7 @@ import numpy as np
 
 from .. import native
 from .face_parts import face_objects, face_of, pair_parts, read_face_rest, read_face_rig
-from .mesh_arrays import MeshDataError, check_mesh, read_triangles, rest_positions, show_mesh
+from .mesh_arrays import MeshDataError, check_mesh, group_weights, read_triangles, rest_positions, show_mesh
 from .settings import TransferSettings, VirtualEdgeSettings
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
@@ -276,7 +276,31 @@ def transfer_object(
     report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, counterparts)]
     result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
     result.pieces = split_transfer(result, face, target_face)
+    # Same topology: the groups masking the keys go onto the target with the same weights.
+    result.vertex_groups = masking_groups(face.objects, rig.names)
+    for piece in result.pieces:
+        piece.vertex_groups = masking_groups([piece.source], piece.names)
     return result
+
+
+def masking_groups(objects, names):
+    """{group name: weights over the vertices of `objects` in order}: the vertex groups that
+    mask the keys `names` on those objects (a split done with groups), for a target of the
+    same vertices."""
+    wanted = {
+        block.vertex_group
+        for obj in objects
+        if obj.data.shape_keys is not None
+        for block in obj.data.shape_keys.key_blocks
+        if block.name in names and block.vertex_group
+    }
+    per_object = [group_weights(obj, wanted) for obj in objects]
+    found = sorted(set().union(*per_object))
+    return {
+        name: np.concatenate([weights.get(name, np.zeros(len(obj.data.vertices), np.float32))
+                              for obj, weights in zip(objects, per_object)])
+        for name in found
+    }
 
 
 def measure_template_penetration(source, parts=None):
