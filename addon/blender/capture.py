@@ -34,7 +34,6 @@ import csv
 import json
 import math
 import os
-import re
 
 import numpy as np
 from mathutils import Matrix
@@ -42,6 +41,7 @@ from mathutils import Matrix
 from .front import view_front
 from .keyframes import key_channel, key_transforms
 from .mesh_arrays import MeshDataError
+from .names import shape_key
 
 HEAD_ANGLES = ("YAW", "PITCH", "ROLL")
 
@@ -51,28 +51,18 @@ LIVE_LINK_HEAD = ("headyaw", "headpitch", "headroll")
 LIVE_LINK_OTHER = ("timecode", "blendshapecount", "lefteyeyaw", "lefteyepitch", "lefteyeroll", "righteyeyaw",
                    "righteyepitch", "righteyeroll")
 STANDARD_RATES = (24, 25, 30, 48, 50, 60, 100, 120, 240)
-_SIDE = re.compile(r"^(.*?)(?:[_.\s-]?(left|right)|[_.]([lr]))$", re.IGNORECASE)
 
 
-def name_key(name):
-    """(base, side) of a shape name, case-insensitive: `eyeBlinkLeft`, `EyeBlink_L` and
-    `eyeblink.l` are all ('eyeblink', 'L'); `jawOpen` is ('jawopen', None)."""
-    match = _SIDE.match(name.strip())
-    if match and match.group(1):
-        side = (match.group(2) or match.group(3)).upper()[0]
-        return match.group(1).lower().rstrip("_.- "), side
-    return name.strip().lower(), None
-
-
-def match_columns(columns, keys, mapping=None):
+def match_columns(columns, keys, mapping=None, name_map=None):
     """{column: [rig keys]} for the capture's shape columns. `mapping` (column -> key or list
-    of keys, names as spelled) comes first; then names match by `name_key`; a column without
-    side that the rig splits in halves (`cheekPuff` -> `cheekPuff_L`, `cheekPuff_R`) drives
-    both. Returns (matched, unmatched columns, unmatched keys)."""
+    of keys, names as spelled) comes first; then names match as `names.shape_key` reads them
+    (any convention, `name_map` the user's table); a column without side that the rig splits
+    in halves (`cheekPuff` -> `cheekPuff_L`, `cheekPuff_R`) drives both. Returns (matched,
+    unmatched columns, unmatched keys)."""
     mapping = mapping or {}
     by_key = {}
     for key in keys:
-        by_key.setdefault(name_key(key), []).append(key)
+        by_key.setdefault(shape_key(key, name_map), []).append(key)
     lowered = {k.lower(): k for k in keys}
     matched, unmatched = {}, []
     for column in columns:
@@ -83,7 +73,7 @@ def match_columns(columns, keys, mapping=None):
                 raise MeshDataError(f"the mapping sends '{column}' to {', '.join(missing)}, which the rig does not have")
             matched[column] = [lowered.get(t.lower(), t) for t in targets]
             continue
-        base, side = name_key(column)
+        base, side = shape_key(column, name_map)
         targets = by_key.get((base, side), [])
         if not targets and side is None:
             targets = by_key.get((base, "L"), []) + by_key.get((base, "R"), [])
@@ -246,10 +236,11 @@ def head_rotations(angles, axes, invert=()):
             @ Matrix.Rotation(signs["PITCH"] * pitch, 3, left) for pitch, yaw, roll in angles]
 
 
-def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_head=()):
+def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_head=(), name_map=None):
     """Keys the capture onto `obj`'s shape keys (and its rotation when the capture has the
     head's and `head`, about the face's own axes; `invert_head` names angles whose sign to
-    change); returns the report. Everything is read and matched before any key."""
+    change; `name_map`: the user's name table, `names.read_name_map`); returns the report.
+    Everything is read and matched before any key."""
     keys = obj.data.shape_keys
     if obj.type != "MESH" or keys is None or len(keys.key_blocks) < 2:
         raise MeshDataError(f"'{obj.name}' has no shape keys to drive")
@@ -258,7 +249,7 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_h
         raise MeshDataError(f"unknown head angle {', '.join(sorted(unknown))}: invert YAW, PITCH or ROLL")
     capture = read_capture(path, fps)
     names = [block.name for block in keys.key_blocks if block != keys.reference_key]
-    matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping)
+    matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping, name_map)
     if not matched:
         raise MeshDataError(
             f"no column of '{os.path.basename(path)}' matches a shape key of '{obj.name}' (columns such as "

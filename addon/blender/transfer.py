@@ -2,6 +2,7 @@
 call them. `transfer_object` validates and solves without writing anything; writing the keys
 is `shape_keys.write_transferred_keys`, run only once everything here has succeeded."""
 
+import fnmatch
 import re
 import time
 from dataclasses import dataclass, field
@@ -228,6 +229,7 @@ def transfer_object(
     source_parts=None,
     target_parts=None,
     joined_target=False,
+    keys=None,
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
@@ -238,7 +240,9 @@ def transfer_object(
     `template_penetration` is `measure_template_penetration(source)` when the caller already
     has it (a batch over many targets measures it once). `source_parts`, `target_parts`: the
     face parts of each (`face_parts.face_objects`; default: the lists stored on the heads);
-    `joined_target`: the target is one mesh of the template's objects joined (a wrap's)."""
+    `joined_target`: the target is one mesh of the template's objects joined (a wrap's).
+    `keys`: the template keys to transfer (names or patterns such as `eyeBlink*`,
+    `chosen_keys`); None transfers all."""
     started = time.perf_counter()
     settings = settings or TransferSettings()
     if not settings.measure_penetration:
@@ -251,6 +255,13 @@ def transfer_object(
             f"personalisation reads training expressions of one mesh, but '{source.name}' has face parts "
             f"({', '.join(o.name for o in face.parts)}): transfer without training expressions"
         )
+    if keys is not None:
+        if training_objects:
+            raise MeshDataError("personalisation fits every key to the training expressions: transfer all keys")
+        rows = chosen_keys(rig.names, keys)
+        rig.deltas, rig.names = np.ascontiguousarray(rig.deltas[rows]), [rig.names[k] for k in rows]
+        if template_penetration is not None:  # measured for every key: the chosen keys' rows
+            template_penetration = {**template_penetration, "shapes": [template_penetration["shapes"][k] for k in rows]}
     if training_objects:
         expressions = packed_expressions(source, pack_report)
         examples, example_weights, training = read_training(
@@ -301,6 +312,22 @@ def masking_groups(objects, names):
                               for obj, weights in zip(objects, per_object)])
         for name in found
     }
+
+
+def chosen_keys(names, chosen):
+    """Indices of `names` that the user chose: each of `chosen` is a key's name or a
+    pattern (`eyeBlink*`, `mouth?ight`; any letter case). A choice matching no key is refused,
+    as is choosing none."""
+    chosen = [c.strip() for c in chosen if c.strip()]
+    if not chosen:
+        raise MeshDataError("no shape keys chosen: tick at least one key (or give --keys)")
+    rows = set()
+    for choice in chosen:
+        found = [k for k, name in enumerate(names) if name == choice or fnmatch.fnmatch(name.lower(), choice.lower())]
+        if not found:
+            raise MeshDataError(f"'{choice}' matches no shape key of the template (such as {', '.join(names[:3])})")
+        rows.update(found)
+    return sorted(rows)
 
 
 def measure_template_penetration(source, parts=None):
