@@ -332,6 +332,12 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         description="Recreate the drivers on the template's key values, re-targeted from the template to the target",
         default=False,
     )
+    driver_map: bpy.props.PointerProperty(
+        name="Driver Map",
+        type=bpy.types.Text,
+        description="A text of lines 'template object = target object' for drivers reading objects that Copy Drivers "
+        "cannot pair by itself (the template's armature and objects named after the template it pairs by itself)",
+    )
     compare_plain: bpy.props.BoolProperty(
         name="Compare Without Virtual Edges",
         description="Also measure the penetration of plain transfer (one more solve)",

@@ -5,6 +5,7 @@ import importlib
 
 import bpy
 import numpy as np
+import pytest
 
 from conftest import make_active
 
@@ -218,3 +219,188 @@ def test_a_capture_in_other_conventions_drives_the_arkit_keys(sample, shapesmith
     bad = run_batch("import-capture", "--input", blend, "--object", "Template", "--capture", path, "--output", out,
                     "--name-map", str(tmp_path / "missing.txt"))
     assert bad.returncode == 2 and "name map not found" in bad.stderr
+
+
+# --- subsets, re-runs and sculpted fixes ----------------------------------------------------
+
+
+def transfer(target, **options):
+    settings = bpy.context.scene.shapesmith.transfer
+    settings.source = options.pop("source", bpy.data.objects["Template"])
+    for key, value in options.items():
+        setattr(settings, key, value)
+    make_active(target)
+    return bpy.ops.shapesmith.transfer_shape_keys()
+
+
+def test_only_ticked_keys_are_written_and_a_rerun_keeps_the_others(sample):
+    target = bpy.data.objects["Target_Boy"]
+    settings = bpy.context.scene.shapesmith.transfer
+    settings.source = bpy.data.objects["Template"]
+    assert bpy.ops.shapesmith.list_template_keys(tick="NONE") == {"FINISHED"}
+    assert len(settings.key_choice) == 52 and not any(item.chosen for item in settings.key_choice)
+    for item in settings.key_choice:
+        item.chosen = item.name.startswith("eyeBlink") or item.name == "jawOpen"
+    assert transfer(target, only_ticked=True) == {"FINISHED"}
+    keys = target.data.shape_keys.key_blocks
+    assert sorted(kb.name for kb in keys[1:]) == ["eyeBlinkLeft", "eyeBlinkRight", "jawOpen"]
+    blink = positions(target, "eyeBlinkLeft").copy()
+    for item in settings.key_choice:
+        item.chosen = item.name == "mouthClose"
+    assert transfer(target, only_ticked=True, overwrite=True) == {"FINISHED"}
+    assert sorted(kb.name for kb in keys[1:]) == ["eyeBlinkLeft", "eyeBlinkRight", "jawOpen", "mouthClose"]
+    np.testing.assert_array_equal(positions(target, "eyeBlinkLeft"), blink)
+    for item in settings.key_choice:
+        item.chosen = False
+    with pytest.raises(RuntimeError, match="no shape keys chosen"):
+        transfer(target, only_ticked=True)
+
+
+def test_keep_sculpted_changes_adds_the_users_edits_onto_the_new_result(sample):
+    template = bpy.data.objects["Template"]
+    target = bpy.data.objects["Target_Boy"]
+    twin = copy_of(target, "Target_Boy_Fresh")
+    assert transfer(target) == {"FINISHED"}
+    # The rigger fixes jawOpen by hand on the target.
+    edit = np.zeros((len(target.data.vertices), 3), dtype=np.float32)
+    edit[::50, 2] = 0.01
+    fixed = positions(target, "jawOpen") + edit
+    target.data.shape_keys.key_blocks["jawOpen"].data.foreach_set("co", fixed.ravel())
+    # The template's jawOpen changes; the transfer runs again.
+    basis = positions(template, "Basis")
+    stronger = basis + 1.2 * (positions(template, "jawOpen") - basis)
+    template.data.shape_keys.key_blocks["jawOpen"].data.foreach_set("co", stronger.ravel())
+    assert transfer(target, overwrite=True, keep_sculpted=True) == {"FINISHED"}
+    assert transfer(twin, overwrite=True, keep_sculpted=False) == {"FINISHED"}
+    fresh = positions(twin, "jawOpen") - positions(twin, "Basis")
+    np.testing.assert_allclose(positions(target, "jawOpen") - positions(target, "Basis"), fresh + edit, atol=1e-6)
+    # Keys the rigger did not touch are the fresh result; without Keep Sculpted Changes the
+    # edit is gone.
+    np.testing.assert_allclose(positions(target, "mouthClose"), positions(twin, "mouthClose"), atol=1e-6)
+    assert transfer(target, overwrite=True, keep_sculpted=False) == {"FINISHED"}
+    np.testing.assert_allclose(positions(target, "jawOpen") - positions(target, "Basis"), fresh, atol=1e-6)
+
+
+def test_analyze_rig_keeps_edited_pairs_unless_reset(sample):
+    template = bpy.data.objects["Template"]
+    make_active(template)
+    assert bpy.ops.shapesmith.analyze_rig() == {"FINISHED"}
+    pairs = template.shapesmith.pairs
+    found = len(pairs)
+    blink = next(p for p in pairs if "eyeBlinkLeft" in (p.first, p.second))
+    blink.first, blink.second = "eyeBlinkLeft", "eyeSquintRight"
+    assert blink.source == "USER"
+    assert bpy.ops.shapesmith.analyze_rig() == {"FINISHED"}
+    names = {(p.first, p.second): p.source for p in pairs}
+    assert names[("eyeBlinkLeft", "eyeSquintRight")] == "USER"
+    # Found pairs with a shape of the user's pair make way for it.
+    assert not any(p.source != "USER" and {p.first, p.second} & {"eyeBlinkLeft", "eyeSquintRight"} for p in pairs)
+    assert bpy.ops.shapesmith.analyze_rig(reset_pairs=True) == {"FINISHED"}
+    assert len(pairs) == found and all(p.source != "USER" for p in pairs)
+
+
+def test_batch_transfers_the_keys_given_and_refuses_a_pattern_matching_none(sample, tmp_path):
+    from conftest import run_batch
+
+    blend, out = str(tmp_path / "in.blend"), str(tmp_path / "out.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    run_batch("transfer", "--input", blend, "--source", "Template", "--target", "Target_Boy", "--keys", "eyeBlink*,jawOpen",
+              "--output", out, check=True)
+    bpy.ops.wm.open_mainfile(filepath=out)
+    keys = bpy.data.objects["Target_Boy"].data.shape_keys.key_blocks
+    assert sorted(kb.name for kb in keys[1:]) == ["eyeBlinkLeft", "eyeBlinkRight", "jawOpen"]
+    bad = run_batch("transfer", "--input", blend, "--source", "Template", "--target", "Target_Boy", "--keys", "nose*,eyeBlonk*",
+                    "--output", out)
+    assert bad.returncode == 2 and "'eyeBlonk*' matches no shape key" in bad.stderr
+
+
+# --- correctives ---------------------------------------------------------------------------
+
+
+def test_a_corrective_is_transferred_on_top_of_its_base(sample, shapesmith):
+    template = bpy.data.objects["Template"]
+    keys = template.data.shape_keys.key_blocks
+    basis = positions(template, "Basis")
+    smile = positions(template, "mouthSmileLeft") - basis
+    # mouthSmileLeft becomes a corrective on jawOpen adding the same smile.
+    keys["mouthSmileLeft"].data.foreach_set("co", (positions(template, "jawOpen") + smile).ravel())
+    keys["mouthSmileLeft"].relative_key = keys["jawOpen"]
+    # Every tool sees what the corrective adds to its base.
+    rig = module(shapesmith, "mesh_arrays").read_rig(template)
+    np.testing.assert_allclose(rig.deltas[rig.names.index("mouthSmileLeft")], smile, atol=1e-6)
+    plain = copy_of(template, "Plain")
+    plain_keys = plain.data.shape_keys.key_blocks
+    plain_keys["mouthSmileLeft"].relative_key = plain_keys["Basis"]
+    plain_keys["mouthSmileLeft"].data.foreach_set("co", (basis + smile).ravel())
+    target = bpy.data.objects["Target_Boy"]
+    twin = copy_of(target, "Target_Boy_Plain")
+    assert transfer(target) == {"FINISHED"}
+    assert transfer(twin, source=plain) == {"FINISHED"}
+    written = target.data.shape_keys.key_blocks
+    assert written["mouthSmileLeft"].relative_key == written["jawOpen"]
+    added = positions(target, "mouthSmileLeft") - positions(target, "jawOpen")
+    expected = positions(twin, "mouthSmileLeft") - positions(twin, "Basis")
+    assert np.abs(expected).max() > 1e-3
+    np.testing.assert_allclose(added, expected, atol=1e-6)
+    np.testing.assert_allclose(positions(target, "jawOpen"), positions(twin, "jawOpen"), atol=1e-6)
+
+
+# --- drivers onto the target's rig -----------------------------------------------------------
+
+
+def rig_for(obj, name):
+    """An armature with a `jaw` bone deforming `obj`."""
+    armature = bpy.data.armatures.new(name)
+    rig = bpy.data.objects.new(name, armature)
+    bpy.context.scene.collection.objects.link(rig)
+    make_active(rig)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = armature.edit_bones.new("jaw")
+    bone.head, bone.tail = (0, 0, 0), (0, 0.1, 0)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    obj.modifiers.new("Armature", "ARMATURE").object = rig
+    return rig
+
+
+def drive(keys, name, target_id, variable_type="TRANSFORMS", bone=""):
+    fcurve = keys.key_blocks[name].driver_add("value")
+    fcurve.driver.type = "SCRIPTED"
+    fcurve.driver.expression = "v"
+    variable = fcurve.driver.variables.new()
+    variable.name, variable.type = "v", variable_type
+    variable.targets[0].id = target_id
+    variable.targets[0].bone_target = bone
+    variable.targets[0].transform_type = "ROT_X"
+    return fcurve
+
+
+def test_copy_drivers_points_them_at_the_targets_rig(sample, shapesmith):
+    template, target = bpy.data.objects["Template"], bpy.data.objects["Target_Boy"]
+    template_rig, target_rig = rig_for(template, "Template_Rig"), rig_for(target, "BoyArmature")
+    empties = {}
+    for name in ("Template_Controls", "Target_Boy_Controls", "Slider", "Slider_Boy", "Elsewhere"):
+        empties[name] = bpy.data.objects.new(name, None)
+        bpy.context.scene.collection.objects.link(empties[name])
+    keys = template.data.shape_keys
+    drive(keys, "jawOpen", template_rig, bone="jaw")
+    drive(keys, "eyeBlinkLeft", empties["Template_Controls"])
+    drive(keys, "mouthClose", empties["Slider"])
+    drive(keys, "mouthFunnel", empties["Elsewhere"])
+    transfer_module, shape_keys = module(shapesmith, "transfer"), module(shapesmith, "shape_keys")
+    result = transfer_module.transfer_object(template, target, keys=["jawOpen", "eyeBlinkLeft", "mouthClose", "mouthFunnel"])
+    _, _, warnings = shape_keys.write_transferred_keys(result, copy_drivers=True, driver_map={"Slider": "Slider_Boy"})
+    drivers = {d.data_path: d.driver.variables["v"].targets[0] for d in target.data.shape_keys.animation_data.drivers}
+    assert drivers['key_blocks["jawOpen"].value'].id == target_rig
+    assert drivers['key_blocks["jawOpen"].value'].bone_target == "jaw"
+    assert drivers['key_blocks["eyeBlinkLeft"].value'].id == empties["Target_Boy_Controls"]
+    assert drivers['key_blocks["mouthClose"].value'].id == empties["Slider_Boy"]
+    assert drivers['key_blocks["mouthFunnel"].value'].id == empties["Elsewhere"]
+    assert [w for w in warnings if "still points at" in w] == [
+        "driver on key_blocks[\"mouthFunnel\"].value: variable 'v' still points at 'Elsewhere' "
+        "(no counterpart found: add it to the driver map)"]
+    # The target's armature without the bone: said, not hidden.
+    target_rig.data.bones["jaw"].name = "chin"
+    _, _, warnings = shape_keys.write_transferred_keys(result, overwrite=True, copy_drivers=True)
+    assert any("reads bone 'jaw', which 'BoyArmature' does not have" in w for w in warnings), warnings
+    with pytest.raises(ValueError, match="'Nowhere'"):
+        shape_keys.write_transferred_keys(result, overwrite=True, copy_drivers=True, driver_map={"Slider": "Nowhere"})

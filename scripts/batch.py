@@ -84,6 +84,18 @@ def name_map(args, shapesmith):
         return import_module(shapesmith.__name__ + ".blender.names").read_name_map(handle.read(), f"--name-map {args.name_map}")
 
 
+def driver_map(args, shapesmith):
+    """The --driver-map table {template object: target object} (None without it)."""
+    from importlib import import_module
+
+    if not args.driver_map:
+        return None
+    if not os.path.isfile(args.driver_map):
+        raise BatchError(f"driver map not found: {args.driver_map}")
+    with open(args.driver_map, encoding="utf-8") as handle:
+        return import_module(shapesmith.__name__ + ".blender.names").read_name_map(handle.read(), f"--driver-map {args.driver_map}")
+
+
 def analyze_settings(args, settings):
     """The analysis' settings from the flags (`settings`: the extension's settings module)."""
     return settings.AnalyzeSettings(axis="XYZ".index(args.axis), symmetry=settings.SymmetrySettings(use_names=args.name_pairs))
@@ -359,6 +371,8 @@ def add_transfer_args(parser, settings):
     parser.add_argument("--keys", help='transfer only these template keys, names or patterns, comma separated: "eyeBlink*,jawOpen" '
                         "(the target's other keys stay as they are)")
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--driver-map", help="with --copy-drivers: a file of lines 'template object = target object' for "
+                        "drivers reading objects other than the template's own and its armature's")
     parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
@@ -394,7 +408,7 @@ def run_transfer(args):
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
     source = find_face(args.source, shapesmith)
     targets = transfer_targets(args, shapesmith)
-    names = name_map(args, shapesmith)
+    names, drivers = name_map(args, shapesmith), driver_map(args, shapesmith)
     pack_report = None
     if args.pack_json:
         if not os.path.isfile(args.pack_json):
@@ -425,7 +439,8 @@ def run_transfer(args):
     for result in solved:
         write_started = time.perf_counter()
         written, skipped, warnings = shape_keys.write_transferred_keys(
-            result, args.overwrite, args.copy_drivers, keep_sculpted=args.keep_sculpted, name_map=names)
+            result, args.overwrite, args.copy_drivers, keep_sculpted=args.keep_sculpted, name_map=names,
+            driver_map=drivers)
         transfer.store_transfer(result, written, skipped)
         result.warnings += warnings
         for line in transfer.summary_lines(result, written, skipped):
@@ -553,6 +568,8 @@ def add_wrap_args(parser, settings):
                         help="with --overwrite: add back what was sculpted on a key since the last transfer wrote it")
     parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--driver-map", help="with --copy-drivers: a file of lines 'template object = target object' for "
+                        "drivers reading objects other than the template's own and its armature's")
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
 
@@ -607,7 +624,7 @@ def run_wrap(args):
             writing = time.perf_counter()
             written, skipped, warnings = shape_keys.write_transferred_keys(
                 result, args.overwrite, args.copy_drivers, keep_sculpted=args.keep_sculpted,
-                name_map=name_map(args, shapesmith))
+                name_map=name_map(args, shapesmith), driver_map=driver_map(args, shapesmith))
             seconds["io"] += time.perf_counter() - writing
             penetration = {"neutral": result.report["neutral_penetration"], "shapes": result.report["penetration"]}
             worse = transfer.worse_than_template(result.report)

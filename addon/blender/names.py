@@ -136,6 +136,11 @@ def read_name_map(text, what="the name map"):
     return table
 
 
+def text_name_map(text, what="the driver map"):
+    """`read_name_map` of a Blender Text (None for none)."""
+    return read_name_map(text.as_string(), f"{what} '{text.name}'") if text is not None else None
+
+
 def scene_name_map(scene):
     """The user's table from the Names panel (rows with both names filled)."""
     rows = getattr(scene.shapesmith, "name_map", ())

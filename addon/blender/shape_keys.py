@@ -4,9 +4,9 @@ write."""
 
 import zlib
 
-import bpy
 import numpy as np
 
+from .drivers import copy_driver, driver_targets, key_drivers
 from .mesh_arrays import MeshDataError, group_weights, report_key
 from .names import counterpart
 
@@ -34,19 +34,6 @@ def plan_keys(target, names, overwrite, name_map=None):
     return written, skipped, onto
 
 
-def _key_value_path(name):
-    return f'key_blocks["{bpy.utils.escape_identifier(name)}"].value'
-
-
-def key_drivers(source, names):
-    """The template's drivers on the values of the keys `names`: {name: F-curve}."""
-    animation = source.data.shape_keys.animation_data
-    if animation is None:
-        return {}
-    by_path = {fcurve.data_path: fcurve for fcurve in animation.drivers}
-    return {name: by_path[_key_value_path(name)] for name in names if _key_value_path(name) in by_path}
-
-
 def _copy_key_settings(block, source_block, keys, source_keys, onto):
     block.slider_min = -10.0  # the lowest allowed, so any slider_max can be set first
     block.slider_max = source_block.slider_max
@@ -57,58 +44,6 @@ def _copy_key_settings(block, source_block, keys, source_keys, onto):
     relative = source_block.relative_key
     mapped = keys.key_blocks.get(onto.get(relative.name, relative.name)) if relative != source_keys.reference_key else None
     block.relative_key = mapped if mapped is not None and mapped != block else keys.reference_key
-
-
-def _retargeted(id_, mapping):
-    return mapping.get(id_, id_) if id_ is not None else None
-
-
-def copy_driver(fcurve, keys, mapping):
-    """Recreates the driver F-curve `fcurve` on the Key `keys`: expression, variables (their
-    targets mapped through `mapping`, e.g. template object -> target object), keyframes and
-    Generator modifiers. Returns warnings for what could not be carried over."""
-    warnings = []
-    path = fcurve.data_path
-    if keys.animation_data is not None and keys.animation_data.drivers.find(path) is not None:
-        keys.driver_remove(path)
-    new = keys.driver_add(path)
-    # driver_add starts with a default Generator (4.x) or default keyframes (5.x)
-    for modifier in list(new.modifiers):
-        new.modifiers.remove(modifier)
-    new.keyframe_points.clear()
-    driver, source_driver = new.driver, fcurve.driver
-    driver.type = source_driver.type
-    driver.use_self = source_driver.use_self
-    driver.expression = source_driver.expression
-    for variable in source_driver.variables:
-        copy = driver.variables.new()
-        copy.name = variable.name
-        copy.type = variable.type
-        for source_target, target in zip(variable.targets, copy.targets):
-            if variable.type == "SINGLE_PROP":
-                target.id_type = source_target.id_type
-            target.id = _retargeted(source_target.id, mapping)
-            target.data_path = source_target.data_path
-            target.bone_target = source_target.bone_target
-            target.transform_type = source_target.transform_type
-            target.transform_space = source_target.transform_space
-            target.rotation_mode = source_target.rotation_mode
-    new.extrapolation = fcurve.extrapolation
-    points = fcurve.keyframe_points
-    new.keyframe_points.add(len(points))
-    for point, copy in zip(points, new.keyframe_points):
-        copy.co = point.co
-        copy.interpolation = point.interpolation
-        copy.handle_left_type, copy.handle_right_type = point.handle_left_type, point.handle_right_type
-        copy.handle_left, copy.handle_right = point.handle_left, point.handle_right
-    for modifier in fcurve.modifiers:
-        if modifier.type != "GENERATOR":
-            warnings.append(f"driver on {path}: its {modifier.type.lower()} modifier was not copied")
-            continue
-        copy = new.modifiers.new("GENERATOR")
-        copy.mode, copy.poly_order, copy.use_additive = modifier.mode, modifier.poly_order, modifier.use_additive
-        copy.coefficients = modifier.coefficients
-    return warnings
 
 
 def write_vertex_groups(target, groups, overwrite):
@@ -142,7 +77,8 @@ def unmasked(delta, weights):
     return delta * scale[:, None]
 
 
-def write_transferred_keys(transfer, overwrite=False, copy_drivers=False, *, keep_sculpted=False, name_map=None):
+def write_transferred_keys(transfer, overwrite=False, copy_drivers=False, *, keep_sculpted=False, name_map=None,
+                           driver_map=None):
     """Writes `transfer` (a solved `transfer.Transfer`) onto its target: a Basis first when
     the target has no shape keys; then each template key with the template's name (or the
     target's own name for that shape, `plan_keys`), slider range, vertex group, mute,
@@ -152,14 +88,14 @@ def write_transferred_keys(transfer, overwrite=False, copy_drivers=False, *, kee
     edits since the last transfer wrote it (`sculpted_changes`). A corrective (a key relative
     to another) is written on top of its base on the target. A face in several objects is
     written piece by piece (`Transfer.pieces`), each object its own keys, once every piece
-    has been checked. Returns (written, skipped, warnings), names over all objects in the
-    transfer's order; `transfer.onto` gets the target's name of each key written."""
+    has been checked. Drivers go to the target's rig (`drivers.driver_targets`, `driver_map`
+    the user's {template object: target object}). Returns (written, skipped, warnings), names
+    over all objects in the transfer's order; `transfer.onto` gets the target's name of each
+    key written."""
     pieces = transfer.pieces or [transfer]
     plans = [plan_keys(piece.target, piece.names, overwrite, name_map) for piece in pieces]
-    # Drivers re-targeted from every template object (and its mesh and keys) to its counterpart.
-    mapping = {}
-    for piece in pieces:
-        mapping.update({piece.source: piece.target, piece.source.data: piece.target.data})
+    # Drivers re-targeted from every template object (and its mesh, keys and rig) to its counterpart.
+    mapping = driver_targets([(piece.source, piece.target) for piece in pieces], driver_map) if copy_drivers else {}
     written, skipped, warnings = set(), set(), []
     transfer.onto = {}
     for piece, plan in zip(pieces, plans):
@@ -276,6 +212,6 @@ def _write_piece(transfer, plan, copy_drivers, mapping, overwrite, keep_sculpted
         report_key(done, len(written), writing=True)
     mapping = {**mapping, **{o.data.shape_keys: keys for o in set(origin.values())}}
     for fcurve in drivers.values():
-        warnings += copy_driver(fcurve, keys, mapping)
+        warnings += copy_driver(fcurve, keys, mapping, onto)
     target.data.update()
     return warnings

@@ -3,7 +3,7 @@ full before anything is written, so an error leaves the target as it was."""
 
 import bpy
 
-from ..blender.names import scene_name_map
+from ..blender.names import scene_name_map, text_name_map
 from ..blender.settings import transfer_settings
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, transfer_object, worse_than_template
@@ -48,6 +48,7 @@ class TransferOperator:
                 written, skipped, warnings = write_transferred_keys(
                     transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers,
                     keep_sculpted=settings.keep_sculpted, name_map=scene_name_map(context.scene),
+                    driver_map=text_name_map(settings.driver_map),
                 )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

@@ -48,6 +48,8 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         sub.active = settings.overwrite
         sub.prop(settings, "keep_sculpted")
         col.prop(settings, "copy_drivers")
+        if settings.copy_drivers:
+            col.prop(settings, "driver_map")
         self.draw_key_choice(layout, settings)
         layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
 
