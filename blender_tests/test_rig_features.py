@@ -309,6 +309,17 @@ def test_batch_transfers_the_keys_given_and_refuses_a_pattern_matching_none(samp
     bpy.ops.wm.open_mainfile(filepath=out)
     keys = bpy.data.objects["Target_Boy"].data.shape_keys.key_blocks
     assert sorted(kb.name for kb in keys[1:]) == ["eyeBlinkLeft", "eyeBlinkRight", "jawOpen"]
+    # A re-run with the user's names writes onto the target's own keys and says so.
+    keys["eyeBlinkLeft"].name = "blinky"
+    names = tmp_path / "names.txt"
+    names.write_text("blinky = eyeBlinkLeft\n")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    report = str(tmp_path / "transfer.json")
+    run_batch("transfer", "--input", blend, "--source", "Template", "--target", "Target_Boy", "--keys", "eyeBlinkLeft",
+              "--overwrite", "--name-map", str(names), "--json", report, "--output", out, check=True)
+    import json
+
+    assert json.load(open(report))["targets"][0]["written_onto"] == {"eyeBlinkLeft": "blinky"}
     bad = run_batch("transfer", "--input", blend, "--source", "Template", "--target", "Target_Boy", "--keys", "nose*,eyeBlonk*",
                     "--output", out)
     assert bad.returncode == 2 and "'eyeBlonk*' matches no shape key" in bad.stderr

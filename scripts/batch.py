@@ -453,6 +453,8 @@ def run_transfer(args):
                 "objects": result.report["objects"],
                 "shapes": written,
                 "skipped": skipped,
+                # Keys written under the target's own name for the shape (another convention's).
+                "written_onto": {name: own for name, own in result.onto.items() if own != name},
                 "virtual_edges": result.report["virtual_edges"],
                 "penetrations": result.report["penetration"],
                 "neutral_penetration": result.report["neutral_penetration"],

@@ -42,6 +42,9 @@ class Transfer:
     pieces: list = field(default_factory=list)
     # Template object of each key whose settings a piece takes, when not `source` alone.
     key_sources: dict = field(default_factory=dict)
+    # After writing: the target's key name for each template key written (its own name for
+    # that shape in another convention, else the template's).
+    onto: dict = field(default_factory=dict)
 
 
 def face_corners(obj):
