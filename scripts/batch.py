@@ -25,10 +25,13 @@ from sample_blend import build_sample, cached_sample, cached_sample_path  # noqa
 
 # The shared parts are re-exported: the tests, benches and renders call them here.
 from batch_common import (  # noqa: E402,F401
+    NAME_MAP_HELP,
     BatchError,
+    driver_map,
     find_face,
     find_object,
     load_shapesmith,
+    name_map,
     open_blend,
     save_copy,
     tool_settings,
@@ -65,35 +68,6 @@ def add_analyze_args(parser, settings):
                         help="pair shapes by Left/Right names where geometry finds no mirror partner (--no-name-pairs: do not)")
     parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--json", help="write the report here")
-
-
-NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), read besides "
-                 "the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., Character Creator, Daz, "
-                 "Unified Expressions)")
-
-
-def name_map(args, shapesmith):
-    """The user's name table of --name-map (None without it)."""
-    from importlib import import_module
-
-    if not args.name_map:
-        return None
-    if not os.path.isfile(args.name_map):
-        raise BatchError(f"name map not found: {args.name_map}")
-    with open(args.name_map, encoding="utf-8") as handle:
-        return import_module(shapesmith.__name__ + ".blender.names").read_name_map(handle.read(), f"--name-map {args.name_map}")
-
-
-def driver_map(args, shapesmith):
-    """The --driver-map table {template object: target object} (None without it)."""
-    from importlib import import_module
-
-    if not args.driver_map:
-        return None
-    if not os.path.isfile(args.driver_map):
-        raise BatchError(f"driver map not found: {args.driver_map}")
-    with open(args.driver_map, encoding="utf-8") as handle:
-        return import_module(shapesmith.__name__ + ".blender.names").read_name_map(handle.read(), f"--driver-map {args.driver_map}")
 
 
 def analyze_settings(args, settings):
