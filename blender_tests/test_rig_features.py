@@ -179,7 +179,10 @@ def test_transfer_writes_onto_the_targets_own_names_and_the_users_table(sample):
     for name in ("Eye_Blink_L", "blinky_b"):
         target.shape_key_add(name=name, from_mix=False).value = 0.0
     scene = bpy.context.scene
-    row = scene.shapesmith.name_map.add()
+    for _ in range(2):
+        assert bpy.ops.shapesmith.add_name_row() == {"FINISHED"}
+    assert bpy.ops.shapesmith.remove_name_row() == {"FINISHED"}
+    row = scene.shapesmith.name_map[0]
     row.theirs, row.standard = "blinky_b", "eyeBlinkRight"
     scene.shapesmith.transfer.source = bpy.data.objects["Template"]
     scene.shapesmith.transfer.overwrite = True
