@@ -12,9 +12,13 @@ _TRANSFER = TransferSettings()
 _ANALYZE = AnalyzeSettings()
 
 
+def _edited_by_hand(pair, _context):
+    pair.source = "USER"  # Analyze Rig keeps the pairs the rigger set
+
+
 class SHAPESMITH_PG_shape_pair(bpy.types.PropertyGroup):
-    first: bpy.props.StringProperty(name="First", description="Shape key name")
-    second: bpy.props.StringProperty(name="Second", description="Shape key name")
+    first: bpy.props.StringProperty(name="First", description="Shape key name", update=_edited_by_hand)
+    second: bpy.props.StringProperty(name="Second", description="Shape key name", update=_edited_by_hand)
     source: bpy.props.EnumProperty(
         name="Source",
         items=(
@@ -248,6 +252,20 @@ def _has_shape_keys(settings, obj):
     return keys is not None and len(keys.key_blocks) > 1
 
 
+class SHAPESMITH_PG_key_choice(bpy.types.PropertyGroup):
+    """A template key in the Transfer panel's list, ticked to be transferred."""
+
+    chosen: bpy.props.BoolProperty(name="Transfer", default=True, description="Transfer this key")
+
+
+class SHAPESMITH_PG_name_row(bpy.types.PropertyGroup):
+    """One row of the user's name table: a name in their rig's convention and the name it
+    stands for (ARKit's or the template's)."""
+
+    theirs: bpy.props.StringProperty(name="Name", description="A shape key or capture column name as your rig spells it")
+    standard: bpy.props.StringProperty(name="Means", description="The name it stands for, e.g. ARKit's eyeBlinkLeft")
+
+
 class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
     source: bpy.props.PointerProperty(
         name="Template",
@@ -299,10 +317,29 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         description="Replace the target's shape keys that have a template key's name (otherwise they are skipped)",
         default=False,
     )
+    keep_sculpted: bpy.props.BoolProperty(
+        name="Keep Sculpted Changes",
+        description="When overwriting, add back what you sculpted on a key since the last transfer wrote it "
+        "(the last transferred version is kept on the mesh)",
+        default=False,
+    )
+    only_ticked: bpy.props.BoolProperty(
+        name="Only Ticked Keys",
+        description="Transfer only the keys ticked in the list (List Template Keys fills it); the target's other keys stay",
+        default=False,
+    )
+    key_choice: bpy.props.CollectionProperty(type=SHAPESMITH_PG_key_choice)
+    active_key_choice: bpy.props.IntProperty()
     copy_drivers: bpy.props.BoolProperty(
         name="Copy Drivers",
         description="Recreate the drivers on the template's key values, re-targeted from the template to the target",
         default=False,
+    )
+    driver_map: bpy.props.PointerProperty(
+        name="Driver Map",
+        type=bpy.types.Text,
+        description="A text of lines 'template object = target object' for drivers reading objects that Copy Drivers "
+        "cannot pair by itself (the template's armature and objects named after the template it pairs by itself)",
     )
     compare_plain: bpy.props.BoolProperty(
         name="Compare Without Virtual Edges",
@@ -496,6 +533,8 @@ class SHAPESMITH_PG_scene(bpy.types.PropertyGroup):
         default=_ANALYZE.symmetry.use_names,
     )
     transfer: bpy.props.PointerProperty(type=SHAPESMITH_PG_transfer_settings)
+    name_map: bpy.props.CollectionProperty(type=SHAPESMITH_PG_name_row)
+    active_name_row: bpy.props.IntProperty()
 
 
 _CLASSES = (
@@ -509,6 +548,8 @@ _CLASSES = (
     SHAPESMITH_PG_conflict,
     SHAPESMITH_PG_pack_result,
     SHAPESMITH_PG_pack,
+    SHAPESMITH_PG_key_choice,
+    SHAPESMITH_PG_name_row,
     SHAPESMITH_PG_transfer_settings,
     SHAPESMITH_PG_transfer_shape,
     SHAPESMITH_PG_transfer_result,

@@ -578,3 +578,40 @@ def test_a_face_cap_take_comes_back_and_batch_lists_what_it_used(head, shapesmit
     expected = (rotation_about((0, -1, 0), math.radians(1)) @ rotation_about((0, 0, 1), math.radians(-3))
                 @ rotation_about((1, 0, 0), math.radians(-5)))
     assert np.allclose(np.array(template.matrix_world)[:3, :3], expected, atol=1e-5)
+
+
+def test_rows_where_the_phone_lost_the_face_are_skipped_and_the_keys_hold(head, shapesmith, tmp_path):
+    capture = module(shapesmith, "capture")
+    obj, _ = head
+    scene = bpy.context.scene
+    fps = round(scene.render.fps / scene.render.fps_base)
+    columns = ["EyeBlinkLeft", "JawOpen", "MouthClose"]
+    values = np.round(np.random.default_rng(4).random((20, len(columns))), 5)
+    lost = range(8, 13)
+    path = str(tmp_path / "phone.csv")
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        # A phone's spelling of the count column, and eye angles in lower case: neither is a shape.
+        writer.writerow(["Timecode", "BlendshapeCount", *columns, "lefteyeyaw", "HeadYaw", "HeadPitch", "HeadRoll"])
+        for f, row in enumerate(values):
+            code = f"00:01:02:{f:02d}.000"
+            writer.writerow([code, 0] if f in lost else [code, 3, *row, 0.1, 0.0, 0.0, 0.0])
+    report = capture.import_capture(obj, path, scene, fps=fps)
+    assert report["unmatched_columns"] == [] and set(report["columns_used"]) == set(columns)
+    assert set(report["ignored_columns"]) == {"Timecode", "BlendshapeCount", "lefteyeyaw"}
+    assert report["lost_tracking_rows"] == 5 and report["frames"] == 15
+    assert report["lost_tracking_timecodes"][0] == "00:01:02:08.000"
+    assert report["held_frames"] == [scene.frame_start + 7]
+    assert "5 rows skipped" in capture.lost_tracking_line(report)
+    keys = obj.data.shape_keys.key_blocks
+    jaw = report["columns_used"]["JawOpen"][0]
+    for f in range(20):
+        scene.frame_set(scene.frame_start + f)
+        # Across the gap the key holds the last tracked value; elsewhere it is the captured one.
+        expected = values[7, 1] if f in lost else values[f, 1]
+        assert keys[jaw].value == pytest.approx(expected, abs=1e-6), f
+    # A take where the phone never saw the face is refused with a clear message.
+    with open(path, "w", newline="") as handle:
+        handle.write("Timecode,BlendShapeCount,JawOpen\n00:00:00:00.000,0\n")
+    with pytest.raises(ValueError, match="lost the face on every row"):
+        capture.import_capture(obj, path, scene, fps=fps)

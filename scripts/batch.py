@@ -25,10 +25,13 @@ from sample_blend import build_sample, cached_sample, cached_sample_path  # noqa
 
 # The shared parts are re-exported: the tests, benches and renders call them here.
 from batch_common import (  # noqa: E402,F401
+    NAME_MAP_HELP,
     BatchError,
+    driver_map,
     find_face,
     find_object,
     load_shapesmith,
+    name_map,
     open_blend,
     save_copy,
     tool_settings,
@@ -63,6 +66,7 @@ def add_analyze_args(parser, settings):
     parser.add_argument("--axis", choices="XYZ", default="XYZ"[default.axis], help="symmetry axis (default %(default)s)")
     parser.add_argument("--name-pairs", action=argparse.BooleanOptionalAction, default=default.symmetry.use_names,
                         help="pair shapes by Left/Right names where geometry finds no mirror partner (--no-name-pairs: do not)")
+    parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--json", help="write the report here")
 
 
@@ -78,7 +82,7 @@ def run_analyze(args):
 
     analysis = import_module(shapesmith.__name__ + ".blender.analysis")
     obj = find_face(args.object, shapesmith)
-    report = analysis.analyze_object(obj, analyze_settings(args, tool_settings()))
+    report = analysis.analyze_object(obj, analyze_settings(args, tool_settings()), name_map=name_map(args, shapesmith))
     for line in analysis.summary_lines(report):
         print(line)
     report["pair_details"] = report["symmetric_pairs"]
@@ -336,7 +340,14 @@ def add_transfer_args(parser, settings):
         help="personalisation: refit the weights of each training expression's shapes within [0, 1] first",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
+    parser.add_argument("--keep-sculpted", action="store_true",
+                        help="with --overwrite: add back what was sculpted on a key since the last transfer wrote it")
+    parser.add_argument("--keys", help='transfer only these template keys, names or patterns, comma separated: "eyeBlink*,jawOpen" '
+                        "(the target's other keys stay as they are)")
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--driver-map", help="with --copy-drivers: a file of lines 'template object = target object' for "
+                        "drivers reading objects other than the template's own and its armature's")
+    parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
 
@@ -371,6 +382,7 @@ def run_transfer(args):
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
     source = find_face(args.source, shapesmith)
     targets = transfer_targets(args, shapesmith)
+    names, drivers = name_map(args, shapesmith), driver_map(args, shapesmith)
     pack_report = None
     if args.pack_json:
         if not os.path.isfile(args.pack_json):
@@ -394,12 +406,15 @@ def run_transfer(args):
                 training_objects=examples,
                 pack_report=pack_report,
                 template_penetration=template_penetration,
+                keys=args.keys.split(",") if args.keys is not None else None,
             )
         )
     reports = []
     for result in solved:
         write_started = time.perf_counter()
-        written, skipped, warnings = shape_keys.write_transferred_keys(result, args.overwrite, args.copy_drivers)
+        written, skipped, warnings = shape_keys.write_transferred_keys(
+            result, args.overwrite, args.copy_drivers, keep_sculpted=args.keep_sculpted, name_map=names,
+            driver_map=drivers)
         transfer.store_transfer(result, written, skipped)
         result.warnings += warnings
         for line in transfer.summary_lines(result, written, skipped):
@@ -412,6 +427,8 @@ def run_transfer(args):
                 "objects": result.report["objects"],
                 "shapes": written,
                 "skipped": skipped,
+                # Keys written under the target's own name for the shape (another convention's).
+                "written_onto": {name: own for name, own in result.onto.items() if own != name},
                 "virtual_edges": result.report["virtual_edges"],
                 "penetrations": result.report["penetration"],
                 "neutral_penetration": result.report["neutral_penetration"],
@@ -523,7 +540,12 @@ def add_wrap_args(parser, settings):
     parser.set_defaults(compare_plain=default.compare_plain, beta_reg=default.personalise.beta_reg,
                         refine_weights=default.personalise.refine_weights)
     parser.add_argument("--overwrite", action="store_true", help="replace existing keys of the same name")
+    parser.add_argument("--keep-sculpted", action="store_true",
+                        help="with --overwrite: add back what was sculpted on a key since the last transfer wrote it")
+    parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--copy-drivers", action="store_true", help="recreate the template's key drivers")
+    parser.add_argument("--driver-map", help="with --copy-drivers: a file of lines 'template object = target object' for "
+                        "drivers reading objects other than the template's own and its armature's")
     parser.add_argument("--json", help="write the report here")
     parser.add_argument("--output", help="save the result to this .blend (the input is never written)")
 
@@ -576,7 +598,9 @@ def run_wrap(args):
             )
             seconds = result.report["stage_seconds"]
             writing = time.perf_counter()
-            written, skipped, warnings = shape_keys.write_transferred_keys(result, args.overwrite, args.copy_drivers)
+            written, skipped, warnings = shape_keys.write_transferred_keys(
+                result, args.overwrite, args.copy_drivers, keep_sculpted=args.keep_sculpted,
+                name_map=name_map(args, shapesmith), driver_map=driver_map(args, shapesmith))
             seconds["io"] += time.perf_counter() - writing
             penetration = {"neutral": result.report["neutral_penetration"], "shapes": result.report["penetration"]}
             worse = transfer.worse_than_template(result.report)
@@ -700,6 +724,7 @@ def add_import_capture_args(parser, settings):
     parser.add_argument("--object", required=True, help="the head: mesh with (ARKit-named) shape keys")
     parser.add_argument("--capture", required=True, help="Live Link Face CSV or Face Cap TXT")
     parser.add_argument("--mapping", help='JSON file {"column": "shape key" or ["key", ...]} for names that do not match')
+    parser.add_argument("--name-map", help=NAME_MAP_HELP)
     parser.add_argument("--capture-fps", type=float, help="Live Link Face: the capture's frame rate (default: from the timecodes)")
     parser.add_argument("--no-head", action="store_true", help="do not key the head rotation onto the object")
     parser.add_argument("--invert-head", default="", help="comma-separated head angles whose sign to change: yaw,pitch,roll")
@@ -721,11 +746,12 @@ def run_import_capture(args):
         with open(args.mapping) as handle:
             mapping = capture.read_mapping(handle.read())
     invert = {name.strip().upper() for name in args.invert_head.split(",") if name.strip()}
-    report = capture.import_capture(obj, args.capture, bpy.context.scene, mapping, args.capture_fps, not args.no_head, invert)
+    report = capture.import_capture(obj, args.capture, bpy.context.scene, mapping, args.capture_fps, not args.no_head, invert,
+                                    name_map(args, shapesmith))
     print(f"{report['frames']} frames of {report['format']} onto '{obj.name}' (frames {report['first_frame']:g} to "
           f"{report['last_frame']:g}, capture {report['capture_fps']} fps, scene {report['scene_fps']:g} fps); "
           f"{len(report['columns_used'])} columns used, unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}, "
-          f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}")
+          f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}; {capture.lost_tracking_line(report)}")
     save_copy(args.output)
     report.update(input=os.path.abspath(args.input))
     write_json(args.json, report)

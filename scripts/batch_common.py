@@ -74,3 +74,30 @@ def write_json(path, data):
 def save_copy(path):
     """Saves the result to a new file; the input file is left as it was."""
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path), copy=True)
+
+
+NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), read besides "
+                 "the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., Character Creator, Daz, "
+                 "Unified Expressions)")
+
+
+def _table_file(path, shapesmith, flag):
+    """A file of lines `theirs = ours` (or a JSON object) as a dict; None without a path."""
+    from importlib import import_module
+
+    if not path:
+        return None
+    if not os.path.isfile(path):
+        raise BatchError(f"{flag.lstrip('-').replace('-', ' ')} not found: {path}")
+    with open(path, encoding="utf-8") as handle:
+        return import_module(shapesmith.__name__ + ".blender.names").read_name_map(handle.read(), f"{flag} {path}")
+
+
+def name_map(args, shapesmith):
+    """The user's name table of --name-map (None without it)."""
+    return _table_file(args.name_map, shapesmith, "--name-map")
+
+
+def driver_map(args, shapesmith):
+    """The --driver-map table {template object: target object} (None without it)."""
+    return _table_file(args.driver_map, shapesmith, "--driver-map")

@@ -21,6 +21,10 @@ Link importer's reading); the signs of its yaw and pitch follow how the phone wa
 Blender LiveLinkFace add-on notes them inverted in landscape), so each angle can be inverted.
 Face Cap stores degrees, Euler x, y, z = pitch, yaw, roll.
 
+Lost tracking: a row where the phone lost the face (only `timecode,0`, or fewer cells than the
+header) is skipped and counted; the keys hold the last tracked values across the gap (the key
+before it is constant) rather than slide towards the next tracked frame.
+
 Timing: captured frame i is keyed at `start + (t_i - t_0) x scene fps` (t in seconds): one key
 per captured frame, on whole frames when the capture's rate is the scene's, between frames
 otherwise, so the performance keeps its speed. Values are keyed exactly as captured.
@@ -30,7 +34,6 @@ import csv
 import json
 import math
 import os
-import re
 
 import numpy as np
 from mathutils import Matrix
@@ -38,36 +41,28 @@ from mathutils import Matrix
 from .front import view_front
 from .keyframes import key_channel, key_transforms
 from .mesh_arrays import MeshDataError
+from .names import shape_key
 
 HEAD_ANGLES = ("YAW", "PITCH", "ROLL")
 
-# Columns of a Live Link Face CSV that are not shapes.
-LIVE_LINK_HEAD = ("HeadYaw", "HeadPitch", "HeadRoll")
-LIVE_LINK_OTHER = ("Timecode", "BlendShapeCount", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll", "RightEyeYaw",
-                   "RightEyePitch", "RightEyeRoll")
+# Columns of a Live Link Face CSV that are not shapes, in any letter case (phones write
+# `BlendShapeCount` and `BlendshapeCount` alike).
+LIVE_LINK_HEAD = ("headyaw", "headpitch", "headroll")
+LIVE_LINK_OTHER = ("timecode", "blendshapecount", "lefteyeyaw", "lefteyepitch", "lefteyeroll", "righteyeyaw",
+                   "righteyepitch", "righteyeroll")
 STANDARD_RATES = (24, 25, 30, 48, 50, 60, 100, 120, 240)
-_SIDE = re.compile(r"^(.*?)(?:[_.\s-]?(left|right)|[_.]([lr]))$", re.IGNORECASE)
 
 
-def name_key(name):
-    """(base, side) of a shape name, case-insensitive: `eyeBlinkLeft`, `EyeBlink_L` and
-    `eyeblink.l` are all ('eyeblink', 'L'); `jawOpen` is ('jawopen', None)."""
-    match = _SIDE.match(name.strip())
-    if match and match.group(1):
-        side = (match.group(2) or match.group(3)).upper()[0]
-        return match.group(1).lower().rstrip("_.- "), side
-    return name.strip().lower(), None
-
-
-def match_columns(columns, keys, mapping=None):
+def match_columns(columns, keys, mapping=None, name_map=None):
     """{column: [rig keys]} for the capture's shape columns. `mapping` (column -> key or list
-    of keys, names as spelled) comes first; then names match by `name_key`; a column without
-    side that the rig splits in halves (`cheekPuff` -> `cheekPuff_L`, `cheekPuff_R`) drives
-    both. Returns (matched, unmatched columns, unmatched keys)."""
+    of keys, names as spelled) comes first; then names match as `names.shape_key` reads them
+    (any convention, `name_map` the user's table); a column without side that the rig splits
+    in halves (`cheekPuff` -> `cheekPuff_L`, `cheekPuff_R`) drives both. Returns (matched,
+    unmatched columns, unmatched keys)."""
     mapping = mapping or {}
     by_key = {}
     for key in keys:
-        by_key.setdefault(name_key(key), []).append(key)
+        by_key.setdefault(shape_key(key, name_map), []).append(key)
     lowered = {k.lower(): k for k in keys}
     matched, unmatched = {}, []
     for column in columns:
@@ -78,7 +73,7 @@ def match_columns(columns, keys, mapping=None):
                 raise MeshDataError(f"the mapping sends '{column}' to {', '.join(missing)}, which the rig does not have")
             matched[column] = [lowered.get(t.lower(), t) for t in targets]
             continue
-        base, side = name_key(column)
+        base, side = shape_key(column, name_map)
         targets = by_key.get((base, side), [])
         if not targets and side is None:
             targets = by_key.get((base, "L"), []) + by_key.get((base, "R"), [])
@@ -95,9 +90,13 @@ class Capture:
     rotation per frame (radians: pitch, yaw, roll) or None, the capture's rate, and what else
     the file held."""
 
-    def __init__(self, columns, values, times, head, fps, format_name, ignored=()):
+    def __init__(self, columns, values, times, head, fps, format_name, ignored=(), lost=()):
         self.columns, self.values, self.times, self.head = columns, values, times, head
         self.fps, self.format, self.ignored = fps, format_name, list(ignored)
+        # Timecodes of the rows where the phone lost the face (skipped), and, per kept frame,
+        # whether tracking was lost right after it (its value holds across the gap).
+        self.lost = list(lost)
+        self.hold = np.zeros(len(times), dtype=bool)
 
 
 def _timecode_seconds(code, fps):
@@ -106,21 +105,31 @@ def _timecode_seconds(code, fps):
 
 
 def read_live_link(path, fps=None):
+    """A Live Link Face CSV. Rows where the phone lost the face hold only a timecode (and a
+    0 count) or fewer cells than the header: they are skipped, and the frame before each such
+    gap is marked to hold its values until tracking resumes."""
     with open(path, newline="", encoding="utf-8-sig") as handle:
         rows = [row for row in csv.reader(handle) if row]
-    if len(rows) < 2 or rows[0][0].strip() != "Timecode":
+    if len(rows) < 2 or rows[0][0].strip().lower() != "timecode":
         raise MeshDataError(f"'{os.path.basename(path)}' is not a Live Link Face CSV: its header must start with Timecode")
     header = [cell.strip() for cell in rows[0]]
+    lowered = [name.lower() for name in header]
+    tracked = [len(row) >= len(header) for row in rows[1:]]
+    lost = [row[0] for row, kept in zip(rows[1:], tracked) if not kept]
+    rows = [rows[0]] + [row for row, kept in zip(rows[1:], tracked) if kept]
+    if len(rows) < 2:
+        raise MeshDataError(f"'{os.path.basename(path)}': the phone lost the face on every row: nothing to key")
     try:
         codes = [row[0] for row in rows[1:]]
         if fps is None:
-            largest = max(int(code.split(":")[3].split(".")[0]) for code in codes)
+            largest = max(int(code.split(":")[3].split(".")[0]) for code in codes + lost)
             fps = next((rate for rate in STANDARD_RATES if rate > largest), largest + 1)
         times = [_timecode_seconds(code, fps) for code in codes]
+        lost_times = [_timecode_seconds(code, fps) for code in lost]
     except (IndexError, ValueError):
         raise MeshDataError(f"'{os.path.basename(path)}': a timecode is not HH:MM:SS:FF.mmm")
-    shape_columns = [c for c, name in enumerate(header) if name not in LIVE_LINK_HEAD + LIVE_LINK_OTHER]
-    head_columns = [header.index(name) if name in header else None for name in LIVE_LINK_HEAD]
+    shape_columns = [c for c, name in enumerate(lowered) if name not in LIVE_LINK_HEAD + LIVE_LINK_OTHER]
+    head_columns = [lowered.index(name) if name in lowered else None for name in LIVE_LINK_HEAD]
 
     try:
         # Every cell after the timecode is a number: parsed at once (a 10-minute take is 2M cells).
@@ -140,8 +149,12 @@ def read_live_link(path, fps=None):
     if all(c is not None for c in head_columns):
         # Pitch, yaw, roll in radians (see the module's header).
         head = table[:, [head_columns[1] - 1, head_columns[0] - 1, head_columns[2] - 1]].tolist()
-    ignored = [name for name in header if name in LIVE_LINK_OTHER]
-    return Capture([header[c] for c in shape_columns], values, times, head, fps, "Live Link Face CSV", ignored)
+    ignored = [name for name, low in zip(header, lowered) if low in LIVE_LINK_OTHER]
+    capture = Capture([header[c] for c in shape_columns], values, times, head, fps, "Live Link Face CSV", ignored, lost)
+    # A kept frame holds when a lost row comes after it and before the next kept frame.
+    following = np.searchsorted(np.asarray(times), np.asarray(lost_times), side="right") - 1
+    capture.hold[following[following >= 0]] = True
+    return capture
 
 
 def read_face_cap(path):
@@ -223,10 +236,11 @@ def head_rotations(angles, axes, invert=()):
             @ Matrix.Rotation(signs["PITCH"] * pitch, 3, left) for pitch, yaw, roll in angles]
 
 
-def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_head=()):
+def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_head=(), name_map=None):
     """Keys the capture onto `obj`'s shape keys (and its rotation when the capture has the
     head's and `head`, about the face's own axes; `invert_head` names angles whose sign to
-    change); returns the report. Everything is read and matched before any key."""
+    change; `name_map`: the user's name table, `names.read_name_map`); returns the report.
+    Everything is read and matched before any key."""
     keys = obj.data.shape_keys
     if obj.type != "MESH" or keys is None or len(keys.key_blocks) < 2:
         raise MeshDataError(f"'{obj.name}' has no shape keys to drive")
@@ -235,7 +249,7 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_h
         raise MeshDataError(f"unknown head angle {', '.join(sorted(unknown))}: invert YAW, PITCH or ROLL")
     capture = read_capture(path, fps)
     names = [block.name for block in keys.key_blocks if block != keys.reference_key]
-    matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping)
+    matched, unmatched_columns, unmatched_keys = match_columns(capture.columns, names, mapping, name_map)
     if not matched:
         raise MeshDataError(
             f"no column of '{os.path.basename(path)}' matches a shape key of '{obj.name}' (columns such as "
@@ -253,10 +267,11 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_h
         c = capture.columns.index(column)
         column_values = values[:, c]
         for target in targets:
-            key_channel(keys.key_blocks[target], "value", -1, frames, column_values, group="Shapesmith Capture")
+            key_channel(keys.key_blocks[target], "value", -1, frames, column_values, group="Shapesmith Capture",
+                        hold=capture.hold)
     if keyed_head:
         rest = obj.matrix_world.copy()
-        key_transforms(obj, frames, [rest @ rotation.to_4x4() for rotation in rotations])
+        key_transforms(obj, frames, [rest @ rotation.to_4x4() for rotation in rotations], hold=capture.hold)
     return {
         "object": obj.name,
         "capture": os.path.abspath(path),
@@ -270,8 +285,20 @@ def import_capture(obj, path, scene, mapping=None, fps=None, head=True, invert_h
         "unmatched_columns": unmatched_columns,
         "unmatched_keys": unmatched_keys,
         "ignored_columns": capture.ignored,
+        "lost_tracking_rows": len(capture.lost),
+        "lost_tracking_timecodes": capture.lost,
+        "held_frames": [frames[i] for i in np.flatnonzero(capture.hold)],
         "head_rotation": keyed_head,
         "head_axes": {"left": list(left), "up": list(up), "front": list(front)} if keyed_head else None,
         "inverted_head_angles": sorted(invert_head),
         "warnings": warnings,
     }
+
+
+def lost_tracking_line(report):
+    """One line on the rows skipped where the phone lost the face, for the panel and batch."""
+    if not report["lost_tracking_rows"]:
+        return "lost tracking: none"
+    return (f"lost tracking: {report['lost_tracking_rows']} rows skipped (from {report['lost_tracking_timecodes'][0]}); "
+            f"the keys hold after frames {', '.join(f'{f:g}' for f in report['held_frames'][:10])}"
+            + (" ..." if len(report["held_frames"]) > 10 else ""))

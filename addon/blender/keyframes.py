@@ -18,9 +18,10 @@ def _fcurves(id_data):
     return bag.fcurves if bag is not None else action.fcurves
 
 
-def key_channel(owner, data_path, index, frames, values, group=None):
+def key_channel(owner, data_path, index, frames, values, group=None, hold=None):
     """Replaces the keyframes of `owner.data_path[index]` (index -1 for a scalar) with one
-    linear key per frame. `owner` is the struct holding the property (an object, a shape key);
+    linear key per frame; the keys where `hold` (bools, one per frame) is true are constant
+    (their value holds until the next key). `owner` is the struct holding the property (an object, a shape key);
     the F-curve lives on its ID (the object, the Key)."""
     frames = np.asarray(frames, dtype=np.float32)
     values = np.asarray(values, dtype=np.float32)
@@ -36,19 +37,21 @@ def key_channel(owner, data_path, index, frames, values, group=None):
     coordinates = np.empty(2 * len(frames), dtype=np.float32)
     coordinates[0::2], coordinates[1::2] = frames, values
     curve.keyframe_points.foreach_set("co", coordinates)
-    interpolation = np.full(len(frames), _linear_code(curve), dtype=np.int32)
+    interpolation = np.full(len(frames), _interpolation_code(curve, "LINEAR"), dtype=np.int32)
+    if hold is not None:
+        interpolation[np.asarray(hold, dtype=bool)] = _interpolation_code(curve, "CONSTANT")
     curve.keyframe_points.foreach_set("interpolation", interpolation)
     curve.update()
     return curve
 
 
-def _linear_code(curve):
-    """The enum number of 'LINEAR' for a keyframe's interpolation (foreach_set takes numbers)."""
+def _interpolation_code(curve, name):
+    """The enum number of a keyframe's interpolation `name` (foreach_set takes numbers)."""
     items = curve.keyframe_points[0].bl_rna.properties["interpolation"].enum_items
-    return items["LINEAR"].value
+    return items[name].value
 
 
-def key_transforms(obj, frames, matrices):
+def key_transforms(obj, frames, matrices, hold=None):
     """One keyframe per frame on `obj`'s location, rotation (in its own rotation mode, Euler
     angles kept continuous) and scale, from its world matrices (mathutils.Matrix)."""
     from mathutils import Matrix
@@ -77,4 +80,4 @@ def key_transforms(obj, frames, matrices):
     for path, rows in (("location", locations), (rotation_path, rotations), ("scale", scales)):
         rows = np.asarray(rows)
         for axis in range(rows.shape[1]):
-            key_channel(obj, path, axis, frames, rows[:, axis], group="Object Transforms")
+            key_channel(obj, path, axis, frames, rows[:, axis], group="Object Transforms", hold=hold)

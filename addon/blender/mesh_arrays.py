@@ -140,9 +140,34 @@ def read_triangles(obj):
     return tris.reshape(-1, 3)
 
 
+def group_weights(obj, names):
+    """{group name: float32 weights (N,)} of `obj`'s vertex groups `names` (those it has);
+    vertices outside a group weigh 0. One pass over the vertices for all groups."""
+    wanted = {obj.vertex_groups[name].index: name for name in set(names) if name in obj.vertex_groups}
+    weights = {name: np.zeros(len(obj.data.vertices), dtype=np.float32) for name in wanted.values()}
+    if not wanted:
+        return weights
+    for vertex in obj.data.vertices:
+        for membership in vertex.groups:
+            name = wanted.get(membership.group)
+            if name is not None:
+                weights[name][vertex.index] = membership.weight
+    return weights
+
+
+def key_masks(obj, blocks):
+    """{key name: weights (N,)} for the keys of `blocks` masked by a vertex group `obj` has
+    (a Left/Right split done with groups). Blender shows such a key as its delta times the
+    group's weight; a group name the object lacks masks nothing, as in Blender."""
+    weights = group_weights(obj, [block.vertex_group for block in blocks if block.vertex_group])
+    return {block.name: weights[block.vertex_group] for block in blocks if block.vertex_group in weights}
+
+
 def read_rig(obj):
-    """The object's rig: deltas of every shape key against the reference key (SPEC 0: a key
-    relative to another key is still taken against the reference, with a warning). The
+    """The object's rig: the delta of every shape key as Blender shows it (SPEC 0): against
+    the reference key, or, for a corrective (a key relative to another key), against its
+    own base; a key masked by a vertex group times the group's weight. Pairing, Pack,
+    Landmarks and Transfer all see the half a split key moves and what a corrective adds. The
     `REF_` keys Pack Expressions baked are mixes of the others, not shapes of the rig: every
     tool leaves them out."""
     check_mesh(obj, need_shape_keys=True)
@@ -157,19 +182,19 @@ def read_rig(obj):
     if not blocks:
         raise MeshDataError(f"'{obj.name}' has only the shape keys Bake wrote: no shapes to work on")
     deltas = np.empty((len(blocks), n, 3), dtype=np.float32)
-    warnings = []
-    buffer = np.empty(n * 3, dtype=np.float32)
+    masks = key_masks(obj, blocks)
+    buffer, base = np.empty(n * 3, dtype=np.float32), np.empty(n * 3, dtype=np.float32)
     for k, block in enumerate(blocks):
         block.points.foreach_get("co", buffer)
-        np.subtract(buffer.reshape(n, 3), neutral, out=deltas[k])
+        if block.relative_key in (reference, block):
+            np.subtract(buffer.reshape(n, 3), neutral, out=deltas[k])
+        else:
+            block.relative_key.points.foreach_get("co", base)
+            np.subtract(buffer, base, out=deltas[k].reshape(-1))
+        if block.name in masks:
+            deltas[k] *= masks[block.name][:, None]
         report_key(k + 1, len(blocks))
-        if block.relative_key != reference and block.relative_key != block:
-            warnings.append(
-                f"shape key '{block.name}' is relative to '{block.relative_key.name}', not '{reference.name}': "
-                f"it is read as stored, against '{reference.name}' (posed alone in Blender it shows its difference "
-                f"from '{block.relative_key.name}'); set its Relative To to '{reference.name}' to see what the tools see"
-            )
-    return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], warnings)
+    return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], [])
 
 
 def show_mesh(name, mesh, beside):

@@ -2,41 +2,39 @@
 changes a mesh. Everything that can be refused is checked by `plan_keys` before the first
 write."""
 
-import bpy
+import zlib
+
 import numpy as np
 
-from .mesh_arrays import MeshDataError, report_key
+from .drivers import copy_driver, driver_targets, key_drivers
+from .mesh_arrays import MeshDataError, group_weights, report_key
+from .names import counterpart
 
 
-def plan_keys(target, names, overwrite):
-    """(written, skipped): the template keys to write in order, and those kept because the
-    target already has a key of that name and `overwrite` is off."""
+def plan_keys(target, names, overwrite, name_map=None):
+    """(written, skipped, onto): the template keys to write in order, those kept because the
+    target already has that key and `overwrite` is off, and the target's name for each
+    template key: its own key meaning the same shape in another convention
+    (`names.counterpart`: `eyeBlinkLeft` onto an existing `EyeBlink_L`), else the
+    template's name."""
     keys = target.data.shape_keys
-    existing = set(keys.key_blocks.keys()) if keys is not None else set()
-    if overwrite and keys is not None and keys.reference_key.name in names:
+    existing = list(keys.key_blocks.keys()) if keys is not None else []
+    onto, claimed = {}, set()
+    for name in names:
+        found = counterpart(name, existing, name_map)
+        onto[name] = found if found is not None and found not in claimed else name
+        claimed.add(onto[name])
+    if overwrite and keys is not None and keys.reference_key.name in onto.values():
         raise MeshDataError(
             f"the template has a shape key named '{keys.reference_key.name}', the name of the target's reference key: "
             "rename one of them (overwriting the reference key would move the whole head)"
         )
-    written = [n for n in names if overwrite or n not in existing]
-    skipped = [n for n in names if not overwrite and n in existing]
-    return written, skipped
+    written = [n for n in names if overwrite or onto[n] not in existing]
+    skipped = [n for n in names if not overwrite and onto[n] in existing]
+    return written, skipped, onto
 
 
-def _key_value_path(name):
-    return f'key_blocks["{bpy.utils.escape_identifier(name)}"].value'
-
-
-def key_drivers(source, names):
-    """The template's drivers on the values of the keys `names`: {name: F-curve}."""
-    animation = source.data.shape_keys.animation_data
-    if animation is None:
-        return {}
-    by_path = {fcurve.data_path: fcurve for fcurve in animation.drivers}
-    return {name: by_path[_key_value_path(name)] for name in names if _key_value_path(name) in by_path}
-
-
-def _copy_key_settings(block, source_block, keys, source_keys):
+def _copy_key_settings(block, source_block, keys, source_keys, onto):
     block.slider_min = -10.0  # the lowest allowed, so any slider_max can be set first
     block.slider_max = source_block.slider_max
     block.slider_min = source_block.slider_min
@@ -44,60 +42,8 @@ def _copy_key_settings(block, source_block, keys, source_keys):
     block.mute = source_block.mute
     block.interpolation = source_block.interpolation
     relative = source_block.relative_key
-    mapped = keys.key_blocks.get(relative.name) if relative != source_keys.reference_key else None
+    mapped = keys.key_blocks.get(onto.get(relative.name, relative.name)) if relative != source_keys.reference_key else None
     block.relative_key = mapped if mapped is not None and mapped != block else keys.reference_key
-
-
-def _retargeted(id_, mapping):
-    return mapping.get(id_, id_) if id_ is not None else None
-
-
-def copy_driver(fcurve, keys, mapping):
-    """Recreates the driver F-curve `fcurve` on the Key `keys`: expression, variables (their
-    targets mapped through `mapping`, e.g. template object -> target object), keyframes and
-    Generator modifiers. Returns warnings for what could not be carried over."""
-    warnings = []
-    path = fcurve.data_path
-    if keys.animation_data is not None and keys.animation_data.drivers.find(path) is not None:
-        keys.driver_remove(path)
-    new = keys.driver_add(path)
-    # driver_add starts with a default Generator (4.x) or default keyframes (5.x)
-    for modifier in list(new.modifiers):
-        new.modifiers.remove(modifier)
-    new.keyframe_points.clear()
-    driver, source_driver = new.driver, fcurve.driver
-    driver.type = source_driver.type
-    driver.use_self = source_driver.use_self
-    driver.expression = source_driver.expression
-    for variable in source_driver.variables:
-        copy = driver.variables.new()
-        copy.name = variable.name
-        copy.type = variable.type
-        for source_target, target in zip(variable.targets, copy.targets):
-            if variable.type == "SINGLE_PROP":
-                target.id_type = source_target.id_type
-            target.id = _retargeted(source_target.id, mapping)
-            target.data_path = source_target.data_path
-            target.bone_target = source_target.bone_target
-            target.transform_type = source_target.transform_type
-            target.transform_space = source_target.transform_space
-            target.rotation_mode = source_target.rotation_mode
-    new.extrapolation = fcurve.extrapolation
-    points = fcurve.keyframe_points
-    new.keyframe_points.add(len(points))
-    for point, copy in zip(points, new.keyframe_points):
-        copy.co = point.co
-        copy.interpolation = point.interpolation
-        copy.handle_left_type, copy.handle_right_type = point.handle_left_type, point.handle_right_type
-        copy.handle_left, copy.handle_right = point.handle_left, point.handle_right
-    for modifier in fcurve.modifiers:
-        if modifier.type != "GENERATOR":
-            warnings.append(f"driver on {path}: its {modifier.type.lower()} modifier was not copied")
-            continue
-        copy = new.modifiers.new("GENERATOR")
-        copy.mode, copy.poly_order, copy.use_additive = modifier.mode, modifier.poly_order, modifier.use_additive
-        copy.coefficients = modifier.coefficients
-    return warnings
 
 
 def write_vertex_groups(target, groups, overwrite):
@@ -119,30 +65,97 @@ def write_vertex_groups(target, groups, overwrite):
     return warnings
 
 
-def write_transferred_keys(transfer, overwrite=False, copy_drivers=False):
+def unmasked(delta, weights):
+    """The delta to store on a key its vertex group masks so that Blender shows `delta`: the
+    tools read and transfer the masked shape (delta times weight), and Blender multiplies the
+    stored key by the weight again, so the stored key is `delta / weight` where the weight is
+    not 0 (where it is 0 Blender shows nothing whatever is stored)."""
+    if weights is None:
+        return delta
+    scale = np.ones_like(weights)
+    np.divide(1.0, weights, out=scale, where=weights > 0.0)
+    return delta * scale[:, None]
+
+
+def write_transferred_keys(transfer, overwrite=False, copy_drivers=False, *, keep_sculpted=False, name_map=None,
+                           driver_map=None):
     """Writes `transfer` (a solved `transfer.Transfer`) onto its target: a Basis first when
-    the target has no shape keys; then each template key with the template's name, slider
-    range, vertex group, mute, interpolation and relative key (mapped by name, else the
-    reference key); new keys at value 0. Vertex groups the transfer carries (a wrap's) are
-    written first. Existing keys and groups are kept unless `overwrite`. A face in several
-    objects is written piece by piece (`Transfer.pieces`), each object its own keys, once
-    every piece has been checked. Returns (written, skipped, warnings), names over all
-    objects in the transfer's order."""
+    the target has no shape keys; then each template key with the template's name (or the
+    target's own name for that shape, `plan_keys`), slider range, vertex group, mute,
+    interpolation and relative key (mapped by name, else the reference key); new keys at
+    value 0. Vertex groups the transfer carries are written first. Existing keys and groups
+    are kept unless `overwrite`; with `keep_sculpted`, an overwritten key keeps the user's
+    edits since the last transfer wrote it (`sculpted_changes`). A corrective (a key relative
+    to another) is written on top of its base on the target. A face in several objects is
+    written piece by piece (`Transfer.pieces`), each object its own keys, once every piece
+    has been checked. Drivers go to the target's rig (`drivers.driver_targets`, `driver_map`
+    the user's {template object: target object}). Returns (written, skipped, warnings), names
+    over all objects in the transfer's order; `transfer.onto` gets the target's name of each
+    key written."""
     pieces = transfer.pieces or [transfer]
-    plans = [plan_keys(piece.target, piece.names, overwrite) for piece in pieces]
-    # Drivers re-targeted from every template object (and its mesh and keys) to its counterpart.
-    mapping = {}
-    for piece in pieces:
-        mapping.update({piece.source: piece.target, piece.source.data: piece.target.data})
+    plans = [plan_keys(piece.target, piece.names, overwrite, name_map) for piece in pieces]
+    # Drivers re-targeted from every template object (and its mesh, keys and rig) to its counterpart.
+    mapping = driver_targets([(piece.source, piece.target) for piece in pieces], driver_map) if copy_drivers else {}
     written, skipped, warnings = set(), set(), []
+    transfer.onto = {}
     for piece, plan in zip(pieces, plans):
-        warnings += _write_piece(piece, *plan, copy_drivers, mapping, overwrite)
+        warnings += _write_piece(piece, plan, copy_drivers, mapping, overwrite, keep_sculpted)
         written.update(plan[0])
         skipped.update(plan[1])
+        transfer.onto.update({n: plan[2][n] for n in plan[0]})
     return [n for n in transfer.names if n in written], [n for n in transfer.names if n in skipped], warnings
 
 
-def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
+# The hidden point attribute holding a key's delta as Transfer last wrote it (a key's name
+# can be as long as an attribute's may be, so the attribute is named by its checksum).
+def _last_written_attribute(name):
+    return f".shapesmith transferred {zlib.crc32(name.encode()):08x}"
+
+
+def key_delta(keys, block):
+    """A key's stored delta from its relative key, float32 (N, 3)."""
+    n = len(block.points)
+    co, base = np.empty(n * 3, dtype=np.float32), np.empty(n * 3, dtype=np.float32)
+    block.points.foreach_get("co", co)
+    relative = block.relative_key if block.relative_key != block else keys.reference_key
+    relative.points.foreach_get("co", base)
+    return (co - base).reshape(n, 3)
+
+
+def sculpted_changes(mesh, block):
+    """The user's edits of `block` since Transfer last wrote it: its stored delta minus the
+    one Transfer wrote (kept in a hidden attribute), or None when Transfer never wrote it."""
+    attribute = mesh.attributes.get(_last_written_attribute(block.name))
+    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
+        return None
+    last = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    attribute.data.foreach_get("vector", last)
+    return key_delta(mesh.shape_keys, block) - last.reshape(-1, 3)
+
+
+def remember_written(mesh, name, delta):
+    """Keeps the delta Transfer wrote on key `name`, for Keep Sculpted Changes next time."""
+    attribute = mesh.attributes.get(_last_written_attribute(name))
+    if attribute is None:
+        attribute = mesh.attributes.new(_last_written_attribute(name), "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", np.ascontiguousarray(delta, dtype=np.float32).ravel())
+
+
+def _base_first(names, source_blocks):
+    """`names` with each corrective after the key it is relative to."""
+    placed, ordered = set(), []
+    pending = list(names)
+    while pending:
+        ready = [n for n in pending if source_blocks[n].relative_key.name not in pending or source_blocks[n].relative_key.name == n]
+        ready = ready or pending[:1]  # a cycle of Relative To keys: Blender cannot show it either
+        ordered += ready
+        placed.update(ready)
+        pending = [n for n in pending if n not in placed]
+    return ordered
+
+
+def _write_piece(transfer, plan, copy_drivers, mapping, overwrite, keep_sculpted):
+    written, skipped, onto = plan
     target = transfer.target
     # Each key takes its settings from the template object that has it (a character's part
     # may take keys of several template objects).
@@ -165,19 +178,40 @@ def _write_piece(transfer, written, skipped, copy_drivers, mapping, overwrite):
     keys = target.data.shape_keys
     created = set()
     for name in written:  # all keys first, so relative keys can name keys later in the list
-        if name not in keys.key_blocks:
-            target.shape_key_add(name=name, from_mix=False)
+        if onto[name] not in keys.key_blocks:
+            target.shape_key_add(name=onto[name], from_mix=False)
             created.add(name)
     order = {name: k for k, name in enumerate(transfer.names)}
-    for done, name in enumerate(written, start=1):
-        block = keys.key_blocks[name]
-        block.points.foreach_set("co", (transfer.target_neutral + transfer.deltas[order[name]]).ravel())
-        _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data)
+    masks = group_weights(target, [source_blocks[n].vertex_group for n in written if source_blocks[n].vertex_group])
+    edits = {}
+    if keep_sculpted:
+        for name in written:
+            if name not in created:
+                edits[name] = sculpted_changes(target.data, keys.key_blocks[onto[name]])
+        unknown = [onto[n] for n, change in edits.items() if change is None]
+        if unknown:
+            warnings.append(f"no transfer wrote {', '.join(unknown)} before: replaced as a whole (no sculpted changes known)")
+    n = len(target.data.vertices)
+    base = np.empty(n * 3, dtype=np.float32)
+    for done, name in enumerate(_base_first(written, source_blocks), start=1):
+        block = keys.key_blocks[onto[name]]
+        _copy_key_settings(block, source_blocks[name], keys, source_blocks[name].id_data, onto)
+        delta = unmasked(transfer.deltas[order[name]], masks.get(source_blocks[name].vertex_group))
+        if edits.get(name) is not None:
+            delta = delta + edits[name]
+        # A corrective goes on top of its base as the target has it (SPEC 0: its delta from its base).
+        relative = block.relative_key if block.relative_key != block else keys.reference_key
+        if relative == keys.reference_key:
+            base[:] = transfer.target_neutral.ravel()
+        else:
+            relative.points.foreach_get("co", base)
+        block.points.foreach_set("co", (base.reshape(n, 3) + delta).ravel())
+        remember_written(target.data, block.name, delta - (edits.get(name) if edits.get(name) is not None else 0.0))
         if name in created:
             block.value = 0.0  # shape_key_add defaults to 1.0 in Blender 5.x
         report_key(done, len(written), writing=True)
     mapping = {**mapping, **{o.data.shape_keys: keys for o in set(origin.values())}}
     for fcurve in drivers.values():
-        warnings += copy_driver(fcurve, keys, mapping)
+        warnings += copy_driver(fcurve, keys, mapping, onto)
     target.data.update()
     return warnings

@@ -2,6 +2,7 @@
 call them. `transfer_object` validates and solves without writing anything; writing the keys
 is `shape_keys.write_transferred_keys`, run only once everything here has succeeded."""
 
+import fnmatch
 import re
 import time
 from dataclasses import dataclass, field
@@ -10,7 +11,7 @@ import numpy as np
 
 from .. import native
 from .face_parts import face_objects, face_of, pair_parts, read_face_rest, read_face_rig
-from .mesh_arrays import MeshDataError, check_mesh, read_triangles, rest_positions, show_mesh
+from .mesh_arrays import MeshDataError, check_mesh, group_weights, read_triangles, rest_positions, show_mesh
 from .settings import TransferSettings, VirtualEdgeSettings
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
@@ -41,6 +42,9 @@ class Transfer:
     pieces: list = field(default_factory=list)
     # Template object of each key whose settings a piece takes, when not `source` alone.
     key_sources: dict = field(default_factory=dict)
+    # After writing: the target's key name for each template key written (its own name for
+    # that shape in another convention, else the template's).
+    onto: dict = field(default_factory=dict)
 
 
 def face_corners(obj):
@@ -228,6 +232,7 @@ def transfer_object(
     source_parts=None,
     target_parts=None,
     joined_target=False,
+    keys=None,
     progress=None,
 ):
     """Validates the pair (and the training expressions when given), runs the native
@@ -238,7 +243,9 @@ def transfer_object(
     `template_penetration` is `measure_template_penetration(source)` when the caller already
     has it (a batch over many targets measures it once). `source_parts`, `target_parts`: the
     face parts of each (`face_parts.face_objects`; default: the lists stored on the heads);
-    `joined_target`: the target is one mesh of the template's objects joined (a wrap's)."""
+    `joined_target`: the target is one mesh of the template's objects joined (a wrap's).
+    `keys`: the template keys to transfer (names or patterns such as `eyeBlink*`,
+    `chosen_keys`); None transfers all."""
     started = time.perf_counter()
     settings = settings or TransferSettings()
     if not settings.measure_penetration:
@@ -251,6 +258,13 @@ def transfer_object(
             f"personalisation reads training expressions of one mesh, but '{source.name}' has face parts "
             f"({', '.join(o.name for o in face.parts)}): transfer without training expressions"
         )
+    if keys is not None:
+        if training_objects:
+            raise MeshDataError("personalisation fits every key to the training expressions: transfer all keys")
+        rows = chosen_keys(rig.names, keys)
+        rig.deltas, rig.names = np.ascontiguousarray(rig.deltas[rows]), [rig.names[k] for k in rows]
+        if template_penetration is not None:  # measured for every key: the chosen keys' rows
+            template_penetration = {**template_penetration, "shapes": [template_penetration["shapes"][k] for k in rows]}
     if training_objects:
         expressions = packed_expressions(source, pack_report)
         examples, example_weights, training = read_training(
@@ -276,7 +290,47 @@ def transfer_object(
     report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, counterparts)]
     result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
     result.pieces = split_transfer(result, face, target_face)
+    # Same topology: the groups masking the keys go onto the target with the same weights.
+    result.vertex_groups = masking_groups(face.objects, rig.names)
+    for piece in result.pieces:
+        piece.vertex_groups = masking_groups([piece.source], piece.names)
     return result
+
+
+def masking_groups(objects, names):
+    """{group name: weights over the vertices of `objects` in order}: the vertex groups that
+    mask the keys `names` on those objects (a split done with groups), for a target of the
+    same vertices."""
+    wanted = {
+        block.vertex_group
+        for obj in objects
+        if obj.data.shape_keys is not None
+        for block in obj.data.shape_keys.key_blocks
+        if block.name in names and block.vertex_group
+    }
+    per_object = [group_weights(obj, wanted) for obj in objects]
+    found = sorted(set().union(*per_object))
+    return {
+        name: np.concatenate([weights.get(name, np.zeros(len(obj.data.vertices), np.float32))
+                              for obj, weights in zip(objects, per_object)])
+        for name in found
+    }
+
+
+def chosen_keys(names, chosen):
+    """Indices of `names` that the user chose: each of `chosen` is a key's name or a
+    pattern (`eyeBlink*`, `mouth?ight`; any letter case). A choice matching no key is refused,
+    as is choosing none."""
+    chosen = [c.strip() for c in chosen if c.strip()]
+    if not chosen:
+        raise MeshDataError("no shape keys chosen: tick at least one key (or give --keys)")
+    rows = set()
+    for choice in chosen:
+        found = [k for k, name in enumerate(names) if name == choice or fnmatch.fnmatch(name.lower(), choice.lower())]
+        if not found:
+            raise MeshDataError(f"'{choice}' matches no shape key of the template (such as {', '.join(names[:3])})")
+        rows.update(found)
+    return sorted(rows)
 
 
 def measure_template_penetration(source, parts=None):

@@ -4,6 +4,7 @@ head's shape keys by name, and its head rotation onto the object."""
 import bpy
 
 from ..blender import capture
+from ..blender.names import scene_name_map
 from .base import expected_errors, poll_mesh
 
 
@@ -29,7 +30,7 @@ class SHAPESMITH_OT_import_capture(bpy.types.Operator):
             mapping = capture.read_mapping(settings.mapping.as_string()) if settings.mapping else None
             report = capture.import_capture(obj, bpy.path.abspath(settings.capture), context.scene, mapping,
                                             settings.capture_fps or None, settings.capture_head,
-                                            set(settings.capture_head_invert))
+                                            set(settings.capture_head_invert), scene_name_map(context.scene))
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
@@ -39,6 +40,7 @@ class SHAPESMITH_OT_import_capture(bpy.types.Operator):
             f"{len(report['columns_used'])} columns used",
             f"unmatched columns: {', '.join(report['unmatched_columns']) or 'none'}",
             f"keys not driven: {', '.join(report['unmatched_keys']) or 'none'}",
+            capture.lost_tracking_line(report),
         ]
         settings.done = True
         settings.summary = "\n".join(lines)

@@ -5,6 +5,7 @@ solved in full before anything is written."""
 import bpy
 
 from ..blender.settings import transfer_settings
+from ..blender.names import scene_name_map, text_name_map
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
 from ..blender.wrap import carry_onto_character, store_symmetry
@@ -49,7 +50,9 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
                     progress=progress,
                 )
                 written, skipped, warnings = write_transferred_keys(
-                    result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+                    result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers,
+                    keep_sculpted=settings.keep_sculpted, name_map=scene_name_map(context.scene),
+                    driver_map=text_name_map(settings.driver_map),
                 )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

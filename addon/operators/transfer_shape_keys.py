@@ -3,10 +3,18 @@ full before anything is written, so an error leaves the target as it was."""
 
 import bpy
 
+from ..blender.names import scene_name_map, text_name_map
 from ..blender.settings import transfer_settings
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, transfer_object, worse_than_template
 from .base import expected_errors, poll_mesh, progress_cursor
+
+
+def ticked_keys(settings):
+    """The keys ticked in the Transfer panel's list with Only Ticked Keys on, else None (all)."""
+    if not settings.only_ticked:
+        return None
+    return [item.name for item in settings.key_choice if item.chosen]
 
 
 class TransferOperator:
@@ -34,10 +42,13 @@ class TransferOperator:
                     target,
                     transfer_settings(settings),
                     training_objects=self.training_objects(settings),
+                    keys=ticked_keys(settings),
                     progress=progress,
                 )
                 written, skipped, warnings = write_transferred_keys(
-                    transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers
+                    transfer, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers,
+                    keep_sculpted=settings.keep_sculpted, name_map=scene_name_map(context.scene),
+                    driver_map=text_name_map(settings.driver_map),
                 )
         except expected_errors() as error:
             self.report({"ERROR"}, str(error))

@@ -52,7 +52,9 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
         obj = context.active_object
         if obj is not None and obj.type == "MESH":
             self.draw_face_parts(layout, obj)
-        layout.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
+        row = layout.row(align=True)
+        row.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
+        row.operator("shapesmith.analyze_rig", text="Reset Pairs", icon="LOOP_BACK").reset_pairs = True
         if obj is None or obj.type != "MESH":
             return
         summary = obj.shapesmith.analysis

@@ -6,6 +6,13 @@ import bpy
 from .panels import ShapesmithPanel
 
 
+class SHAPESMITH_UL_key_choice(bpy.types.UIList):
+    """The template's keys, each ticked to be transferred."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
+        layout.prop(item, "chosen", text=item.name)
+
+
 class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Transfer"
     bl_order = 3
@@ -37,7 +44,13 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
 
         col = layout.column(align=True)
         col.prop(settings, "overwrite")
+        sub = col.column(align=True)
+        sub.active = settings.overwrite
+        sub.prop(settings, "keep_sculpted")
         col.prop(settings, "copy_drivers")
+        if settings.copy_drivers:
+            col.prop(settings, "driver_map")
+        self.draw_key_choice(layout, settings)
         layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
 
         box = layout.box()
@@ -79,4 +92,19 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
             col.label(text=f"  ... and {len(worse) - 12} more (batch --json lists all)")
 
 
-register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_PT_transfer,))
+    @staticmethod
+    def draw_key_choice(layout, settings):
+        """Only Ticked Keys and the template's keys to tick."""
+        row = layout.row(align=True)
+        row.prop(settings, "only_ticked")
+        row.operator("shapesmith.list_template_keys", text="", icon="FILE_REFRESH")
+        if not settings.only_ticked:
+            return
+        layout.template_list("SHAPESMITH_UL_key_choice", "key_choice", settings, "key_choice", settings,
+                             "active_key_choice", rows=4)
+        row = layout.row(align=True)
+        row.operator("shapesmith.list_template_keys", text="Tick All").tick = "ALL"
+        row.operator("shapesmith.list_template_keys", text="Tick None").tick = "NONE"
+
+
+register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_UL_key_choice, SHAPESMITH_PT_transfer))
