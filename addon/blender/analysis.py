@@ -24,12 +24,24 @@ def analyze_object(obj, settings=None, parts=None, name_map=None):
     # A spelling two keys share (eyeBlink_L beside eyeBlinkLeft) keeps the keys' own names.
     spelled = [s if spelled.count(s) == 1 and s not in rig.names[:k] + rig.names[k + 1:] else name
                for k, (s, name) in enumerate(zip(spelled, rig.names))]
-    report = native.module().analyze_rig(rig.neutral, rig.deltas, rig.triangles, spelled, settings.as_native())
-    _rename(report, dict(zip(spelled, rig.names)))
+    own = dict(zip(spelled, rig.names))
+    try:
+        report = native.module().analyze_rig(rig.neutral, rig.deltas, rig.triangles, spelled, settings.as_native())
+    except ValueError as error:
+        # The native message names a key by its pairing spelling; the user knows it by its own.
+        raise type(error)(_own_names_in(str(error), own)) from None
+    _rename(report, own)
     report["warnings"] = rig.warnings
     report["objects"] = face_summary(face)
     report["seconds"] = {"read": read - started, "native": time.perf_counter() - read}
     return report
+
+
+def _own_names_in(message, names):
+    """`message` with each quoted spelled shape name (`'jawopen'`) given as the rig's own."""
+    for spelled, name in names.items():
+        message = message.replace(f"'{spelled}'", f"'{name}'")
+    return message
 
 
 def _rename(report, names):
