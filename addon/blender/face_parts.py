@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh_arrays import MeshDataError, Rig, check_mesh, read_rig, read_triangles, rest_positions
+from .mesh_arrays import MeshDataError, Rig, check_mesh, fault_note, read_rig, read_triangles, rest_positions
 
 
 @dataclass
@@ -61,8 +61,7 @@ def landmark_parts(head):
 
 def face_objects(head, parts=None, topology=True):
     """[head, *parts]: `parts` when given (batch's comma lists), else the list stored on the
-    head. Each must be a usable mesh (with `topology`, free of the faults `check_topology`
-    names), and each its own: a part listed twice, the head listed as its own part, or two
+    head. Each must be a usable mesh (`check_mesh`), and each its own: a part listed twice, the head listed as its own part, or two
     objects sharing one mesh are refused by name."""
     if head is None:
         raise MeshDataError("no object given: select a mesh")
@@ -110,7 +109,8 @@ def _part_rig(part, baked):
     keys = part.data.shape_keys
     own = [] if keys is None else [kb for kb in keys.key_blocks if kb != keys.reference_key and kb.name not in baked]
     if not own:
-        return rest_positions(part), {}, read_triangles(part), []
+        note = fault_note(part)
+        return rest_positions(part), {}, read_triangles(part), [note] if note else []
     rig = read_rig(part)
     return rig.neutral, dict(zip(rig.names, rig.deltas)), rig.triangles, rig.warnings
 

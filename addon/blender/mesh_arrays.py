@@ -31,7 +31,9 @@ class MeshDataError(ValueError):
 @dataclass
 class Rig:
     """A rig as plain arrays: neutral (N, 3), deltas (K, N, 3) against the reference key,
-    triangles (T, 3) from `loop_triangles`, shape key names; float32/int32, C-contiguous."""
+    triangles (T, 3) from `loop_triangles` (n-gons split as Blender draws them), shape key
+    names; float32/int32, C-contiguous. `warnings` holds the mesh's `fault_note`: the native
+    side leaves those faults out of every computation (its weld), and the report says so."""
 
     neutral: np.ndarray
     deltas: np.ndarray
@@ -41,9 +43,10 @@ class Rig:
 
 
 def check_mesh(obj, need_shape_keys=True, topology=True):
-    """Raises MeshDataError unless `obj` is a mesh in Object Mode with usable faces (and
-    shape keys beyond the Basis when asked), and, with `topology`, without the faults
-    `check_topology` names."""
+    """Raises MeshDataError unless `obj` is a mesh in Object Mode with faces and finite
+    coordinates (and shape keys beyond the Basis when asked): what makes every tool's answer
+    meaningless. The faults the tools leave out instead (`fault_note`) are no refusal.
+    `topology` is kept for the callers that read a surface only; it changes nothing."""
     if obj is None:
         raise MeshDataError("no object given: select a mesh")
     if obj.type != "MESH":
@@ -52,64 +55,63 @@ def check_mesh(obj, need_shape_keys=True, topology=True):
         raise MeshDataError(f"'{obj.name}' is in Edit Mode: switch to Object Mode first")
     mesh = obj.data
     if len(mesh.vertices) == 0 or len(mesh.polygons) == 0:
-        raise MeshDataError(f"'{obj.name}' has no faces")
-    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
-    mesh.polygons.foreach_get("loop_total", sizes)
-    ngons = np.flatnonzero(sizes > 4)
-    if len(ngons):
+        raise MeshDataError(f"'{obj.name}' has no faces: there is no surface to work on")
+    bad = np.flatnonzero(~np.isfinite(rest_positions(obj)).all(axis=1))
+    if len(bad):
         raise MeshDataError(
-            f"'{obj.name}' has {len(ngons)} n-gon(s) (faces with more than 4 corners, e.g. face {ngons[0]}): "
-            "triangulate or quadrangulate them first"
+            f"'{obj.name}' has {len(bad)} vertices with a non-finite coordinate (e.g. vertex {bad[0]}): "
+            "no distance or shape can be measured on them; fix or delete them"
         )
-    if topology:
-        check_topology(obj)
     if need_shape_keys:
         keys = mesh.shape_keys
         if keys is None or len(keys.key_blocks) < 2:
             raise MeshDataError(f"'{obj.name}' has no shape keys besides the Basis")
 
 
-def check_topology(obj):
-    """Raises MeshDataError for the faults the native `mesh_faults` finds (the same for the
-    panel and batch), naming the first offending edge, vertex or face. Loose edges are no
-    fault: the tools read faces only."""
+def _count(number, one, many):
+    return f"{number} {one if number == 1 else many}"
+
+
+def fault_note(obj):
+    """One line naming what every tool leaves out of `obj`'s surface (the native weld's
+    faults: zero-area faces, faces listed twice, loose vertices; and the loose edges, which no
+    tool reads), what it triangulates (n-gons, as Blender draws them) and the edges shared by
+    three or more faces it keeps; None for a clean mesh. The mesh itself is never changed."""
     from .. import native
 
     mesh = obj.data
     triangles = read_triangles(obj)
     faces = np.empty(len(mesh.loop_triangles), dtype=np.int32)
     mesh.loop_triangles.foreach_get("polygon_index", faces)
-    positions = read_positions(obj)
-    if mesh.shape_keys is not None:  # the rest shape, which the vertex array can lag behind
-        mesh.shape_keys.reference_key.points.foreach_get("co", positions.reshape(-1))
-    faults = native.module().mesh_faults(positions, triangles)
-    name = obj.name
-    fault = faults["duplicate_triangles"]
-    if fault["count"]:
-        earlier, later = (int(faces[t]) for t in fault["first"])
-        raise MeshDataError(
-            f"'{name}' has faces listed twice ({fault['count']} triangle(s); e.g. face {later} repeats face {earlier}): "
-            "delete the copies"
-        )
-    fault = faults["zero_area_triangles"]
-    if fault["count"]:
-        raise MeshDataError(
-            f"'{name}' has degenerate faces of zero area ({fault['count']} triangle(s); e.g. face {int(faces[fault['first']])}): "
-            "remove them (Edit Mode > Mesh > Clean Up > Degenerate Dissolve)"
-        )
-    fault = faults["non_manifold_edges"]
-    if fault["count"]:
-        a, b = fault["first"]
-        raise MeshDataError(
-            f"'{name}' has {fault['count']} edge(s) shared by three or more faces (e.g. the edge between "
-            f"vertices {a} and {b}): split or delete the extra faces (Select > Select All by Trait > Non Manifold)"
-        )
-    fault = faults["loose_vertices"]
-    if fault["count"]:
-        raise MeshDataError(
-            f"'{name}' has {fault['count']} loose vertices in no face (e.g. vertex {fault['first']}): "
-            "delete them (Edit Mode > Mesh > Clean Up > Delete Loose)"
-        )
+    faults = native.module().mesh_faults(rest_positions(obj), triangles)
+    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    loose_edges = np.zeros(len(mesh.edges), dtype=bool)
+    mesh.edges.foreach_get("is_loose", loose_edges)
+    zero_area = len(set(faces[np.asarray(faults["zero_area_triangles"]["all"], dtype=np.int64)].tolist()))
+    twice = len({int(faces[later]) for _, later in faults["duplicate_triangles"]["all"]})
+    left_out = [
+        _count(zero_area, "zero-area face", "zero-area faces") if zero_area else None,
+        _count(twice, "face listed twice", "faces listed twice") if twice else None,
+        _count(faults["loose_vertices"]["count"], "loose vertex", "loose vertices") if faults["loose_vertices"]["count"] else None,
+        _count(int(loose_edges.sum()), "loose edge", "loose edges") if loose_edges.any() else None,
+    ]
+    parts = []
+    if any(left_out):
+        parts.append("left out: " + ", ".join(p for p in left_out if p))
+    ngons = int(np.count_nonzero(sizes > 4))
+    if ngons:
+        parts.append(f"triangulated: {_count(ngons, 'n-gon', 'n-gons')}")
+    fins = faults["non_manifold_edges"]["count"]
+    if fins:
+        parts.append(f"kept as they are: {_count(fins, 'edge', 'edges')} shared by three or more faces")
+    return "; ".join(parts) or None
+
+
+def fault_notes(objects):
+    """`fault_note` of each of `objects` that has faults, named: a report's lines."""
+    notes = ((obj, fault_note(obj)) for obj in objects)
+    return [f"'{obj.name}' {note}" for obj, note in notes if note]
 
 
 def read_positions(obj):
@@ -171,6 +173,7 @@ def read_rig(obj):
     `REF_` keys Pack Expressions baked are mixes of the others, not shapes of the rig: every
     tool leaves them out."""
     check_mesh(obj, need_shape_keys=True)
+    note = fault_note(obj)
     keys = obj.data.shape_keys
     reference = keys.reference_key
     n = len(obj.data.vertices)
@@ -193,8 +196,14 @@ def read_rig(obj):
             np.subtract(buffer, base, out=deltas[k].reshape(-1))
         if block.name in masks:
             deltas[k] *= masks[block.name][:, None]
+        bad = np.flatnonzero(~np.isfinite(deltas[k]).all(axis=1))
+        if len(bad):
+            raise MeshDataError(
+                f"'{obj.name}': shape key '{block.name}' has {len(bad)} vertices with a non-finite coordinate "
+                f"(e.g. vertex {bad[0]}): its motion cannot be measured; fix or delete the key"
+            )
         report_key(k + 1, len(blocks))
-    return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], [])
+    return Rig(neutral, deltas, read_triangles(obj), [b.name for b in blocks], [note] if note else [])
 
 
 def show_mesh(name, mesh, beside):

@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import native
 from .face_parts import face_objects, face_of, pair_parts, read_face_rest, read_face_rig
-from .mesh_arrays import MeshDataError, check_mesh, group_weights, read_triangles, rest_positions, show_mesh
+from .mesh_arrays import MeshDataError, check_mesh, fault_notes, group_weights, read_triangles, rest_positions, show_mesh
 from .settings import TransferSettings, VirtualEdgeSettings
 
 # A training object named `REF_03`, `OldMan_REF_03` or `REF_03.001` poses packed expression 3.
@@ -288,7 +288,10 @@ def transfer_object(
     # Which template object went onto which target object (all onto one for a joined target).
     counterparts = target_face.objects if len(target_face.objects) > 1 else [target] * len(face.objects)
     report["objects"] = [[s.name, t.name] for s, t in zip(face.objects, counterparts)]
-    result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings))
+    # The target shares the template's faces; where its own shape flattens one, that face is
+    # left out of both (one topology, one surface) and the target's line says so.
+    own_notes = fault_notes(target_face.objects)
+    result = Transfer(source, target, rig.names, target_neutral, deltas, report, training, list(rig.warnings) + own_notes)
     result.pieces = split_transfer(result, face, target_face)
     # Same topology: the groups masking the keys go onto the target with the same weights.
     result.vertex_groups = masking_groups(face.objects, rig.names)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import native
 from .face_parts import face_objects, face_of, read_face_rest, read_face_rig, read_face_triangles
-from .mesh_arrays import MeshDataError, read_triangles, show_mesh
+from .mesh_arrays import MeshDataError, fault_notes, read_triangles, show_mesh
 from .settings import CarrySettings, TransferSettings, WrapSettings
 from .transfer import Transfer, joined_face_corners, rest_positions, transfer_object
 
@@ -247,6 +247,7 @@ def wrap_object(template, character, template_points, character_points, settings
         progress=progress,
     )
     seconds = {"io": read - started, "align": report["align_seconds"], "wrap": report["fit_seconds"]}
+    report["warnings"] = fault_notes(face_objects(template) + face_objects(character, topology=False)) + report["warnings"]
     name_matches(report, template, character)
     return Wrapped(template, character, positions, report, seconds)
 

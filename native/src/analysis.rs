@@ -85,8 +85,10 @@ pub fn analyze_rig(rig: &RigView, params: &AnalysisParams) -> ShapesmithResult<R
         vertices: rig.n_vertices(),
         triangles: rig.triangles.len(),
         shapes: rig.n_shapes(),
-        bbox_diagonal: rig.bbox_diagonal(),
-        inert: rig.inert_shapes().into_iter().map(name).collect(),
+        // Measured on the surface: a loose vertex far off, or one a key moves alone, changes
+        // neither the head's size nor which keys move it.
+        bbox_diagonal: welded.bbox_diagonal(),
+        inert: welded.inert_shapes().into_iter().map(name).collect(),
         degenerate_triangles: degenerate_triangles(rig.neutral, rig.triangles),
         unmatched_vertices: map.unmatched.iter().map(|&w| weld.vertex(w)).collect(),
         seam_vertices: weld.seam_vertices(),

@@ -63,11 +63,18 @@ impl<'a> RigView<'a> {
     /// Checks what every method needs: finite coordinates, triangle indices in range, no
     /// degenerate triangle. Errors name the first offending vertex, shape or triangle.
     pub fn validate(&self) -> ShapesmithResult<()> {
+        self.validate_values()?;
+        validate_triangles(self.neutral, self.triangles)
+    }
+
+    /// Finite coordinates and triangle indices in range, for a method that divides by no
+    /// triangle's area.
+    pub fn validate_values(&self) -> ShapesmithResult<()> {
         validate_points(self.neutral, "neutral")?;
         for k in 0..self.n_shapes() {
             validate_points(self.delta(k), &format!("shape key '{}'", self.names[k]))?;
         }
-        validate_triangles(self.neutral, self.triangles)
+        validate_triangle_indices(self.neutral.len(), self.triangles)
     }
 
     pub fn bbox_diagonal(&self) -> f64 {

@@ -2,6 +2,14 @@
 //! exactly on top of each other, each keeping its own UVs or normals) taken as one surface
 //! point. SPEC section 0, "Seams".
 //!
+//! The welded surface is also the valid surface: the weld leaves out the triangles no surface
+//! operator is defined on (zero area, a repeated corner, a second copy of a face) and the
+//! vertices in no remaining triangle (loose vertices, and those whose only faces were left
+//! out). A loose vertex is read at the surface point nearest it at rest ([`Carried`]): every
+//! per-vertex result gives it that point's value, and a motion written back carries it with
+//! that point, so no tool divides by a zero area or solves a vertex no triangle holds, and
+//! none leaves a loose vertex behind when the surface moves.
+//!
 //! Every tool welds at its entry, runs on the welded arrays and scatters its per-vertex
 //! results back, so that each copy of a seam vertex gets the same value bit for bit (a seam
 //! gap of exactly 0) while the user's mesh keeps its own vertices and order. Per-vertex
@@ -19,27 +27,45 @@
 //! [`Weld::split_where_apart`] keeps them two points.
 
 use std::borrow::Cow;
+use std::collections::HashSet;
 
-use crate::rig::{bbox_diagonal, RigView};
+use super::bvh::TriangleBvh;
+use crate::rig::{bbox_diagonal, triangle_area, RigView, DEGENERATE_AREA_FRACTION};
 
 /// Rest positions closer than this fraction of the bounding-box diagonal are one surface
 /// point (see the module's Tolerance section).
 pub const WELD_FRACTION: f64 = 1e-7;
 
+/// A vertex in no triangle of the valid surface, read at the surface point nearest it at rest:
+/// the welded corners of that point's triangle and its barycentric weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Carried {
+    pub vertex: u32,
+    pub corners: [u32; 3],
+    pub weights: [f64; 3],
+}
+
 /// The welded surface of a mesh: welded index of every vertex, a representative vertex per
 /// welded point and the triangles on welded indices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Weld {
-    /// The welded point of each of the N vertices.
+    /// The welded point of each of the N vertices (for a loose vertex, the corner nearest its
+    /// surface point).
     pub welded_of: Vec<u32>,
     /// Per welded point (M of them, in ascending order of their representatives), its lowest
-    /// vertex index.
+    /// vertex index among the vertices on the surface.
     pub representatives: Vec<u32>,
-    /// The triangles on welded indices; a triangle two of whose corners weld into one point
-    /// (zero area) is dropped.
+    /// The triangles on welded indices. Left out: a triangle two of whose corners weld into
+    /// one point or that repeats a corner, one of zero area (at most
+    /// [`DEGENERATE_AREA_FRACTION`] of the squared diagonal) on any rest shape given, and the
+    /// second copy of a triangle.
     pub triangles: Vec<[u32; 3]>,
     /// The input index of each welded triangle.
     pub triangle_of: Vec<u32>,
+    /// The vertices in no welded triangle, each with the surface point that carries it.
+    pub carried: Vec<Carried>,
+    /// How many triangles the input had.
+    pub input_triangles: usize,
 }
 
 impl Weld {
@@ -114,18 +140,20 @@ impl Weld {
         }
         // The lowest index of each group: the root of a union that always keeps the lower.
         let representative: Vec<u32> = (0..points.len() as u32).map(|v| find(&mut parent, v)).collect();
-        Self::from_representatives(&representative, triangles)
+        Self::from_representatives(&representative, triangles, &[points])
     }
 
-    /// The weld where every vertex is its own point (no seam).
+    /// The weld where every vertex is its own point and every triangle kept (no seam, no
+    /// rest shape to find faults on).
     pub fn identity(n_vertices: usize, triangles: &[[u32; 3]]) -> Self {
         let representative: Vec<u32> = (0..n_vertices as u32).collect();
-        Self::from_representatives(&representative, triangles)
+        Self::from_representatives(&representative, triangles, &[])
     }
 
     /// `representative[v]`: the lowest index of `v`'s group (`representative[v] <= v`, and a
-    /// representative is its own).
-    fn from_representatives(representative: &[u32], triangles: &[[u32; 3]]) -> Self {
+    /// representative is its own). With `rests` (positions of the N vertices), the surface's
+    /// faults are left out (see [`Weld::triangles`]) and the points in no triangle carried.
+    fn from_representatives(representative: &[u32], triangles: &[[u32; 3]], rests: &[&[[f32; 3]]]) -> Self {
         let mut welded_of = vec![0u32; representative.len()];
         let mut representatives = Vec::new();
         for (v, &r) in representative.iter().enumerate() {
@@ -136,34 +164,105 @@ impl Weld {
                 welded_of[v] = welded_of[r as usize];
             }
         }
+        let input_triangles = triangles.len();
+        let in_range = triangles.iter().flatten().all(|&v| (v as usize) < representative.len());
+        let rests: Vec<&[[f32; 3]]> = rests.iter().copied().filter(|r| r.len() == representative.len()).collect();
         let mut welded_triangles = Vec::with_capacity(triangles.len());
         let mut triangle_of = Vec::with_capacity(triangles.len());
+        if !in_range || rests.is_empty() {
+            // Out-of-range indices pass through for the tool's validation to name them; without
+            // a rest shape only what the weld itself collapses goes.
+            for (t, tri) in triangles.iter().enumerate() {
+                let w = tri.map(|v| welded_of.get(v as usize).copied().unwrap_or(v));
+                if !collapsed(w) || collapsed(*tri) {
+                    welded_triangles.push(w);
+                    triangle_of.push(t as u32);
+                }
+            }
+            return Self { welded_of, representatives, triangles: welded_triangles, triangle_of, carried: Vec::new(), input_triangles };
+        }
+        let min_areas: Vec<f64> = rests.iter().map(|r| DEGENERATE_AREA_FRACTION * bbox_diagonal(r).powi(2)).collect();
+        let mut seen = HashSet::with_capacity(triangles.len());
         for (t, tri) in triangles.iter().enumerate() {
-            // Out-of-range indices (an unwelded mesh only) pass through for validation to name.
-            let w = tri.map(|v| welded_of.get(v as usize).copied().unwrap_or(v));
-            // Only a triangle the weld collapses goes; one that repeats a corner in the input
-            // stays, for validation to name.
-            let collapsed = |t: [u32; 3]| t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
-            if !collapsed(w) || collapsed(*tri) {
+            let w = tri.map(|v| welded_of[v as usize]);
+            if collapsed(w) {
+                continue;
+            }
+            let at_points = w.map(|p| representatives[p as usize]);
+            if rests.iter().zip(&min_areas).any(|(rest, &min)| triangle_area(rest, &at_points) <= min) {
+                continue;
+            }
+            let mut sorted = w;
+            sorted.sort_unstable();
+            if seen.insert(sorted) {
                 welded_triangles.push(w);
                 triangle_of.push(t as u32);
             }
         }
-        Self { welded_of, representatives, triangles: welded_triangles, triangle_of }
+        let mut weld = Self { welded_of, representatives, triangles: welded_triangles, triangle_of, carried: Vec::new(), input_triangles };
+        weld.carry_loose(rests[0]);
+        weld
+    }
+
+    /// Takes the welded points in no triangle off the surface: each of their vertices is read
+    /// at the surface point nearest its `rest` position. Nothing to carry by when no triangle
+    /// is left (the tools refuse a mesh without faces).
+    fn carry_loose(&mut self, rest: &[[f32; 3]]) {
+        let mut used = vec![false; self.n_welded()];
+        self.triangles.iter().flatten().for_each(|&p| used[p as usize] = true);
+        if self.triangles.is_empty() || used.iter().all(|&u| u) {
+            return;
+        }
+        let mut renumbered = vec![u32::MAX; used.len()];
+        let mut representatives = Vec::with_capacity(used.len());
+        for (p, &r) in self.representatives.iter().enumerate() {
+            if used[p] {
+                renumbered[p] = representatives.len() as u32;
+                representatives.push(r);
+            }
+        }
+        let triangles: Vec<[u32; 3]> = self.triangles.iter().map(|t| t.map(|p| renumbered[p as usize])).collect();
+        let surface: Vec<[f64; 3]> = representatives.iter().map(|&r| rest[r as usize].map(f64::from)).collect();
+        let bvh = TriangleBvh::build(&surface, &triangles);
+        let mut carried = Vec::new();
+        for (v, point) in self.welded_of.iter_mut().enumerate() {
+            if used[*point as usize] {
+                *point = renumbered[*point as usize];
+                continue;
+            }
+            // Every finite query has a closest point on a non-empty surface; a non-finite rest
+            // (which every tool refuses by name) is read at the first triangle's first corner.
+            let (corners, weights) = match bvh.closest_point(&rest[v].map(f64::from), f64::INFINITY) {
+                Some(near) => (triangles[near.triangle as usize], near.barycentric),
+                None => (triangles[0], [1.0, 0.0, 0.0]),
+            };
+            let nearest = (0..3).fold(0, |best, i| if weights[i] > weights[best] { i } else { best });
+            *point = corners[nearest];
+            carried.push(Carried { vertex: v as u32, corners, weights });
+        }
+        self.representatives = representatives;
+        self.triangles = triangles;
+        self.carried = carried;
     }
 
     /// Keeps apart the copies that `rows` (a multiple of N rows: more positions of the same
     /// vertices, such as another neutral, or the K shapes' deltas) put more than `tolerance`
     /// apart in any block: such a vertex leaves its group and stands alone. Closed lips
     /// resting on each other are two points by their shapes; a target neutral that holds two
-    /// template copies apart keeps them apart.
-    pub fn split_where_apart(self, rows: &[[f32; 3]], tolerance: f64, triangles: &[[u32; 3]]) -> Self {
+    /// template copies apart keeps them apart. `rests` are the rest shapes the faults are
+    /// found on (see [`Self::from_representatives`]); carried vertices are carried anew.
+    pub fn split_where_apart(self, rows: &[[f32; 3]], tolerance: f64, triangles: &[[u32; 3]], rests: &[&[[f32; 3]]]) -> Self {
         let n = self.welded_of.len();
-        if n == 0 || self.is_identity() || !rows.len().is_multiple_of(n) {
+        if n == 0 || !rows.len().is_multiple_of(n) {
             return self;
         }
+        let mut loose = vec![false; n];
+        self.carried.iter().for_each(|c| loose[c.vertex as usize] = true);
         let representative: Vec<u32> = (0..n)
             .map(|v| {
+                if loose[v] {
+                    return v as u32;
+                }
                 let r = self.representatives[self.welded_of[v] as usize] as usize;
                 let apart = r != v
                     && rows.chunks(n).any(|block| {
@@ -173,14 +272,14 @@ impl Weld {
                 if apart { v as u32 } else { r as u32 }
             })
             .collect();
-        Self::from_representatives(&representative, triangles)
+        Self::from_representatives(&representative, triangles, rests)
     }
 
     /// The weld of a rig: its neutral's coincident vertices, kept apart where a shape in
     /// `deltas` (K x N) moves the copies apart by more than the weld's tolerance (there the
     /// artist split the surface on purpose, as closed lips resting on each other).
     pub fn of_rig(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triangles: &[[u32; 3]]) -> Self {
-        Self::new(neutral, triangles).split_where_apart(deltas, WELD_FRACTION * bbox_diagonal(neutral), triangles)
+        Self::new(neutral, triangles).split_where_apart(deltas, WELD_FRACTION * bbox_diagonal(neutral), triangles, &[neutral])
     }
 
     pub fn n_vertices(&self) -> usize {
@@ -191,10 +290,10 @@ impl Weld {
         self.representatives.len()
     }
 
-    /// Whether every vertex is its own point (nothing to gather or scatter; the triangles are
-    /// the input's).
+    /// Whether every vertex is its own point and every triangle kept (nothing to gather or
+    /// scatter; the triangles are the input's).
     pub fn is_identity(&self) -> bool {
-        self.n_welded() == self.n_vertices()
+        self.n_welded() == self.n_vertices() && self.triangles.len() == self.input_triangles
     }
 
     /// Vertices that share their point with another one (every copy counted).
@@ -233,6 +332,43 @@ impl Weld {
             return rows;
         }
         rows.chunks(m).flat_map(|block| self.welded_of.iter().map(|&w| block[w as usize])).collect()
+    }
+
+    /// [`Self::scatter`] of rows that are motions (`rows`: a multiple of M rows, block by block,
+    /// such as K shapes' deltas): a carried vertex moves as its surface point does, the
+    /// barycentric mix of its triangle's corners.
+    pub fn scatter_motion(&self, rows: Vec<[f32; 3]>) -> Vec<[f32; 3]> {
+        let m = self.n_welded();
+        if self.carried.is_empty() || m == 0 {
+            return self.scatter(rows);
+        }
+        let mut out = self.scatter(rows.clone());
+        let n = self.n_vertices();
+        for (block, welded) in out.chunks_mut(n).zip(rows.chunks(m)) {
+            for c in &self.carried {
+                block[c.vertex as usize] = mix(c, |p| welded[p as usize].map(f64::from));
+            }
+        }
+        out
+    }
+
+    /// [`Self::scatter`] of positions the surface moved to from `rest` (N rows): a carried
+    /// vertex keeps its offset from its surface point, moved by that point's motion.
+    pub fn scatter_moved(&self, moved: Vec<[f32; 3]>, rest: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        if self.carried.is_empty() || moved.len() != self.n_welded() || rest.len() != self.n_vertices() {
+            return self.scatter(moved);
+        }
+        let motion = |p: u32| {
+            let (to, from) = (moved[p as usize], rest[self.representatives[p as usize] as usize]);
+            [0, 1, 2].map(|a| f64::from(to[a]) - f64::from(from[a]))
+        };
+        let mut out = self.scatter(moved.clone());
+        for c in &self.carried {
+            let d = mix(c, motion);
+            let r = rest[c.vertex as usize];
+            out[c.vertex as usize] = [0, 1, 2].map(|a| (f64::from(r[a]) + f64::from(d[a])) as f32);
+        }
+        out
     }
 
     /// The representative vertex of welded point `w`.
@@ -281,6 +417,7 @@ impl<'a> WeldedRig<'a> {
 impl Weld {
     /// Every vertex of the welded points in `welded` (sorted), ascending: a welded vertex set
     /// in the user's numbering.
+    /// Carried vertices are in no set: they are on no surface.
     pub fn expand(&self, welded: &[u32]) -> Vec<u32> {
         if self.n_welded() == self.n_vertices() {
             return welded.to_vec();
@@ -289,8 +426,25 @@ impl Weld {
         for &w in welded {
             wanted[w as usize] = true;
         }
-        (0..self.n_vertices() as u32).filter(|&v| wanted[self.welded_of[v as usize] as usize]).collect()
+        let mut loose = vec![false; self.n_vertices()];
+        self.carried.iter().for_each(|c| loose[c.vertex as usize] = true);
+        (0..self.n_vertices() as u32).filter(|&v| !loose[v as usize] && wanted[self.welded_of[v as usize] as usize]).collect()
     }
+}
+
+/// A triangle with a corner twice.
+fn collapsed(t: [u32; 3]) -> bool {
+    t[0] == t[1] || t[1] == t[2] || t[0] == t[2]
+}
+
+/// `sum_i w_i value(corner_i)` of a carried vertex.
+fn mix(c: &Carried, value: impl Fn(u32) -> [f64; 3]) -> [f32; 3] {
+    let mut sum = [0.0f64; 3];
+    for (&p, &w) in c.corners.iter().zip(&c.weights) {
+        let x = value(p);
+        (0..3).for_each(|a| sum[a] += w * x[a]);
+    }
+    sum.map(|x| x as f32)
 }
 
 fn find(parent: &mut [u32], v: u32) -> u32 {
@@ -412,7 +566,7 @@ mod tests {
         // A shape moving corner 4's copy (8) off corner 4: 8 stands alone again.
         let mut deltas = vec![[0.0f32; 3]; 24];
         deltas[12 + 8] = [0.0, 0.0, 0.5];
-        let parted = weld.clone().split_where_apart(&deltas, 1e-7, &split);
+        let parted = weld.clone().split_where_apart(&deltas, 1e-7, &split, &[&points]);
         assert_eq!(parted.n_welded(), 9);
         assert_eq!(parted.representatives[8], 8);
         assert_eq!(parted.welded_of[9..], [6, 7, 5]);

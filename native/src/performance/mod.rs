@@ -148,7 +148,9 @@ pub fn solve_performance(
     params: &PerformanceParams,
     progress: &dyn Progress,
 ) -> ShapesmithResult<Performance> {
-    rig.validate()?;
+    // The solve reads the landmarks' rows only, never a triangle's area: a zero-area or
+    // repeated face, or a loose vertex, changes nothing here.
+    rig.validate_values()?;
     validate(rig, landmarks, tracks, params)?;
     let count = landmarks.len();
     let frames = tracks.len() / count;

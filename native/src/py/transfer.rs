@@ -173,8 +173,9 @@ fn intersecting_triangles<'py>(
             crate::rig::validate_points(rest_points, "rest")?;
         }
         // On the welded surface: triangles that meet across a seam are neighbours.
-        let weld = Weld::new(rest_points.unwrap_or(points), &tris);
-        let weld = weld.split_where_apart(points, WELD_FRACTION * crate::rig::bbox_diagonal(points), &tris);
+        let rest = rest_points.unwrap_or(points);
+        let weld = Weld::new(rest, &tris);
+        let weld = weld.split_where_apart(points, WELD_FRACTION * crate::rig::bbox_diagonal(points), &tris, &[rest]);
         let rest_points = rest_points.map(|r| weld.gather(r));
         let crossed = find_intersecting_triangles(&weld.gather(points), rest_points.as_deref(), &weld.triangles);
         Ok(weld.scatter_triangles(&crossed, tris.len(), false))

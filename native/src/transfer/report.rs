@@ -179,7 +179,7 @@ pub fn transfer_shapes(
         params,
         progress,
     )?;
-    Ok((weld.scatter(deltas), report))
+    Ok((weld.scatter_motion(deltas), report))
 }
 
 /// The welded surface template and target share (they have one topology, so one weld): the
@@ -193,7 +193,8 @@ pub fn transfer_weld(source_neutral: &[[f32; 3]], source_deltas: &[[f32; 3]], ta
     if target_neutral.len() != source_neutral.len() {
         return weld;
     }
-    weld.split_where_apart(target_neutral, WELD_FRACTION * bbox_diagonal(target_neutral), triangles)
+    // The faults of either neutral are left out of both: one topology, one valid surface.
+    weld.split_where_apart(target_neutral, WELD_FRACTION * bbox_diagonal(target_neutral), triangles, &[source_neutral, target_neutral])
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -253,7 +253,7 @@ pub fn wrap_template(
         row.template_vertex = template_weld.vertex(row.template_vertex);
         row.character_vertex = character_weld.vertex(row.character_vertex);
     }
-    Ok(Wrap { wrapped: template_weld.scatter(wrap.wrapped), report })
+    Ok(Wrap { wrapped: template_weld.scatter_moved(wrap.wrapped, template), report })
 }
 
 fn wrap_welded(
@@ -508,7 +508,7 @@ pub fn carry_shapes(
         params,
         progress,
     )?;
-    result.deltas = character_weld.scatter(std::mem::take(&mut result.deltas));
+    result.deltas = character_weld.scatter_motion(std::mem::take(&mut result.deltas));
     Ok(result)
 }
 
