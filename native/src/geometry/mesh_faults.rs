@@ -13,9 +13,9 @@ use std::collections::HashMap;
 
 use serde::Serialize;
 
-use super::weld::Weld;
+use super::weld::{is_flat, Weld, WELD_FRACTION};
 use crate::error::ShapesmithResult;
-use crate::rig::{bbox_diagonal, triangle_area, validate_triangle_indices, DEGENERATE_AREA_FRACTION};
+use crate::rig::{bbox_diagonal, validate_triangle_indices};
 
 /// A fault's occurrences, in index order, with their count and the first.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -37,8 +37,7 @@ pub struct MeshFaults {
     pub non_manifold_edges: Fault<[u32; 2]>,
     /// Vertices in no kept triangle.
     pub loose_vertices: Fault<u32>,
-    /// Triangles left out for a zero area (within [`DEGENERATE_AREA_FRACTION`]) or a repeated
-    /// corner.
+    /// Triangles left out for a zero area ([`super::weld::is_flat`]) or a repeated corner.
     pub zero_area_triangles: Fault<u32>,
     /// Triangles left out for having the same three corners as an earlier one: `[earlier, later]`.
     pub duplicate_triangles: Fault<[u32; 2]>,
@@ -64,11 +63,11 @@ pub fn find_mesh_faults(points: &[[f32; 3]], triangles: &[[u32; 3]]) -> Shapesmi
         w
     };
     let first_with: HashMap<[u32; 3], u32> = weld.triangle_of.iter().map(|&t| (welded_corners(t as usize), t)).collect();
-    let min_area = DEGENERATE_AREA_FRACTION * bbox_diagonal(points).powi(2);
+    let tolerance = WELD_FRACTION * bbox_diagonal(points);
     let (mut zero_area, mut duplicates) = (Vec::new(), Vec::new());
     for t in (0..triangles.len()).filter(|&t| !kept[t]) {
         let w = welded_corners(t);
-        let flat = w[0] == w[1] || w[1] == w[2] || triangle_area(points, &w) <= min_area;
+        let flat = w[0] == w[1] || w[1] == w[2] || is_flat(points, &w, tolerance);
         match first_with.get(&w) {
             Some(&earlier) if !flat => duplicates.push([earlier, t as u32]),
             _ => zero_area.push(t as u32),

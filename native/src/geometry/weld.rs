@@ -32,6 +32,24 @@ use std::collections::HashSet;
 use super::bvh::TriangleBvh;
 use crate::rig::{bbox_diagonal, triangle_area, RigView, DEGENERATE_AREA_FRACTION};
 
+/// Whether triangle `tri` of `points` has no area at the precision the mesh is stored in: its
+/// area at most [`DEGENERATE_AREA_FRACTION`] of the squared diagonal, or its height (twice its
+/// area over its longest edge) within `tolerance`, the weld's: a corner that close to the
+/// opposite edge is on it, as two points that close are one. An exporter's collinear corners
+/// (a vertex halfway along an edge, written in f32) keep a height of one rounding step, far
+/// above the area bound yet as singular for a gradient operator.
+pub fn is_flat(points: &[[f32; 3]], tri: &[u32; 3], tolerance: f64) -> bool {
+    let area = triangle_area(points, tri);
+    let diagonal = tolerance / WELD_FRACTION;
+    let longest = (0..3)
+        .map(|i| {
+            let (p, q) = (points[tri[i] as usize], points[tri[(i + 1) % 3] as usize]);
+            (0..3).map(|a| (f64::from(p[a]) - f64::from(q[a])).powi(2)).sum::<f64>().sqrt()
+        })
+        .fold(0.0, f64::max);
+    area <= DEGENERATE_AREA_FRACTION * diagonal * diagonal || 2.0 * area <= tolerance * longest
+}
+
 /// Rest positions closer than this fraction of the bounding-box diagonal are one surface
 /// point (see the module's Tolerance section).
 pub const WELD_FRACTION: f64 = 1e-7;
@@ -56,9 +74,8 @@ pub struct Weld {
     /// vertex index among the vertices on the surface.
     pub representatives: Vec<u32>,
     /// The triangles on welded indices. Left out: a triangle two of whose corners weld into
-    /// one point or that repeats a corner, one of zero area (at most
-    /// [`DEGENERATE_AREA_FRACTION`] of the squared diagonal) on any rest shape given, and the
-    /// second copy of a triangle.
+    /// one point or that repeats a corner, one of zero area ([`is_flat`]) on any rest shape
+    /// given, and the second copy of a triangle.
     pub triangles: Vec<[u32; 3]>,
     /// The input index of each welded triangle.
     pub triangle_of: Vec<u32>,
@@ -181,7 +198,7 @@ impl Weld {
             }
             return Self { welded_of, representatives, triangles: welded_triangles, triangle_of, carried: Vec::new(), input_triangles };
         }
-        let min_areas: Vec<f64> = rests.iter().map(|r| DEGENERATE_AREA_FRACTION * bbox_diagonal(r).powi(2)).collect();
+        let tolerances: Vec<f64> = rests.iter().map(|r| WELD_FRACTION * bbox_diagonal(r)).collect();
         let mut seen = HashSet::with_capacity(triangles.len());
         for (t, tri) in triangles.iter().enumerate() {
             let w = tri.map(|v| welded_of[v as usize]);
@@ -189,7 +206,7 @@ impl Weld {
                 continue;
             }
             let at_points = w.map(|p| representatives[p as usize]);
-            if rests.iter().zip(&min_areas).any(|(rest, &min)| triangle_area(rest, &at_points) <= min) {
+            if rests.iter().zip(&tolerances).any(|(rest, &tolerance)| is_flat(rest, &at_points, tolerance)) {
                 continue;
             }
             let mut sorted = w;
