@@ -135,11 +135,36 @@ def rest_positions(obj):
 
 
 def read_triangles(obj):
+    """The mesh's triangles as Blender draws them (`loop_triangles`: quads and n-gons split),
+    (T, 3) int32. A face listing the corners of an earlier face (a double face, wound either
+    way) is given the earlier face's split, so that the native side sees its triangles as the
+    copies they are and leaves them out (Blender may split a copy wound the other way along the
+    other diagonal)."""
     mesh = obj.data
     mesh.calc_loop_triangles()
     tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", tris)
-    return tris.reshape(-1, 3)
+    tris = tris.reshape(-1, 3)
+    sizes = np.empty(len(mesh.polygons), dtype=np.int64)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    if len(sizes) == 0:
+        return tris
+    corners = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", corners)
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    padded = np.full((len(sizes), int(sizes.max())), -1, dtype=np.int64)
+    column = np.arange(len(corners)) - np.repeat(starts, sizes)
+    padded[np.repeat(np.arange(len(sizes)), sizes), column] = corners
+    padded.sort(axis=1)
+    _, first, inverse = np.unique(padded, axis=0, return_index=True, return_inverse=True)
+    earlier = first[inverse.reshape(-1)]
+    copies = np.flatnonzero(earlier != np.arange(len(sizes)))
+    if len(copies):
+        tri_starts = np.concatenate(([0], np.cumsum(sizes - 2)[:-1]))
+        for face in copies:
+            own, source, count = tri_starts[face], tri_starts[earlier[face]], sizes[face] - 2
+            tris[own:own + count] = tris[source:source + count]
+    return tris
 
 
 def group_weights(obj, names):
