@@ -129,13 +129,15 @@ def test_a_mesh_in_edit_mode_is_refused(sample, shapesmith):
     assert not template.shapesmith.analysis.done
 
 
-def test_ngons_are_refused(sample):
+def test_ngons_are_read_as_blender_draws_them(sample, shapesmith):
     bpy.ops.mesh.primitive_cylinder_add(vertices=8)  # its caps are 8-gons
     cylinder = make_active(bpy.context.active_object)
     cylinder.shape_key_add(name="Basis", from_mix=False)
-    cylinder.shape_key_add(name="bulge", from_mix=False).value = 0.0
-    with pytest.raises(RuntimeError, match="n-gon"):
-        bpy.ops.shapesmith.analyze_rig()
+    bulge = cylinder.shape_key_add(name="bulge", from_mix=False)
+    bulge.data[0].co.z += 0.5
+    assert bpy.ops.shapesmith.analyze_rig() == {"FINISHED"}
+    report = shapesmith.blender.analysis.analyze_object(cylinder)
+    assert report["triangles"] == 2 * 8 + 2 * 6 and report["warnings"] == ["triangulated: 2 n-gons"]
 
 
 def test_native_errors_name_the_offender(shapesmith):

@@ -404,12 +404,18 @@ def test_nan_in_a_template_key_is_refused(sample):
     refused(bpy.data.objects["Target_Boy"], "jawOpen.*vertex 7")
 
 
-def test_degenerate_triangles_on_the_target_are_refused(sample):
+def test_a_face_flattened_on_the_target_is_left_out_and_named(sample, shapesmith):
+    """The target's shape flattens a face the template has: that face is left out of both (one
+    topology, one surface), the keys are written, and the target's report line names it."""
     target = bpy.data.objects["Target_Boy"]
     first = target.data.polygons[0].vertices
     for v in first[1:]:
         target.data.vertices[v].co = target.data.vertices[first[0]].co
-    refused(target, "degenerate")
+    assert "left out: 1 zero-area face" in shapesmith.blender.mesh_arrays.fault_note(target)
+    assert transfer_onto(target) == {"FINISHED"}
+    written = [kb.name for kb in target.data.shape_keys.key_blocks[1:]]
+    assert len(written) == len(bpy.data.objects["Template"].data.shape_keys.key_blocks) - 1
+    assert all(np.isfinite(key_positions(target, name)).all() for name in written)
 
 
 # --- progress ----------------------------------------------------------------------------
