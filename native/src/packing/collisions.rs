@@ -8,7 +8,7 @@
 //! triangles sharing no vertex cross). Both parts of E are measured, inside one piece and
 //! between pieces; the conflict is $E_{\mathrm{between}}(A, B) > \tau \cdot \mathrm{diag}$
 //! ($\tau$ = [`super::PackingParams::collision_tolerance`]). Calibrated on the bundled
-//! Template (docs/design.md): curve inside one piece is what an additive rig makes when shapes
+//! Template (docs/design_pack.md): curve inside one piece is what an additive rig makes when shapes
 //! a face poses every day are mixed (the lips or lids folding into themselves, which
 //! corrective shapes fix: mouthSmileLeft with mouthSmileRight adds 3.99 cm of curve, eyeBlink
 //! with eyeSquint 7.06 cm), while a pose the actor cannot hold puts one piece through

@@ -42,7 +42,7 @@
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
 //! - Not met: SPEC's 50 ms for a cold pack of a 26k-vertex head with both poseability tests
 //!   (0.52 s; a re-pack reusing the stored results 0.15 s). Every part of the tests grows with
-//!   the triangles the shapes move, so it asks for a tenth of the work (docs/design.md).
+//!   the triangles the shapes move, so it asks for a tenth of the work (docs/design_pack.md).
 
 pub mod collisions;
 pub mod conflicts;
@@ -170,7 +170,7 @@ impl Default for PackingParams {
 }
 
 /// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
-/// docs/design.md, "Poseable and observable expressions").
+/// docs/design_pack.md, "Poseable and observable expressions").
 pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
 
 /// What the poseability tests found, and what they cost.

@@ -23,7 +23,7 @@
 //! | `alpha_jk` (EBFR blend weights of example `j`) | `weights` of [`DeformationTransfer::personalise`] |
 //! | `beta` (EBFR regulariser; here the inverse square of the transfer's relative error) | [`PersonaliseParams`] |
 //!
-//! # Deviations (each a decision in docs/design.md, with its numbers)
+//! # Deviations (each a decision in docs/design_transfer.md, with its numbers)
 //! - **Static vertices by elimination**: each shape removes its static vertices
 //!   (`|D_k[n]| < 1e-4 max_n |D_k[n]|`) from the system (Dirichlet) and factorises only the
 //!   principal submatrix on its moving vertices, in one AMD order computed once; static
@@ -54,7 +54,7 @@
 //!   triangle (equations and deviations in `personalise.rs`).
 //!
 //! Not met: the whole call on a 25k-vertex head takes about 1.3-1.5 s against SPEC's 0.5 s,
-//! most of it the collision pass's sweeps (docs/design.md, "Speed").
+//! most of it the collision pass's sweeps (docs/design_transfer.md, "Speed").
 
 mod alignment;
 mod collisions;

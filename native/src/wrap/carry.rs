@@ -46,7 +46,7 @@ pub struct CarryParams {
     /// `l`, in mean template edge lengths: the screening term `sum_v m_v / l^2 |d_v - b_v|^2`
     /// holds the carried deltas to the barycentric copy `b` at scales above `l`, the gradients
     /// shape them below it (0: pure Poisson, the gradients alone). On a character coarser than
-    /// the template, times the square of the ratio of the mean edges (docs/design.md, "Wrap":
+    /// the template, times the square of the ratio of the mean edges (docs/design_wrap.md:
     /// the template's keys on its half-decimated copy).
     pub anchor_length: f64,
     /// A binding (a character vertex or triangle to a template triangle) must have normals
@@ -109,8 +109,8 @@ pub struct CarryResult {
 /// Where each character triangle samples the wrapped template's deformation (barycentric):
 /// its centroid and a point towards each corner; the mean of the sampled gradients is the
 /// triangle's target. A character triangle spanning several template triangles (a coarser
-/// character) so gets their mean gradient, which a centroid alone would miss (docs/design.md,
-/// "Wrap": the error on a decimated template under a perfect alignment); a triangle within
+/// character) so gets their mean gradient, which a centroid alone would miss (docs/design_wrap.md:
+/// the error on a decimated template under a perfect alignment); a triangle within
 /// one template triangle (a denser character) gets that triangle's, as with one sample.
 const TRIANGLE_SAMPLES: [[f64; 3]; 4] = [[1.0 / 3.0; 3], [4.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 1.0 / 6.0, 4.0 / 6.0]];
 

@@ -21,7 +21,7 @@
 //! | `u_i` (closest character point) | `SurfacePoint::point` |
 //! | `H_{k,s}` (template delta gradient sampled on a character triangle) | `carry::Shape::delta_gradient` |
 //!
-//! # Deviations (each a decision in docs/design.md, "Wrap", with its numbers)
+//! # Deviations (each a decision in docs/design_wrap.md, with its numbers)
 //! - **Displacements with a bending stiffness, not per-vertex affine maps.** The unknowns are
 //!   the skin's displacements (N x N, three right-hand sides) with the bending energy
 //!   `alpha |L d|^2` (`L` the template's uniform Laplacian) instead of Amberg's 3x4 affine map

@@ -2,7 +2,7 @@
 //! symmetric character gives Left/Right keys that mirror each other, and self-symmetric keys
 //! that stay symmetric.
 //!
-//! Three parts, each needed (docs/design.md, "Wrap", has the numbers):
+//! Three parts, each needed (docs/design_wrap.md, has the numbers):
 //! - **The template's mirror map** is Analyze Rig's ([`MirrorMap`], SPEC section 0: each
 //!   vertex's nearest vertex to its image across a coordinate plane, within 1e-3 of the
 //!   diagonal), on the first axis that covers the skin ([`template_mirror`]).
