@@ -1,10 +1,10 @@
-//! Collision conflicts (SPEC section 1, beyond the paper, for its goal 4: poseable
+//! Collision conflicts (method, section 1, beyond the paper, for its goal 4: poseable
 //! expressions): shapes A and B conflict when posing both adds intersection curve beyond
 //! what each adds alone,
 //!
 //! $E(A, B) = L(A + B) - L(A) - L(B) + L(0)$,
 //!
-//! with $L$ the penetration metric of SPEC section 3 (the length of the curve where
+//! with $L$ the penetration metric of method, section 3 (the length of the curve where
 //! triangles sharing no vertex cross). Both parts of E are measured, inside one piece and
 //! between pieces; the conflict is $E_{\mathrm{between}}(A, B) > \tau \cdot \mathrm{diag}$
 //! ($\tau$ = [`super::PackingParams::collision_tolerance`]). Calibrated on the bundled
