@@ -1,6 +1,6 @@
 //! The welded surface: vertices that an importer split along UV seams or hard edges (copies
 //! exactly on top of each other, each keeping its own UVs or normals) taken as one surface
-//! point. SPEC section 0, "Seams".
+//! point. Method, section 0, "Seams".
 //!
 //! The welded surface is also the valid surface: the weld leaves out the triangles no surface
 //! operator is defined on (zero area, a repeated corner, a second copy of a face) and the
