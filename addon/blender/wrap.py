@@ -517,7 +517,7 @@ def character_pieces(result):
     head takes every key, each part the keys that move it; each key its settings from the
     template object that has it (the head's first). None for a character alone."""
     # The character was read as a surface (`read_surface`): its topology is not checked here
-    # either (a loose vertex takes its barycentric copy in the carry).
+    # either (a loose vertex moves with the surface point nearest it, as in every tool).
     character_face = face_of(face_objects(result.target, topology=False))
     if len(character_face.objects) == 1:
         return []
