@@ -53,15 +53,16 @@ def check_mesh(obj, need_shape_keys=True, topology=True):
     mesh = obj.data
     if len(mesh.vertices) == 0 or len(mesh.polygons) == 0:
         raise MeshDataError(f"'{obj.name}' has no faces")
-    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
-    mesh.polygons.foreach_get("loop_total", sizes)
-    ngons = np.flatnonzero(sizes > 4)
-    if len(ngons):
-        raise MeshDataError(
-            f"'{obj.name}' has {len(ngons)} n-gon(s) (faces with more than 4 corners, e.g. face {ngons[0]}): "
-            "triangulate or quadrangulate them first"
-        )
     if topology:
+        # A surface only fitted to (a wrap's character) is read as its triangles, n-gons too.
+        sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+        mesh.polygons.foreach_get("loop_total", sizes)
+        ngons = np.flatnonzero(sizes > 4)
+        if len(ngons):
+            raise MeshDataError(
+                f"'{obj.name}' has {len(ngons)} n-gon(s) (faces with more than 4 corners, e.g. face {ngons[0]}): "
+                "triangulate or quadrangulate them first"
+            )
         check_topology(obj)
     if need_shape_keys:
         keys = mesh.shape_keys
