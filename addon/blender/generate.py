@@ -22,7 +22,7 @@ import numpy as np
 
 from . import bundled_template
 from .face_parts import face_objects, stored_parts, store_parts
-from .mesh_arrays import MeshDataError, group_weights, rest_positions
+from .mesh_arrays import MeshDataError, group_weights, read_triangles, rest_positions
 from .shape_keys import write_transferred_keys
 from .transfer import face_corners, store_transfer
 from .wrap import (
@@ -71,11 +71,18 @@ def head_region(character):
     points = world_rest(character)
     z = points[:, 2]
     top, height = z.max(), max(float(np.ptp(z)), 1e-30)
-    section = np.minimum(((top - z) / height * SECTIONS).astype(int), SECTIONS - 1)
+    triangles = read_triangles(character)
+    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1), axis=0)
+    a, b = points[edges[:, 0]], points[edges[:, 1]]
     width = np.zeros(SECTIONS)
-    for k in np.unique(section):
-        inside = points[section == k, :2]
-        width[k] = np.sqrt(np.prod(np.ptp(inside, axis=0)))  # side of the section's box, as a square
+    for k in range(SECTIONS):
+        # The surface's section by the plane through the middle of slice k: where its edges cross it.
+        level = top - (k + 0.5) * height / SECTIONS
+        crossing = (a[:, 2] - level) * (b[:, 2] - level) < 0.0
+        if crossing.any():
+            t = (level - a[crossing, 2]) / (b[crossing, 2] - a[crossing, 2])
+            cut = a[crossing, :2] + t[:, None] * (b[crossing, :2] - a[crossing, :2])
+            width[k] = np.sqrt(np.prod(np.ptp(cut, axis=0)))  # side of the section's box, as a square
     above = np.maximum.accumulate(width)
     below = np.maximum.accumulate(width[::-1])[::-1]
     candidates = [k for k in range(1, SECTIONS - 1)
