@@ -3,6 +3,7 @@ moving, visible landmark; built as empties on the vertices, replacing the previo
 
 import bpy
 
+from .. import preferences
 from ..blender.landmarks import (
     build_layout,
     camera_positions,
@@ -34,8 +35,11 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
         try:
             cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
             with progress_cursor(context, "Place Landmarks") as progress:
+                prefs = preferences.get(context)
+                tool = landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis))
+                tool.time_limit = prefs.solver_time_limit if prefs and prefs.solver_time_limit > 0 else None
                 document = place_landmarks(
-                    obj, landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis)), cameras=cameras,
+                    obj, tool, cameras=cameras,
                     progress=progress, compare_group=comparison_group(obj, settings.score_group),
                 )
         except expected_errors() as error:
