@@ -309,3 +309,14 @@ def test_the_zip_alone_in_a_fresh_user_directory_gives_a_character_its_52_keys(s
     for key in avatar.data.shape_keys.key_blocks[1:]:
         assert not np.any(key_delta(avatar, key.name)[head_count:]), f"{key.name} moves outside the Head group"
     assert np.linalg.norm(key_delta(avatar, "eyeBlinkLeft"), axis=1).max() > 0.003
+
+
+def test_cancel_during_pack_and_place_landmarks_leaves_the_rig_as_it_was(sample, shapesmith, cancel_midway, capfd):
+    template = make_active(bpy.data.objects["Template"])
+    before = state(template), template.shapesmith.pack.result.done, template.shapesmith.landmarks.done
+    capfd.readouterr()
+    assert bpy.ops.shapesmith.pack_expressions() == {"CANCELLED"}
+    cancelled_once(capfd, "Pack Expressions")
+    assert bpy.ops.shapesmith.place_landmarks() == {"CANCELLED"}
+    cancelled_once(capfd, "Place Landmarks")
+    assert (state(template), template.shapesmith.pack.result.done, template.shapesmith.landmarks.done) == before
