@@ -15,6 +15,7 @@ import bmesh
 import bpy
 import numpy as np
 import pytest
+from mathutils import Vector
 
 from conftest import ROOT, extension_zip, make_active
 
@@ -320,3 +321,30 @@ def test_cancel_during_pack_and_place_landmarks_leaves_the_rig_as_it_was(sample,
     assert bpy.ops.shapesmith.place_landmarks() == {"CANCELLED"}
     cancelled_once(capfd, "Place Landmarks")
     assert (state(template), template.shapesmith.pack.result.done, template.shapesmith.landmarks.done) == before
+
+
+def test_objects_within_the_head_are_its_face_parts_by_their_place(sample, shapesmith):
+    generate = module(shapesmith, "blender.generate")
+    character = bpy.data.objects["Character_YoungWoman"]
+    corners = np.array([character.matrix_world @ Vector(v) for v in character.bound_box])
+    low, high = corners.min(axis=0), corners.max(axis=0)
+    centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
+
+    def cube(name, location):
+        mesh = bpy.data.meshes.new(name)
+        bm = bmesh.new()
+        bmesh.ops.create_cube(bm, size=0.05 * size)
+        bm.to_mesh(mesh)
+        bm.free()
+        obj = bpy.data.objects.new(name, mesh)
+        bpy.context.scene.collection.objects.link(obj)
+        obj.location = location
+        return obj
+
+    inside = cube("Teeth_Inside", centre)
+    cube("Prop_Outside", centre + np.array([size, 0.0, 0.0]))
+    bpy.context.view_layer.update()
+    found = generate.parts_by_place(character, None, {character})
+    assert inside in found and all(o.name != "Prop_Outside" for o in found)
+    # The sample's other heads stand beside the character, not within it.
+    assert not any(o.name.startswith(("Target_", "Template")) for o in found)
