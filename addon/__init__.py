@@ -30,6 +30,8 @@ _MODULE_NAMES = (
     "operators.wrap_pairs",
     "operators.propose_pairs",
     "operators.wrap_template",
+    "operators.job_operator",
+    "operators.arkit_template",
     "operators.transfer_onto_character",
     "operators.solve_performance",
     "operators.cancel_performance_solve",

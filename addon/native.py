@@ -62,10 +62,33 @@ class NativeUnavailableError(RuntimeError):
 
 
 def module():
-    """The native module, or NativeUnavailableError saying why it cannot be used."""
+    """The native module, or NativeUnavailableError saying why it cannot be used. On a
+    threaded job's worker (`blender.jobs`), its functions hand Blender's main thread the
+    baton for the length of each call."""
     if _native is None:
         raise NativeUnavailableError(STATUS)
-    return _native
+    from .blender import jobs
+
+    return _WorkerCalls() if jobs.on_worker() else _native
+
+
+class _WorkerCalls:
+    """The native module seen from a job's worker: each function call inside `jobs.in_native`."""
+
+    def __getattr__(self, name):
+        import types
+
+        from .blender import jobs
+
+        attribute = getattr(_native, name)
+        if not isinstance(attribute, types.BuiltinFunctionType):
+            return attribute
+
+        def call(*args, **kwargs):
+            with jobs.in_native():
+                return attribute(*args, **kwargs)
+
+        return call
 
 
 def error_types():

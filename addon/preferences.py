@@ -8,9 +8,10 @@ class SHAPESMITH_AP_preferences(bpy.types.AddonPreferences):
 
     solver_time_limit: bpy.props.FloatProperty(
         name="Solver Time Limit",
-        description="Seconds each 0/1 program may take (0: solve to proven optimality); a result "
-        "stopped by the limit is reported as not proven optimal",
-        default=0.0,
+        description="Seconds each 0/1 program of Pack Expressions and Place Landmarks may take (0: solve to "
+        "proven optimality, however long); a result stopped by the limit is the best found, reported as not "
+        "proven optimal",
+        default=120.0,
         min=0.0,
         unit="TIME_ABSOLUTE",
     )

@@ -33,6 +33,11 @@ class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
         default=False,
         update=_refresh_markers,
     )
+    region: bpy.props.StringProperty(
+        name="Head Region",
+        description="Generate ARKit Keys writes keys on this vertex group only (empty: the whole mesh, or on a full "
+        "body the head, found above the neck)",
+    )
     # The last Align or Wrap on this character.
     done: bpy.props.BoolProperty(default=False)
     stage: bpy.props.StringProperty(description="ALIGN or WRAP")

@@ -3,7 +3,7 @@
     blender -b [FILE.blend] -P scripts/batch.py -- COMMAND [FLAGS]
     python scripts/batch.py -- COMMAND [FLAGS]          (with the `bpy` wheel)
 
-Commands: sample, analyze, pack, landmarks, transfer, wrap, crossings, solve, import-capture (see
+Commands: sample, analyze, pack, landmarks, transfer, wrap, generate, crossings, solve, import-capture (see
 `-- COMMAND --help`). Every command
 but `sample` needs the
 Shapesmith extension installed in this Blender. Bad input exits with status 2 and one line
@@ -21,6 +21,7 @@ SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 # cached_sample and cached_sample_path are re-exported: the tests, benches and renders call them here.
 from sample_blend import build_sample, cached_sample, cached_sample_path  # noqa: E402,F401
+from batch_generate import add_generate_args, run_generate  # noqa: E402
 
 
 # The shared parts are re-exported: the tests, benches and renders call them here.
@@ -34,6 +35,7 @@ from batch_common import (  # noqa: E402,F401
     name_map,
     open_blend,
     save_copy,
+    template_or_bundled,
     tool_settings,
     write_json,
 )
@@ -518,7 +520,7 @@ def run_crossings(args):
 
 def add_wrap_args(parser, settings):
     parser.add_argument("--input", required=True, help=".blend file to read")
-    parser.add_argument("--template", required=True, help="the template: " + FACE_HELP)
+    parser.add_argument("--template", help="the template: " + FACE_HELP + " (default: the bundled ARKit template)")
     parser.add_argument(
         "--character", required=True,
         help="the character: a head of any topology; with face parts, the head then its parts, comma separated",
@@ -562,7 +564,7 @@ def run_wrap(args):
     wrap = import_module(shapesmith.__name__ + ".blender.wrap")
     shape_keys = import_module(shapesmith.__name__ + ".blender.shape_keys")
     transfer = import_module(shapesmith.__name__ + ".blender.transfer")
-    template, character = find_face(args.template, shapesmith), find_face(args.character, shapesmith)
+    template, character = template_or_bundled(args.template, shapesmith), find_face(args.character, shapesmith)
     for obj in (template, character):
         if obj.type != "MESH":
             raise BatchError(f"'{obj.name}' is a {obj.type.lower()}, not a mesh")
@@ -764,6 +766,7 @@ COMMANDS = {
     "landmarks": (add_landmarks_args, run_landmarks, "place landmarks, score and export the layout"),
     "transfer": (add_transfer_args, run_transfer, "transfer a template's shape keys onto other heads"),
     "wrap": (add_wrap_args, run_wrap, "wrap the template onto a character of any topology and write its keys there"),
+    "generate": (add_generate_args, run_generate, "write the 52 ARKit keys onto a character (its head on a full body)"),
     "crossings": (add_crossings_args, run_crossings, "list the faces each shape key pushes through the mesh"),
     "solve": (add_solve_args, run_solve, "solve shape-key animation and head pose from tracked landmarks"),
     "import-capture": (add_import_capture_args, run_import_capture, "key an ARKit capture (Live Link Face, Face Cap) onto the rig"),

@@ -63,6 +63,18 @@ def find_face(value, shapesmith):
     return objects[0]
 
 
+def template_or_bundled(value, shapesmith):
+    """The template `value` names (`find_face`), else the bundled ARKit template, added to the
+    scene and picked as the Transfer panel's template (a saved copy keeps it)."""
+    from importlib import import_module
+
+    if value:
+        return find_face(value, shapesmith)
+    template = import_module(shapesmith.__name__ + ".blender.bundled_template").add_template(bpy.context.scene)
+    bpy.context.scene.shapesmith.transfer.source = template
+    return template
+
+
 def write_json(path, data):
     """Writes `data` to `path` (nothing when no path), making its folder if need be."""
     if path:

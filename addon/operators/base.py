@@ -20,13 +20,14 @@ def poll_mesh(cls, context):
     return True
 
 
-def poll_character(cls, context):
+def poll_character(cls, context, bundled=False):
     """True for a character mesh in Object Mode with a template picked in the Transfer panel
-    (the wrap's buttons); otherwise says why the button is disabled."""
+    (the wrap's buttons; with `bundled`, none picked stands for the bundled ARKit template);
+    otherwise says why the button is disabled."""
     if not poll_mesh(cls, context):
         return False
     template = context.scene.shapesmith.transfer.source
-    if template is None or template == context.active_object:
+    if template == context.active_object or (template is None and not bundled):
         cls.poll_message_set("Pick the template in the Transfer panel and make the character active")
         return False
     return True

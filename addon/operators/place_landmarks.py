@@ -3,6 +3,7 @@ moving, visible landmark; built as empties on the vertices, replacing the previo
 
 import bpy
 
+from .. import preferences
 from ..blender.landmarks import (
     build_layout,
     camera_positions,
@@ -11,10 +12,18 @@ from ..blender.landmarks import (
     place_landmarks,
 )
 from ..blender.settings import landmark_settings
-from .base import expected_errors, poll_mesh, progress_cursor
+from .base import poll_mesh
+from .job_operator import JobOperator
 
 
-class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
+def place_and_build(progress, obj, settings, cameras, compare_group, scene):
+    """Places the landmarks in full, then builds the layout (nothing before)."""
+    document = place_landmarks(obj, settings, cameras=cameras, progress=progress, compare_group=compare_group)
+    build_layout(obj, document, scene)
+    return obj, document
+
+
+class SHAPESMITH_OT_place_landmarks(JobOperator, bpy.types.Operator):
     bl_idname = "shapesmith.place_landmarks"
     bl_label = "Place Landmarks"
     bl_description = (
@@ -27,21 +36,23 @@ class SHAPESMITH_OT_place_landmarks(bpy.types.Operator):
     def poll(cls, context):
         return poll_mesh(cls, context)
 
-    def execute(self, context):
+    label = "Place Landmarks"
+    run = staticmethod(place_and_build)
+
+    def arguments(self, context):
         obj = context.active_object
         scene = context.scene
         settings = scene.shapesmith.landmarks
-        try:
-            cameras = camera_positions(obj, settings.camera_source, scene, settings.camera_collection)
-            with progress_cursor(context, "Place Landmarks") as progress:
-                document = place_landmarks(
-                    obj, landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis)), cameras=cameras,
-                    progress=progress, compare_group=comparison_group(obj, settings.score_group),
-                )
-        except expected_errors() as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
-        build_layout(obj, document, scene)
+        prefs = preferences.get(context)
+        tool = landmark_settings(settings, axis=int(scene.shapesmith.symmetry_axis))
+        tool.time_limit = prefs.solver_time_limit if prefs and prefs.solver_time_limit > 0 else None
+        return {
+            "obj": obj, "settings": tool, "cameras": camera_positions(obj, settings.camera_source, scene, settings.camera_collection),
+            "compare_group": comparison_group(obj, settings.score_group), "scene": scene,
+        }
+
+    def finished(self, context, value):
+        obj, document = value
         for warning in document["warnings"]:
             self.report({"WARNING"}, warning)
         if document["uncovered"]:

@@ -5,10 +5,18 @@ import bpy
 
 from ..blender.landmarks import score_group, store_score
 from ..blender.mesh_arrays import MeshDataError
-from .base import expected_errors, poll_mesh, progress_cursor
+from .base import poll_mesh
+from .job_operator import JobOperator
 
 
-class SHAPESMITH_OT_score_layout(bpy.types.Operator):
+def score_and_store(progress, obj, group):
+    """Scores in full, then stores the score (nothing before)."""
+    score = score_group(obj, group, progress=progress)
+    store_score(obj, score)
+    return group, score
+
+
+class SHAPESMITH_OT_score_layout(JobOperator, bpy.types.Operator):
     bl_idname = "shapesmith.score_layout"
     bl_label = "Score Layout"
     bl_description = (
@@ -28,18 +36,17 @@ class SHAPESMITH_OT_score_layout(bpy.types.Operator):
             return False
         return True
 
-    def execute(self, context):
-        obj = context.active_object
+    label = "Score Layout"
+    run = staticmethod(score_and_store)
+
+    def arguments(self, context):
         group = self.group or context.scene.shapesmith.landmarks.score_group
-        try:
-            if not group:
-                raise MeshDataError("choose the vertex group to score")
-            with progress_cursor(context, "Score Layout") as progress:
-                score = score_group(obj, group, progress=progress)
-        except expected_errors() as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
-        store_score(obj, score)
+        if not group:
+            raise MeshDataError("choose the vertex group to score")
+        return {"obj": context.active_object, "group": group}
+
+    def finished(self, context, value):
+        group, score = value
         self.report(
             {"INFO"},
             f"'{group}' ({score['landmarks']} vertices): error mean {score['mean']:.2%}, "

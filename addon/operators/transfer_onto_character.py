@@ -9,16 +9,29 @@ from ..blender.names import scene_name_map, text_name_map
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
 from ..blender.wrap import carry_onto_character, store_symmetry
-from .base import expected_errors, poll_mesh, progress_cursor
+from .base import poll_mesh
+from .job_operator import JobOperator
 
 
-class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
+def transfer_onto(progress, character, template, wrapped_object, settings, name_map, driver_map):
+    """Solves the transfer and the carry in full, then writes the keys (nothing before)."""
+    result = carry_onto_character(template, character, wrapped_object, transfer_settings(settings), progress=progress)
+    written, skipped, warnings = write_transferred_keys(
+        result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers,
+        keep_sculpted=settings.keep_sculpted, name_map=name_map, driver_map=driver_map,
+    )
+    return result, written, skipped, warnings
+
+
+class SHAPESMITH_OT_transfer_onto_character(JobOperator, bpy.types.Operator):
     bl_idname = "shapesmith.transfer_onto_character"
     bl_label = "Transfer onto Character"
     bl_description = (
         "Transfer the template's shape keys onto the wrapped template, then carry them onto the active "
-        "character's own vertices (any topology)"
+        "character's own vertices (any topology). Esc or Cancel stops it"
     )
+    label = "Transfer onto Character"
+    run = staticmethod(transfer_onto)
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
@@ -35,28 +48,17 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
             return False
         return True
 
-    def execute(self, context):
-        character = context.active_object
+    def arguments(self, context):
         settings = context.scene.shapesmith.transfer
-        template = settings.source
-        wrapped_object = character.shapesmith_wrap.wrapped
-        try:
-            with progress_cursor(context, "Transfer onto Character") as progress:
-                result = carry_onto_character(
-                    template,
-                    character,
-                    wrapped_object,
-                    transfer_settings(settings),
-                    progress=progress,
-                )
-                written, skipped, warnings = write_transferred_keys(
-                    result, overwrite=settings.overwrite, copy_drivers=settings.copy_drivers,
-                    keep_sculpted=settings.keep_sculpted, name_map=scene_name_map(context.scene),
-                    driver_map=text_name_map(settings.driver_map),
-                )
-        except expected_errors() as error:
-            self.report({"ERROR"}, str(error))
-            return {"CANCELLED"}
+        character = context.active_object
+        return {
+            "character": character, "template": settings.source, "wrapped_object": character.shapesmith_wrap.wrapped,
+            "settings": settings, "name_map": scene_name_map(context.scene), "driver_map": text_name_map(settings.driver_map),
+        }
+
+    def finished(self, context, value):
+        result, written, skipped, warnings = value
+        character = result.target
         character.shapesmith_wrap.written = len(written)
         store_symmetry(character, result.report["symmetry"])
         # The per-shape penetration on the character, listed by the Transfer panel with it active.

@@ -7,6 +7,7 @@ import json
 import bpy
 
 from ..blender.front import front_summary
+from ..operators.job_operator import draw_running
 from .panels import ShapesmithPanel
 
 
@@ -77,6 +78,7 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
             return
         settings = obj.shapesmith.pack
         layout.operator("shapesmith.pack_expressions", icon="PACKAGE")
+        draw_running(layout)
         layout.prop(settings, "target")
         layout.prop(settings, "symmetric")
         if settings.symmetric:

@@ -6,6 +6,7 @@ import bpy
 
 from .. import native
 from ..blender.landmarks import STOP_REASONS, VERTEX_GROUP_NAME, curve_lines
+from ..operators.job_operator import draw_running
 
 
 class SHAPESMITH_UL_pairs(bpy.types.UIList):
@@ -106,6 +107,7 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
         layout = self.layout
         settings = context.scene.shapesmith.landmarks
         layout.operator("shapesmith.place_landmarks", icon="EMPTY_DATA")
+        draw_running(layout)
         layout.prop(settings, "symmetric", text=f"Symmetric (across {'XYZ'[int(context.scene.shapesmith.symmetry_axis)]} = 0)")
         layout.prop(settings, "camera_source")
         if settings.camera_source == "COLLECTION":

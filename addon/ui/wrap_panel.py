@@ -5,6 +5,7 @@ to the character), then Transfer onto Character."""
 import bpy
 
 from ..blender.wrap import PAIRS_PROPERTY
+from ..operators.job_operator import draw_running
 from .panels import ShapesmithPanel
 
 
@@ -19,16 +20,19 @@ class SHAPESMITH_UL_point_pairs(bpy.types.UIList):
 class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Wrap (any topology)"
     bl_parent_id = "SHAPESMITH_PT_transfer"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = self.layout
         template = context.scene.shapesmith.transfer.source
         obj = context.active_object
+        draw_running(layout)
+        layout.operator("shapesmith.add_arkit_template", icon="MONKEY")
         if obj is None or obj.type != "MESH":
             layout.label(text="Make the character (a mesh) active", icon="INFO")
             return
-        layout.label(text=f"Template: {template.name if template else 'none (pick it above)'}", icon="MESH_DATA")
+        layout.operator("shapesmith.generate_arkit_keys", icon="SHAPEKEY_DATA")
+        layout.prop_search(obj.shapesmith_wrap, "region", obj, "vertex_groups")
+        layout.label(text=f"Template: {template.name if template else 'none: the bundled ARKit template'}", icon="MESH_DATA")
         layout.label(text=f"Character: {obj.name}", icon="USER")
         settings = obj.shapesmith_wrap
         layout.label(text=f"Point pairs: {len(settings.pairs)} (none: Wrap proposes them)")
