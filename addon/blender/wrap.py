@@ -445,13 +445,15 @@ def character_rows(report, character_penetration):
 
 
 def carry_onto_character(template, character, wrapped_object, transfer_settings=None, *, seconds=None, symmetric=True,
-                         progress=None):
+                         progress=None, truth=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
     `transfer_settings`, a `settings.TransferSettings`; None: the defaults), then carries
     them onto the character's own vertices. Returns a `transfer.Transfer` whose target is the
     character, ready for `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`;
     writes nothing. `symmetric=False` carries as if the meshes were not mirror-symmetric (the
-    report's `symmetry` still has the mirror misses)."""
+    report's `symmetry` still has the mirror misses). `report["looks"]` has where riggers look
+    first per key (`looks.look_lines` words it); with `truth` (the same-topology keys on the
+    character, float (K, Nc, 3), a benchmark's) each key's roughness beside the truth's."""
     started = time.perf_counter()
     transfer_settings = transfer_settings or TransferSettings()
     # One bar over both solves: the transfer its first half, the carry the second.
@@ -489,6 +491,20 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     carried = time.perf_counter()
     report = dict(onto_wrapped.report)
     report["carry"] = carry_report
+    # Where riggers look first (eyes closing, the mouth opening, smooth lines and keys), per
+    # key; with `truth` (the same-topology keys on the character, a bench's) its roughness too.
+    report["looks"] = native.module().look_at_keys(
+        np.ascontiguousarray(template_neutral, dtype=np.float32),
+        np.ascontiguousarray(template_shapes, dtype=np.float32),
+        wrapped_triangles,
+        list(onto_wrapped.names),
+        np.ascontiguousarray(wrapped_neutral),
+        np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
+        character_neutral,
+        character_triangles,
+        deltas,
+        None if truth is None else np.ascontiguousarray(truth, dtype=np.float32),
+    )
     report["diagonal"] = float(np.linalg.norm(character_neutral.max(0) - character_neutral.min(0)))
     # The keys as the rigger gets them: judged on the character's own mesh, not on the
     # wrapped template the transfer (and its collision pass) worked on.

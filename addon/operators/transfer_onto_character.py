@@ -5,6 +5,7 @@ solved in full before anything is written."""
 import bpy
 
 from ..blender.settings import transfer_settings
+from ..blender.looks import store_looks
 from ..blender.names import scene_name_map, text_name_map
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
@@ -59,6 +60,7 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
             return {"CANCELLED"}
         character.shapesmith_wrap.written = len(written)
         store_symmetry(character, result.report["symmetry"])
+        store_looks(character, result.report["looks"])
         # The per-shape penetration on the character, listed by the Transfer panel with it active.
         store_transfer(result, written, skipped)
         for warning in result.warnings + warnings:
