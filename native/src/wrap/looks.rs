@@ -27,7 +27,7 @@ use serde::Serialize;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::front::find_front;
-use crate::geometry::mat3::{add, cross, dot, length, scale, sub, to_f64, unit, vertex_normals, Vec3};
+use crate::geometry::mat3::{add, cross, dot, length, scale, sub, to_f64, vertex_normals, Vec3};
 use crate::geometry::neighbours::PointTree;
 use crate::geometry::topology::Adjacency;
 use crate::invalid;
