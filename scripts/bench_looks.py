@@ -57,9 +57,17 @@ def chain(shapesmith, character, entries, truth, template_points=None):
     wrapped_positions = bench_wrap.positions(wrapped_object)
     wrapped_deltas = m["transfer"].transfer_object(template, wrapped_object).deltas.astype(np.float64)
     m["wrap"].remove_object(wrapped_object)
+    # The same measures read on the truth itself: what a perfect carry would read.
+    rest = bench_wrap.positions(template)
+    own = np.stack([bench_wrap.block_positions(template, n) - rest for n in result.names])
+    f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
+    truth_looks = shapesmith.native.module().look_at_keys(
+        f32(rest), f32(own), m["mesh_arrays"].read_triangles(template), list(result.names), f32(wrapped_positions),
+        f32(wrapped_deltas), f32(points), m["mesh_arrays"].read_triangles(character), f32(truth), f32(truth))
     return {
         "vertices": len(points),
         "looks": result.report["looks"],
+        "truth_looks": truth_looks,
         "error": {
             "carry": moving_error(result.deltas.astype(np.float64), truth, diagonal),
             "nearest vertex": moving_error(nearest_vertex_copy(wrapped_positions, wrapped_deltas, points), truth, diagonal),
@@ -67,9 +75,10 @@ def chain(shapesmith, character, entries, truth, template_points=None):
     }
 
 
-def summary(row):
-    """The looks of one character as a rigger reads them."""
-    shapes = {s["name"]: s for s in row["looks"]["shapes"]}
+def summary(row, which="looks"):
+    """The looks of one character's keys (`which`: the carried "looks" or the "truth_looks")
+    as a rigger reads them."""
+    shapes = {s["name"]: s for s in row[which]["shapes"]}
     out = {}
     for name in ("eyeBlinkLeft", "eyeBlinkRight"):
         s = shapes.get(name, {})
@@ -153,6 +162,8 @@ def main():
     rows = {} if args.stylised_only else bench_characters(shapesmith)
     rows.update(stylised_characters(shapesmith)[0])
     result = {label: {"summary": summary(row), "vertices": row["vertices"]} for label, row in rows.items()}
+    for label, row in rows.items():
+        result[f"{label}: the truth itself"] = {"summary": {k: v for k, v in summary(row, "truth_looks").items() if k != "error"}}
     if not args.stylised_only:
         perfect = bench_wrap.run_perfect(shapesmith)
         error = perfect["error"]
