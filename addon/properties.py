@@ -461,7 +461,7 @@ class SHAPESMITH_PG_object(bpy.types.PropertyGroup):
 
 
 class SHAPESMITH_PG_landmark_settings(bpy.types.PropertyGroup):
-    """Place Landmarks knobs (SPEC section 2); defaults are the paper's."""
+    """Place Landmarks knobs (method, section 2); defaults are the paper's."""
 
     epsilon: bpy.props.FloatProperty(
         name="Strong Motion", description="A vertex can track a shape when it moves at least this fraction of the "

@@ -31,7 +31,7 @@ def shape_deltas(obj):
 
 
 def binary_blendshapes(deltas, mu):
-    """b_k[n] = |D_k[n]| >= mu * max |D_k| (SPEC section 1), as vertex sets."""
+    """b_k[n] = |D_k[n]| >= mu * max |D_k| (method, section 1), as vertex sets."""
     sets = {}
     for name, delta in deltas.items():
         length = np.linalg.norm(delta, axis=1)
@@ -98,7 +98,7 @@ def together(groups, first, second):
 
 
 def test_template_expressions_can_be_posed_and_seen(sample):
-    """Collision and occlusion conflicts (SPEC section 1, poseable and observable): the tongue
+    """Collision and occlusion conflicts (method, section 1, poseable and observable): the tongue
     never goes out through closed lips, an eye never turns under its own closed lid; with
     both switched off the first expression asks for exactly that."""
     template = bpy.data.objects["Template"]

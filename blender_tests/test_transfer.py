@@ -489,7 +489,7 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
             assert 0.0 <= row["between_pieces"] <= row["length"] + 1e-9
             assert 0.0 <= row["template_between_pieces"] <= row["template_length"] + 1e-9
         assert 0.0 < target["neutral_penetration"]["between_pieces"] <= target["neutral_penetration"]["length"]
-        # The native report's excess over the template (SPEC 3's criterion, read by the
+        # The native report's excess over the template (the criterion of method, section 3, read by the
         # add-on) is that of the lengths it reports, part by part, before and after the pass:
         # beyond the more of the template shape's added curve and its own curve (the two
         # allowances the report gives) over the target's rest.

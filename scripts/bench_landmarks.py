@@ -1,4 +1,4 @@
-"""Place Landmarks benchmark (SPEC sections 2 and 4), run with the bpy Python:
+"""Place Landmarks benchmark (method, sections 2 and 4), run with the bpy Python:
 
     python scripts/bench_landmarks.py [-- --input SAMPLE.blend] [--json OUT] [--picture OUT.png]
 

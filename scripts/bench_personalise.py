@@ -1,4 +1,4 @@
-"""Personalisation benchmark on the warp ground truth (SPEC section 4), run with the bpy Python:
+"""Personalisation benchmark on the warp ground truth (method, section 4), run with the bpy Python:
 
     python scripts/bench_personalise.py [-- --json OUT.json] [--heads bundled,4x]
 
@@ -31,7 +31,7 @@ from bench_transfer import batch_cache, subdivided  # noqa: E402
 
 SCALE = np.array([1.0, 1.25, 0.85])
 BEND = 0.03  # the bend moves the face's sides back by this fraction of the diagonal
-ACTIVE = 0.3  # SPEC 1's mu: a vertex is active in a shape moving >= 0.3 of its maximum
+ACTIVE = 0.3  # the method's (section 1) mu: a vertex is active in a shape moving >= 0.3 of its maximum
 CONTROL_SEEDS = 5
 FEW = 5  # J_max of the few-examples row
 NOISE = 1e-3  # scan noise: standard deviation per coordinate, fraction of the diagonal

@@ -1,4 +1,4 @@
-"""Transfer Shape Keys benchmark (SPEC section 4), run with the bpy Python:
+"""Transfer Shape Keys benchmark (method, section 4), run with the bpy Python:
 
     python scripts/bench_transfer.py [-- --json OUT.json]
 

@@ -1,4 +1,4 @@
-"""Wrap benchmark (SPEC section 5), run with the bpy Python:
+"""Wrap benchmark (method, section 5), run with the bpy Python:
 
     python scripts/bench_wrap.py [-- --json OUT.json] [--proposals-only]
 
@@ -15,7 +15,7 @@ keys copied from where the fit put each template vertex, as if the transfer onto
 template were exact: the error the fit's slide along the surface alone causes); and the
 keys' roughness (mean norm of the uniform Laplacian of the deltas on moving vertices, /
 diagonal); and the shapes of the carried keys that add more intersection curve to the
-character's neutral than the template's shape allows (SPEC 3's criterion, excess over 1e-3
+character's neutral than the template's shape allows (the criterion of method, section 3, excess over 1e-3
 of the diagonal), with the carry's collision pass (the chain's default) and
 without it (the plain carry of the same wrapped keys, timed in the same run).
 
@@ -505,7 +505,7 @@ def block_positions(obj, name):
 
 
 def worse_than_template(rows, diagonal):
-    """The shapes whose excess over the template (both parts, SPEC 3's criterion) is over
+    """The shapes whose excess over the template (both parts, the criterion of method, section 3) is over
     1e-3 of the diagonal, name -> excess / diagonal."""
     excess = {row["name"]: (row["excess"]["inside"] + row["excess"]["between"]) / diagonal for row in rows}
     return {name: e for name, e in excess.items() if e > 1e-3}

@@ -1,6 +1,6 @@
 """The keys' error measures of the wrap, shared by scripts/bench_wrap.py and
 blender_tests/test_wrap.py (plain numpy; the native module is passed in): the two simple copies
-the carry is judged against (SPEC section 5) and the error against the same-topology result."""
+the carry is judged against (method, section 5) and the error against the same-topology result."""
 
 import numpy as np
 

@@ -1,4 +1,4 @@
-"""Import ARKit capture (SPEC section 6): per-frame ARKit weights from Live Link Face (CSV) or
+"""Import ARKit capture (method, section 6): per-frame ARKit weights from Live Link Face (CSV) or
 Face Cap (TXT) keyed onto the rig's shape keys by name, and the head's rotation onto the
 object. The operator and `scripts/batch.py import-capture` both call `import_capture`.
 

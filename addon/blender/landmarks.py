@@ -1,5 +1,5 @@
 """Place Landmarks and Score Layout as plain functions: the operators and
-`scripts/batch.py landmarks` both call them (SPEC section 2).
+`scripts/batch.py landmarks` both call them (method, section 2).
 
 `place_landmarks` reads the rig and returns a JSON-ready layout document without writing
 anything; `build_layout` then replaces the object's previous layout (empties parented to their
@@ -72,7 +72,7 @@ def mesh_note(parts, landmark_vertices):
 
 def packed_poses(obj, names):
     """The expressions of a Pack Expressions result stored on `obj` as extra test poses
-    (J, K) float32 in the rig's shape order (SPEC: the packed expressions are test poses), or
+    (J, K) float32 in the rig's shape order (the method: the packed expressions are test poses), or
     None when the object carries no pack result."""
     if not obj.shapesmith.pack.result.done:
         return None
@@ -86,7 +86,7 @@ def packed_poses(obj, names):
 
 
 def score_vertices(obj, rig, vertices, progress=None):
-    """Noisy reconstruction score of a layout (SPEC section 2), with the packed expressions
+    """Noisy reconstruction score of a layout (method, section 2), with the packed expressions
     among the test poses when the object has them; `progress(fraction)` as the poses are
     scored (seconds on a 100k-vertex head with 150 keys)."""
     poses = packed_poses(obj, rig.names)

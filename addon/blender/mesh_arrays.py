@@ -164,7 +164,7 @@ def key_masks(obj, blocks):
 
 
 def read_rig(obj):
-    """The object's rig: the delta of every shape key as Blender shows it (SPEC 0): against
+    """The object's rig: the delta of every shape key as Blender shows it (method, section 0): against
     the reference key, or, for a corrective (a key relative to another key), against its
     own base; a key masked by a vertex group times the group's weight. Pairing, Pack,
     Landmarks and Transfer all see the half a split key moves and what a corrective adds. The

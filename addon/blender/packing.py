@@ -19,7 +19,7 @@ from .settings import PackSettings, pack_settings
 # undone with it; the leading underscore keeps it out of the Custom Properties panel).
 CONFLICTS_PROPERTY = "_shapesmith_pack_conflicts"
 
-# What the poseability results depend on besides the rig (SPEC section 1): the other
+# What the poseability results depend on besides the rig (method, section 1): the other
 # options change which pairs are tested, never a pair's answer.
 CONFLICT_SETTINGS = ("mu", "collision_tolerance", "occlusion_keep", "camera_direction")
 

@@ -1,5 +1,5 @@
 """Solve Performance as plain functions: the operator and `scripts/batch.py solve` both call
-them (SPEC section 6).
+them (method, section 6).
 
 The landmarks are the empties Place Landmarks made (each records its vertex); the tracks
 follow them by name, from a trajectories file (3D) or a Movie Clip's tracks (2D, through the

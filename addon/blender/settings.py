@@ -23,7 +23,7 @@ class NativeSettings:
 
 @dataclass
 class SymmetrySettings(NativeSettings):
-    """`SymmetryParams`: the mirror test of symmetric pairs and antagonists (SPEC section 0)."""
+    """`SymmetryParams`: the mirror test of symmetric pairs and antagonists (method, section 0)."""
 
     pair_tolerance: float = 0.25
     antagonist_iou: float = 0.6
@@ -113,7 +113,7 @@ class VirtualEdgeSettings(NativeSettings):
 
 @dataclass
 class CollisionSettings(NativeSettings):
-    """`CollisionParams`: the collision pass after each shape's solve (SPEC section 3)."""
+    """`CollisionParams`: the collision pass after each shape's solve (method, section 3)."""
 
     margin: float = 0.25
     min_margin: float = 0.001

@@ -199,7 +199,7 @@ def _write_piece(transfer, plan, copy_drivers, mapping, overwrite, keep_sculpted
         delta = unmasked(transfer.deltas[order[name]], masks.get(source_blocks[name].vertex_group))
         if edits.get(name) is not None:
             delta = delta + edits[name]
-        # A corrective goes on top of its base as the target has it (SPEC 0: its delta from its base).
+        # A corrective goes on top of its base as the target has it (method, section 0: its delta from its base).
         relative = block.relative_key if block.relative_key != block else keys.reference_key
         if relative == keys.reference_key:
             base[:] = transfer.target_neutral.ravel()

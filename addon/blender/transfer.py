@@ -419,7 +419,7 @@ def added_beyond_template(report, row, key="length"):
     """How much more intersection curve the shape adds to the target's neutral than the
     template's shape allows, split into (inside one piece: lips or lids through each other,
     between pieces: skin through a separate eyeball, lashes or teeth), each part zero or more:
-    SPEC 3's criterion, as the native report computes it (`excess`: per part, the shape may
+    the criterion of method, section 3, as the native report computes it (`excess`: per part, the shape may
     add what the template's adds to its neutral, a removal allowing none, or cross as much as
     the template's shape does, `template_added` and `template_crossing`; removing in one part
     does not pay for adding in the other). `key="plain_length"` reads plain transfer's,

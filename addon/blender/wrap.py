@@ -410,7 +410,7 @@ def template_curve(report):
 
 def character_rows(report, character_penetration):
     """The transfer report's per-shape penetration rows, for the keys carried onto the
-    character: its own curve lengths, the template's beside them, and SPEC 3's criterion as
+    character: its own curve lengths, the template's beside them, and the criterion of method, section 3 as
     the native carry judged it on the character's mesh (`excess`, per part). What the
     collision pass did on the wrapped template stays with each row (`collisions`), what the
     carry's did on the character beside it (`carry_collisions`, when it ran)."""

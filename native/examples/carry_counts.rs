@@ -1,4 +1,4 @@
-//! Shapes of the wrap's carried keys worse than the template by SPEC 3's criterion, with the
+//! Shapes of the wrap's carried keys worse than the template by the criterion of method, section 3, with the
 //! carry's collision pass and without it, on the arrays `scripts/save_wrap_arrays.py -- DIR`
 //! writes (one directory per character):
 //!

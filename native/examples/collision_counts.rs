@@ -1,4 +1,4 @@
-//! Counts the shapes worse than the template by SPEC 3's criterion, plain, with virtual
+//! Counts the shapes worse than the template by the criterion of method, section 3, plain, with virtual
 //! edges before the collision pass and after it, on the arrays
 //! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
 //! --save-arrays DIR`, or `scripts/production_heads.py DIR` from those):

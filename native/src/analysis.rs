@@ -1,7 +1,7 @@
 //! Analyze Rig: what a rigger checks before running any tool. Counts, inert shapes,
 //! degenerate triangles, the mirror map's unmatched vertices, and the symmetric pairs and
 //! mirror antagonists found geometrically (with the name fallback), and the seams welded.
-//! SPEC section 0.
+//! Method, section 0.
 
 use serde::Serialize;
 
@@ -16,7 +16,7 @@ use crate::rig::{degenerate_triangles, validate_points, RigView};
 pub struct AnalysisParams {
     /// Lateral axis of the symmetry plane (0 = local X).
     pub axis: usize,
-    /// Mirror-map tolerance relative to the bounding-box diagonal (SPEC: 1e-3).
+    /// Mirror-map tolerance relative to the bounding-box diagonal (the method: 1e-3).
     pub mirror_tolerance: f64,
     pub symmetry: SymmetryParams,
 }

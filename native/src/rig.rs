@@ -1,12 +1,12 @@
 //! The rig as the add-on hands it over: a neutral `V0` (N x 3), deltas `D_k = V_k - V0`
 //! (K x N x 3), triangles (T x 3) and shape names, all borrowed from the caller's arrays.
-//! SPEC section 0.
+//! Method, section 0.
 
 use crate::error::ShapesmithResult;
 use crate::invalid;
 
 /// A shape whose largest displacement is below this fraction of the bounding-box diagonal
-/// is inert: reported and skipped, never divided by (SPEC section 0).
+/// is inert: reported and skipped, never divided by (method, section 0).
 pub const INERT_FRACTION: f64 = 1e-6;
 
 /// A triangle whose area is below this fraction of the squared bounding-box diagonal is

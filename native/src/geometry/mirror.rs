@@ -1,5 +1,5 @@
 //! Bilateral symmetry: the vertex mirror map, symmetric shape pairs (eyeBlinkLeft and
-//! eyeBlinkRight) and mirror antagonists (jawLeft and jawRight). SPEC section 0 and the
+//! eyeBlinkRight) and mirror antagonists (jawLeft and jawRight). Method, section 0 and the
 //! antagonist rule of section 1.
 //!
 //! A symmetric pair moves mirrored regions and is posed together; a mirror antagonist is a
@@ -24,7 +24,7 @@ pub struct MirrorMap {
 }
 
 impl MirrorMap {
-    /// `tol_fraction` is relative to the bounding-box diagonal (SPEC: 1e-3).
+    /// `tol_fraction` is relative to the bounding-box diagonal (the method: 1e-3).
     pub fn new(points: &[[f32; 3]], axis: usize, tol_fraction: f64) -> Self {
         let tol = tol_fraction * crate::rig::bbox_diagonal(points);
         let tree = PointTree::new(points);
@@ -58,12 +58,12 @@ impl MirrorMap {
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SymmetryParams {
-    /// Mirror test: `||M(D_i) - D_j|| / max(||D_i||, ||D_j||)` below this (SPEC: 0.25).
+    /// Mirror test: `||M(D_i) - D_j|| / max(||D_i||, ||D_j||)` below this (the method: 0.25).
     pub pair_tolerance: f64,
     /// A mirror pair whose binary blendshapes overlap above this IoU, with a negative
-    /// cosine, is an antagonist pair (SPEC section 1: 0.6).
+    /// cosine, is an antagonist pair (method, section 1: 0.6).
     pub antagonist_iou: f64,
-    /// Threshold of the binary blendshapes used for the IoU (SPEC: mu = 0.3).
+    /// Threshold of the binary blendshapes used for the IoU (the method: mu = 0.3).
     pub mu: f64,
     /// Pair shapes by name (Left/Right, _L/_R, .L/.R, _l/_r) where geometry finds no partner.
     pub use_names: bool,

@@ -1,4 +1,4 @@
-//! The penetration metric of SPEC section 3: the total length of the intersection curves
+//! The penetration metric of method, section 3: the total length of the intersection curves
 //! between triangles that share no vertex, and the number of such intersecting pairs. The
 //! length is also split by where it lies: inside one connected piece (lips or lids passing
 //! through each other, what virtual edges act on) or between two pieces (skin through a
@@ -59,7 +59,7 @@ pub fn triangle_pieces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
 }
 
 /// The intersection curve a shape adds to its neutral (its length in the shape minus at
-/// rest), split as SPEC 3's criterion judges it: inside one connected piece (lip through lip)
+/// rest), split as the criterion of method, section 3 judges it: inside one connected piece (lip through lip)
 /// and between two pieces (skin through teeth, an eyeball, lashes). Over a neutral that
 /// crosses nowhere ([`AddedCurve::crossing`]) it is a shape's whole curve, per part.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -124,7 +124,7 @@ impl AddedCurve {
 /// eyeball or the teeth adds curve by sliding deeper along pairs that already cross.
 pub const REST_GROWTH: f64 = 0.05;
 
-/// What the template's shape allows a target shape (SPEC 3's criterion), per part, at the
+/// What the template's shape allows a target shape (the criterion of method, section 3), per part, at the
 /// target's size and units: the curve it adds to the template's neutral (`added`) and its
 /// own whole curve (`crossing`). Part by part, a target shape is worse than the template's
 /// when its curve exceeds both its own neutral's plus `added` (a removal counting as none:

@@ -1,6 +1,6 @@
 //! The welded surface: vertices that an importer split along UV seams or hard edges (copies
 //! exactly on top of each other, each keeping its own UVs or normals) taken as one surface
-//! point. SPEC section 0, "Seams".
+//! point. Method, section 0, "Seams".
 //!
 //! Every tool welds at its entry, runs on the welded arrays and scatters its per-vertex
 //! results back, so that each copy of a seam vertex gets the same value bit for bit (a seam

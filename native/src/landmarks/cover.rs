@@ -75,7 +75,7 @@ pub fn solve_cover(columns: &[Column], options: &IlpOptions) -> ShapesmithResult
 }
 
 /// `cost[n] = 1 + gamma * q[n]`, with `q[n]` the mean over the covered shapes of
-/// `(1 - alpha)(1 - r_k[n]) + alpha (1 - l[n])` (SPEC's reading of Eq. 1 and 5a: the count
+/// `(1 - alpha)(1 - r_k[n]) + alpha (1 - l[n])` (the method's reading of Eq. 1 and 5a: the count
 /// stays dominant, quality breaks ties).
 pub fn vertex_cost(covered: &[(usize, f64)], visibility: f64, alpha: f64, gamma: f64) -> f64 {
     if covered.is_empty() {

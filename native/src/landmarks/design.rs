@@ -1,4 +1,4 @@
-//! Conditioned layouts (SPEC section 2, "Conditioned layouts"; beyond paper 003): after the
+//! Conditioned layouts (method, section 2, "Conditioned layouts"; beyond paper 003): after the
 //! proven-optimal cover, landmarks are added greedily by an experimental-design criterion on
 //! the landmark rows of `D`, so that the weights can be told apart under tracker noise.
 //!

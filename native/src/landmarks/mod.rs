@@ -1,5 +1,5 @@
 //! Compact landmark layouts: Zell & McDonnell, "Compact Facial Landmark Layouts for
-//! Performance Capture", Eurographics 2022 (`zell2022landmarks`). SPEC section 2.
+//! Performance Capture", Eurographics 2022 (`zell2022landmarks`). Method, section 2.
 //!
 //! The fewest vertices such that every shape has a landmark that moves strongly in it and
 //! stays visible: a weighted set cover over candidate vertices, solved to proven optimality,
@@ -18,7 +18,7 @@
 //!
 //! # Deviations
 //! - Cost `1 + gamma q[n]` with `q[n]` the mean quality over the shapes a vertex covers
-//!   (SPEC): Eq. (1)/(5a) read literally would punish a vertex for covering many shapes.
+//!   (the method): Eq. (1)/(5a) read literally would punish a vertex for covering many shapes.
 //! - Visibility rays are cosine-weighted (the paper samples "all directions"): grazing
 //!   directions, from which no tracker sees a point well, count least. A vertex whose normal
 //!   vanishes is sampled over the whole sphere.
@@ -75,7 +75,7 @@ pub struct LandmarkParams {
     pub symmetric: bool,
     /// Lateral axis of the symmetry plane (0 = local X).
     pub axis: usize,
-    /// Mirror-map tolerance relative to the bounding-box diagonal (SPEC: 1e-3).
+    /// Mirror-map tolerance relative to the bounding-box diagonal (the method: 1e-3).
     pub mirror_tolerance: f64,
     /// Rounds of the adaptive multi-cover (Algorithm 1); 1 is the single cover of Eq. (5).
     pub max_per_shape: usize,
@@ -266,7 +266,7 @@ pub struct LandmarkLayout {
     pub design_stop: Option<DesignStop>,
 }
 
-/// Places landmarks (SPEC section 2): candidates (Eq. 3), worst-case visibility over the
+/// Places landmarks (method, section 2): candidates (Eq. 3), worst-case visibility over the
 /// neutral and every shape (Eq. 4), then the adaptive multi-cover of Eq. (5), symmetric on
 /// request. Progress: visibility is the first 80%, the covers the rest.
 ///

@@ -1,4 +1,4 @@
-//! How a layout is judged (SPEC section 2, "Reconstruction"): measure the landmarks of known
+//! How a layout is judged (method, section 2, "Reconstruction"): measure the landmarks of known
 //! poses with tracker noise, solve the blendshape weights by bounded least squares over the
 //! landmark rows, rebuild the dense mesh and compare it with the truth.
 
@@ -23,7 +23,7 @@ use crate::rig::RigView;
 #[serde(default, deny_unknown_fields)]
 pub struct ScoreParams {
     /// Standard deviation of the measurement noise per coordinate, as a fraction of the
-    /// bounding-box diagonal (SPEC: 0.2%).
+    /// bounding-box diagonal (the method: 0.2%).
     pub noise: f64,
     pub seed: u64,
     /// Further test poses, K weights each (e.g. the packed expressions as 0/1 rows).

@@ -1,6 +1,6 @@
 //! Global visibility, Eq. (4) of Zell & McDonnell 2022: per pose, the fraction of directions
 //! in which a vertex can be seen (ambient-occlusion style), and its worst case over poses
-//! `l[n] = min_k L_k[n]`. SPEC section 2.
+//! `l[n] = min_k L_k[n]`. Method, section 2.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -1,14 +1,14 @@
-//! Collision conflicts (SPEC section 1, beyond the paper, for its goal 4: poseable
+//! Collision conflicts (method, section 1, beyond the paper, for its goal 4: poseable
 //! expressions): shapes A and B conflict when posing both adds intersection curve beyond
 //! what each adds alone,
 //!
 //! $E(A, B) = L(A + B) - L(A) - L(B) + L(0)$,
 //!
-//! with $L$ the penetration metric of SPEC section 3 (the length of the curve where
+//! with $L$ the penetration metric of method, section 3 (the length of the curve where
 //! triangles sharing no vertex cross). Both parts of E are measured, inside one piece and
 //! between pieces; the conflict is $E_{\mathrm{between}}(A, B) > \tau \cdot \mathrm{diag}$
 //! ($\tau$ = [`super::PackingParams::collision_tolerance`]). Calibrated on the bundled
-//! Template (docs/design.md): curve inside one piece is what an additive rig makes when shapes
+//! Template (docs/design_pack.md): curve inside one piece is what an additive rig makes when shapes
 //! a face poses every day are mixed (the lips or lids folding into themselves, which
 //! corrective shapes fix: mouthSmileLeft with mouthSmileRight adds 3.99 cm of curve, eyeBlink
 //! with eyeSquint 7.06 cm), while a pose the actor cannot hold puts one piece through

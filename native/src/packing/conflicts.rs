@@ -5,7 +5,7 @@
 //! both posed, so they are equivalent to one edge per pair of intersecting active sets. The
 //! symmetry rows $w_x = w_p$ (Eq. (3d)) and the user's pins merge shapes into one *node*, and
 //! a partner's overlap with its own partner is no conflict (paper fig. 2). Antagonists,
-//! collisions, occlusions (SPEC section 1, poseable and observable) and the user's
+//! collisions, occlusions (method, section 1, poseable and observable) and the user's
 //! `keep_apart` add edges, and each edge keeps its reasons for the report. The program then
 //! needs one row per clique of a cover of the node graph's edges: the number of vertices N
 //! drops out.

@@ -1,5 +1,5 @@
 //! Importance weights of a shape (paper 000, section 4.3): displacement strength (Eq. (5)),
-//! triangle distortion against a target neutral (Eqs. (6)-(7), with the SPEC's `- 2`) and
+//! triangle distortion against a target neutral (Eqs. (6)-(7), with the method's `- 2`) and
 //! the optional uniqueness (Eq. (8)), combined as Eq. (4) plus a floor.
 
 use rayon::prelude::*;
@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::geometry::mirror::delta_inner_products;
 use crate::rig::{norm, RigView};
 
-/// Added to every importance so that a shape of zero importance is still packed (SPEC
+/// Added to every importance so that a shape of zero importance is still packed (the method
 /// section 1): with it, every node of the program has a positive weight.
 pub const IMPORTANCE_FLOOR: f64 = 0.01;
 
@@ -28,7 +28,7 @@ pub fn displacement_strength(rig: &RigView, active: &[Vec<u32>]) -> Vec<f64> {
     normalise_by_max(mean)
 }
 
-/// Eq. (6) with the SPEC's correction: for triangle (u, v, w) with edges vu and vw,
+/// Eq. (6) with the method's correction: for triangle (u, v, w) with edges vu and vw,
 /// $s_t = \max(|vu_A|/|vu_B|, |vu_B|/|vu_A|) + \max(|vw_A|/|vw_B|, |vw_B|/|vw_A|) - 2$,
 /// so that an undistorted (or uniformly unscaled) triangle scores 0. Both meshes must have
 /// validated, non-degenerate triangles (every edge has a positive length).

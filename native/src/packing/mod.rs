@@ -3,7 +3,7 @@
 //!
 //! Carrigan, Zell, Guiard & McDonnell, "Expression Packing: As-Few-As-Possible Training
 //! Expressions for Blendshape Transfer", Eurographics 2020 (`carrigan2020packing`);
-//! SPEC section 1.
+//! Method, section 1.
 //!
 //! | Paper | Here |
 //! |---|---|
@@ -18,18 +18,18 @@
 //! | $w^j_k$ | [`Packing::weights`] |
 //!
 //! # Deviations
-//! - Eq. (6) gets `- 2` so an undistorted triangle scores 0 (SPEC), and every importance
+//! - Eq. (6) gets `- 2` so an undistorted triangle scores 0 (the method), and every importance
 //!   gets a floor of 0.01 so that no shape has zero weight.
 //! - Eq. (3b)'s N vertex rows become one row per clique of an edge clique cover of the
 //!   conflict graph (same 0/1 solutions, N drops out); nodes without a remaining conflict are
 //!   taken without a solve.
 //! - Antagonists (mirror pairs moving the same region, and shapes whose deltas have a cosine
 //!   below [`PackingParams::antagonist_cosine`]) conflict, and a pair of antagonists is no
-//!   symmetric pair (SPEC). Mirror antagonists are searched even when `symmetric` is off.
+//!   symmetric pair (the method). Mirror antagonists are searched even when `symmetric` is off.
 //! - Ties in Eq. (3a) (equal sums, common since mirror shapes have equal importance) are
 //!   broken by a second solve towards the nodes with the most remaining conflicts, so that
 //!   hard-to-place shapes go early and J shrinks; the optimum itself is unchanged.
-//! - Algorithm 1's loop test "K non-empty or J < Jmax" is read as "and" (SPEC).
+//! - Algorithm 1's loop test "K non-empty or J < Jmax" is read as "and" (the method).
 //! - Refinements (the paper's section 4.5.3) are constraints: pins merge nodes, `keep_apart`
 //!   adds an edge (and dissolves a symmetric pair it names), `exclude` removes shapes.
 //! - The Dis and TD maxima (Eqs. (5), (7)) run over every moving shape, excluded ones
@@ -40,9 +40,9 @@
 //!   ([`conflicts::ConflictReason`]).
 //! - Beyond the paper: [`PackingParams::fewest`] proves the fewest expressions for the same
 //!   conflicts (a graph colouring), and [`pack_greedy`] is the first-fit baseline.
-//! - Not met: SPEC's 50 ms for a cold pack of a 26k-vertex head with both poseability tests
+//! - Not met: the method's 50 ms for a cold pack of a 26k-vertex head with both poseability tests
 //!   (0.52 s; a re-pack reusing the stored results 0.15 s). Every part of the tests grows with
-//!   the triangles the shapes move, so it asks for a tenth of the work (docs/design.md).
+//!   the triangles the shapes move, so it asks for a tenth of the work (docs/design_pack.md).
 
 pub mod collisions;
 pub mod conflicts;
@@ -88,7 +88,7 @@ pub struct PackingParams {
     pub axis: usize,
     /// Mirror-map tolerance relative to the bounding-box diagonal.
     pub mirror_tolerance: f64,
-    /// Mirror test threshold for symmetric pairs (SPEC section 0).
+    /// Mirror test threshold for symmetric pairs (method, section 0).
     pub pair_tolerance: f64,
     /// IoU of binary blendshapes above which a mirror pair is an antagonist pair.
     pub antagonist_iou: f64,
@@ -170,7 +170,7 @@ impl Default for PackingParams {
 }
 
 /// Default [`PackingParams::collision_tolerance`]: calibrated on the bundled Template (see
-/// docs/design.md, "Poseable and observable expressions").
+/// docs/design_pack.md, "Poseable and observable expressions").
 pub const DEFAULT_COLLISION_TOLERANCE: f64 = 0.11;
 
 /// What the poseability tests found, and what they cost.

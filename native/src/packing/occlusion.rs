@@ -1,4 +1,4 @@
-//! Occlusion conflicts (SPEC section 1, beyond the paper, for its goal 4: observable
+//! Occlusion conflicts (method, section 1, beyond the paper, for its goal 4: observable
 //! expressions): shape A conflicts with B when, posed together, A's active vertices (its
 //! binary blendshape $b_A$, Eq. (2)) keep less than `keep` of the visibility they have with
 //! A alone,

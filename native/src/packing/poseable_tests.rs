@@ -38,7 +38,7 @@ fn curve_length(rig: &RigView, shapes: &[usize]) -> [f64; 2] {
     [all.iter().map(|c| c.2).sum(), all.iter().filter(|c| piece(c.0) != piece(c.1)).map(|c| c.2).sum()]
 }
 
-/// E(A, B) of SPEC section 1 from four full sweeps: (total, between pieces).
+/// E(A, B) of method, section 1 from four full sweeps: (total, between pieces).
 fn added_curve(rig: &RigView, a: usize, b: usize) -> [f64; 2] {
     let [ab, ao, bo, rest] = [curve_length(rig, &[a, b]), curve_length(rig, &[a]), curve_length(rig, &[b]), curve_length(rig, &[])];
     [0, 1].map(|i| ab[i] - ao[i] - bo[i] + rest[i])
@@ -90,7 +90,7 @@ fn brute_force_edges(rig: &RigView, params: &PackingParams, active: &[Vec<u32>],
 
 /// The collision and occlusion edges a packing must have, recomputed the long way: between
 /// placeable shapes whose active sets are disjoint and that are neither antagonists nor kept
-/// apart (SPEC: any of those already forbids the pair).
+/// apart (the method: any of those already forbids the pair).
 pub(super) fn brute_force_poseability(
     rig: &RigView,
     params: &PackingParams,

@@ -1,4 +1,4 @@
-//! What a shape moves, for the poseability tests (SPEC section 1, "poseable and
+//! What a shape moves, for the poseability tests (method, section 1, "poseable and
 //! observable"): the triangles with a moving corner, their box over the rest pose and the
 //! posed one, and the positions of a mix of shapes.
 //!

@@ -158,7 +158,7 @@ fn prepare_welded(rig: &RigView, target_neutral: Option<&[[f32; 3]]>, params: &P
     Ok(Prepared { active, base_importance, cosines, graph, inert, excluded, antagonists, poseability, weld })
 }
 
-/// Collision and occlusion conflicts (SPEC section 1, poseable and observable), tested only
+/// Collision and occlusion conflicts (method, section 1, poseable and observable), tested only
 /// between placeable shapes that nothing else keeps apart (no overlap, not antagonists, not
 /// kept apart by the user): any other reason already forbids the pair.
 fn poseability(

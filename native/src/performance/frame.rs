@@ -1,4 +1,4 @@
-//! One frame's solve: Levenberg-Marquardt on the pose and the weights together (SPEC section 6),
+//! One frame's solve: Levenberg-Marquardt on the pose and the weights together (method, section 6),
 //! each step a box-constrained quadratic program. The pose block has no bounds, so it is
 //! eliminated (Schur complement) and the weights' program, `0 <= w <= 1`, goes to the shared
 //! bounded solver; the pose step then follows from the weights.

@@ -1,11 +1,11 @@
-//! Driving the rig from a performance (SPEC section 6; the use the layouts of Zell & McDonnell
+//! Driving the rig from a performance (method, section 6; the use the layouts of Zell & McDonnell
 //! 2022, `zell2022landmarks`, exist for): per frame, the head's rigid pose and the shape
 //! weights `0 <= w <= 1` that best explain tracked landmarks, from 3D trajectories or from 2D
 //! tracks through a calibrated camera. The landmark tool's noise model (Gaussian tracker
 //! noise, bounded least squares over the landmark rows of `D`) with the pose as further
 //! unknowns.
 //!
-//! | SPEC section 6 | Here |
+//! | method, section 6 | Here |
 //! |---|---|
 //! | `R_t, c_t` | [`Pose::rotation`], [`Pose::translation`] ([`Pose::scale`] optional) |
 //! | `w_t` | [`SolvedFrame::weights`] |
@@ -139,7 +139,7 @@ pub struct Performance {
     pub kept: Vec<usize>,
 }
 
-/// Solves every frame in order (SPEC section 6), warm-started from the previous one.
+/// Solves every frame in order (method, section 6), warm-started from the previous one.
 /// `landmarks` are the rig's vertices the tracks follow, in the tracks' column order.
 pub fn solve_performance(
     rig: &RigView,

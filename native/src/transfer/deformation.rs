@@ -592,7 +592,7 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
 /// differ by about 10% (the bundled identities: 0.92 to 1.02 in RMS radius, the warp ground
 /// truth 1.08) and compare raw lengths: read at the size ratio there too, the pass's
 /// decisions on the warp ground truth raise its error +7.9% instead of +4.2%, past the 5%
-/// allowed (docs/design.md, "The template's curve read in the target's units").
+/// allowed (docs/design_transfer.md, "The template's curve read in the target's units").
 pub const OTHER_UNITS: f64 = 1.5;
 
 /// The largest collision margin accepted, in local edge lengths: beyond it the kept distance

@@ -1,6 +1,6 @@
 //! Blendshape transfer: deformation transfer (Sumner & Popovic 2004, in the gradient form of
 //! Botsch et al. 2006) with virtual-edge constraints against penetration (Li, Shen & Liu 2023,
-//! paper 004) and example-based personalisation (Li, Weise & Pauly 2010). SPEC section 3.
+//! paper 004) and example-based personalisation (Li, Weise & Pauly 2010). Method, section 3.
 //!
 //! [`DeformationTransfer::new`] does everything that depends only on the two neutrals (the
 //! target's gradient operators, the normal matrix, the virtual edges, the pieces);
@@ -23,7 +23,7 @@
 //! | `alpha_jk` (EBFR blend weights of example `j`) | `weights` of [`DeformationTransfer::personalise`] |
 //! | `beta` (EBFR regulariser; here the inverse square of the transfer's relative error) | [`PersonaliseParams`] |
 //!
-//! # Deviations (each a decision in docs/design.md, with its numbers)
+//! # Deviations (each a decision in docs/design_transfer.md, with its numbers)
 //! - **Static vertices by elimination**: each shape removes its static vertices
 //!   (`|D_k[n]| < 1e-4 max_n |D_k[n]|`) from the system (Dirichlet) and factorises only the
 //!   principal submatrix on its moving vertices, in one AMD order computed once; static
@@ -35,7 +35,7 @@
 //!   world-space gradients, so a rotated target is turned onto the source (Kabsch) for the
 //!   solve and its deltas turned back.
 //! - **Virtual edges** join vertices of one piece only ([`find_virtual_edges`]).
-//! - **Virtual-edge target** `f_k = A_ij e_k + rho (f_0 - A_ij e_0)` instead of SPEC's
+//! - **Virtual-edge target** `f_k = A_ij e_k + rho (f_0 - A_ij e_0)` instead of the method's
 //!   `S_ij (B0_i - B0_j)`: `e_0`, `e_k` the source pair's vector at rest and in shape k,
 //!   `f_0 = B0_i - B0_j`, `A_ij` the mean rest-to-rest gradient `E_target E_source^{-1}` around
 //!   i and j, `rho = (1 - min(1, |e_k - e_0| / |e_0|))^2` (`DeformationTransfer::edge_change`).
@@ -43,18 +43,18 @@
 //!   barely moves keeps the target's rest vector; self-transfer is exact (`A = I`, `f_0 = e_0`).
 //! - **`w_ve = 3`**: the springs hold the template's final gap, so they need more pull than 1
 //!   against the gradient term (the two-layer lip test in `tests.rs`).
-//! - **Collision-aware pass** ([`CollisionParams`], `collisions/`; SPEC 3, beyond paper 004),
+//! - **Collision-aware pass** ([`CollisionParams`], `collisions/`; method, section 3, beyond paper 004),
 //!   on by default: a shape adding more intersection curve than the template's own, per part
 //!   ([`AddedCurve::excess`]), has the vertices that went through held on their rest side and
 //!   is re-solved locally; the round with least excess is kept, and a shape no worse (or that
 //!   no round improves) comes out bit for bit as without the pass.
-//! - **Margin** `max(0.25 x local mean edge length, 0.001 x bbox diagonal)`: SPEC's quarter
+//! - **Margin** `max(0.25 x local mean edge length, 0.001 x bbox diagonal)`: the method's quarter
 //!   edge, with a floor against very short edges.
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
 //!   triangle (equations and deviations in `personalise.rs`).
 //!
-//! Not met: the whole call on a 25k-vertex head takes about 1.3-1.5 s against SPEC's 0.5 s,
-//! most of it the collision pass's sweeps (docs/design.md, "Speed").
+//! Not met: the whole call on a 25k-vertex head takes about 1.3-1.5 s against the method's 0.5 s,
+//! most of it the collision pass's sweeps (docs/design_transfer.md, "Speed").
 
 mod alignment;
 mod collisions;
@@ -75,13 +75,13 @@ pub use report::{
 };
 pub use virtual_edges::{find_virtual_edges, VirtualEdgeParams};
 
-/// Knobs of [`DeformationTransfer::new`], defaults from SPEC section 3.
+/// Knobs of [`DeformationTransfer::new`], defaults from method, section 3.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TransferParams {
     /// Virtual edges against penetration; `None` is plain deformation transfer.
     pub virtual_edges: Option<VirtualEdgeParams>,
-    /// `w_ve`, the weight of each virtual-edge spring relative to the gradient energy (SPEC: 1;
+    /// `w_ve`, the weight of each virtual-edge spring relative to the gradient energy (the method: 1;
     /// 3 here, see Deviations).
     pub edge_weight: f64,
     /// A vertex moving less than this fraction of a shape's largest displacement is static.

@@ -1,7 +1,7 @@
 //! Example-based personalisation (Li, Weise & Pauly 2010, "Example-based facial rigging",
 //! EBFR section 4): refit the transferred shapes so that the blendshape model reproduces
 //! training expressions of the target, regularised in the gradient domain towards deformation
-//! transfer. SPEC section 3; judged on the warp ground truth of SPEC section 4.
+//! transfer. Method, section 3; judged on the warp ground truth of method, section 4.
 //!
 //! Per target triangle t (rest normal n_t, `P_t = I - n_t n_t^T`, hat gradients `grad phi_i`),
 //! with `S_kt` the transferred gradients (stored as `S - I`), `A_jt P_t = sum_i e_ji grad_phi_i^T`

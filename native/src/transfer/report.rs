@@ -1,5 +1,5 @@
 //! [`transfer_shapes`]: the whole transfer as the add-on runs it (set up, transfer or
-//! personalise, score penetration), with the report SPEC section 3 asks for.
+//! personalise, score penetration), with the report method, section 3 asks for.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::OnceLock;
@@ -84,7 +84,7 @@ pub struct ShapePenetration {
     pub plain_pairs: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plain_between_pieces: Option<f64>,
-    /// SPEC 3's criterion, per part: how much more curve the result adds to the target's
+    /// the criterion of method, section 3, per part: how much more curve the result adds to the target's
     /// neutral than the template's shape allows ([`TemplateCurve::allowed`],
     /// [`AddedCurve::excess_parts`]; zero in both parts when the shape is no worse than the
     /// template's). The add-on reads these instead of judging again.

@@ -12,7 +12,7 @@ pub use crate::geometry::similarity::Similarity;
 use crate::geometry::similarity::fit_similarity;
 use crate::invalid;
 
-/// The fewest pairs the alignment takes (SPEC section 5: a similarity has 7 degrees of
+/// The fewest pairs the alignment takes (method, section 5: a similarity has 7 degrees of
 /// freedom; 3 non-collinear pairs fix it, a fourth catches a misplaced one).
 pub const MIN_PAIRS: usize = 4;
 

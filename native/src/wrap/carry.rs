@@ -4,7 +4,7 @@
 //! to skin, a piece to the template piece it matches, so the upper teeth never sample the
 //! lower teeth they touch), and one screened
 //! Poisson solve on the character's mesh integrates them (deformation transfer, Sumner &
-//! Popovic 2004, across topologies through a surface binding). SPEC section 5, "Carry to the
+//! Popovic 2004, across topologies through a surface binding). Method, section 5, "Carry to the
 //! character".
 //!
 //! Per shape `k`, over the character's deltas `d` (gradient form, Botsch et al. 2006):
@@ -41,12 +41,12 @@ use super::symmetry::{self, MirrorPlane, SurfaceMirror};
 #[serde(default, deny_unknown_fields)]
 pub struct CarryParams {
     /// A template vertex moving less than this fraction of a shape's largest displacement is
-    /// static (SPEC section 3's rule, so the carry is static where the transfer was).
+    /// static (the method's (section 3) rule, so the carry is static where the transfer was).
     pub static_fraction: f64,
     /// `l`, in mean template edge lengths: the screening term `sum_v m_v / l^2 |d_v - b_v|^2`
     /// holds the carried deltas to the barycentric copy `b` at scales above `l`, the gradients
     /// shape them below it (0: pure Poisson, the gradients alone). On a character coarser than
-    /// the template, times the square of the ratio of the mean edges (docs/design.md, "Wrap":
+    /// the template, times the square of the ratio of the mean edges (docs/design_wrap.md:
     /// the template's keys on its half-decimated copy).
     pub anchor_length: f64,
     /// A binding (a character vertex or triangle to a template triangle) must have normals
@@ -61,7 +61,7 @@ pub struct CarryParams {
     /// `w_u / A_uu`, the weight of a held vertex's target against its row of the system.
     pub collision_stiffness: f64,
     /// A shape is worse than the template when its excess is over this fraction of the
-    /// character's bbox diagonal (SPEC 3's criterion as the add-on reads it).
+    /// character's bbox diagonal (the criterion of method, section 3 as the add-on reads it).
     pub collision_tolerance: f64,
     /// With the template's rest given and a symmetric character, whether each shape is
     /// averaged with its mirror partner's (`symmetry`); false only measures the mirror misses.
@@ -98,7 +98,7 @@ pub struct CarryResult {
     pub max_binding_distance: f64,
     /// Per shape, what the collision pass did (empty when it was off).
     pub collisions: Vec<CarryCollision>,
-    /// The carried keys' penetration on the character and SPEC 3's criterion on it (when
+    /// The carried keys' penetration on the character and the criterion of method, section 3 on it (when
     /// the template's curve is given).
     pub penetration: Option<CarryPenetration>,
     /// Whether the carry was made symmetric and the mirror misses (when the template's rest
@@ -109,8 +109,8 @@ pub struct CarryResult {
 /// Where each character triangle samples the wrapped template's deformation (barycentric):
 /// its centroid and a point towards each corner; the mean of the sampled gradients is the
 /// triangle's target. A character triangle spanning several template triangles (a coarser
-/// character) so gets their mean gradient, which a centroid alone would miss (docs/design.md,
-/// "Wrap": the error on a decimated template under a perfect alignment); a triangle within
+/// character) so gets their mean gradient, which a centroid alone would miss (docs/design_wrap.md:
+/// the error on a decimated template under a perfect alignment); a triangle within
 /// one template triangle (a denser character) gets that triangle's, as with one sample.
 const TRIANGLE_SAMPLES: [[f64; 3]; 4] = [[1.0 / 3.0; 3], [4.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0], [1.0 / 6.0, 1.0 / 6.0, 4.0 / 6.0]];
 
@@ -181,7 +181,7 @@ fn triangle_normals(points: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 /// Carries the K shapes `template_deltas` (K x Nt, shape-major) of the wrapped template
 /// (`wrapped`, `template_triangles`) onto the character. With `template_curve` (per shape,
 /// the template's own shape's curve, in the character's units), every carried shape is
-/// judged by SPEC 3's criterion ([`TemplateCurve::allowed`]) on the character's own mesh,
+/// judged by the criterion of method, section 3 ([`TemplateCurve::allowed`]) on the character's own mesh,
 /// and with [`CarryParams::collision_pass`] each one worse than the template is re-solved by
 /// the collision pass ([`super::collisions`]; screened carry only). With `template_neutral`
 /// (the template's rest, its vertex mirror map's source) and a symmetric character, each shape

@@ -38,7 +38,7 @@
 //! (`crossings_of`; the same pairs and lengths as a full sweep), and the kept round's
 //! penetration is handed back ([`CarryPenetration`]) so the add-on does not sweep again.
 //!
-//! # Deviations (numbers and the alternatives that lost: docs/design.md, "Wrap")
+//! # Deviations (numbers and the alternatives that lost: docs/design_wrap.md)
 //! - **Three attempts** ([`ATTEMPTS`]): first a corner that moved at most twice the margin
 //!   against a static piece goes back to rest (skin resting on the teeth or an eyeball crosses
 //!   it there as the neutral does); while the shape is still worse, a second attempt from the

@@ -12,7 +12,7 @@
 //! centres and radii), bound to the template's skin facing the rim's way (its outer lid, not
 //! the lid's inner fold). Lids rest on their eyeballs alike, so the place about the eyeball
 //! carries over between identities: as pairs these points gave keys within 2% of the true
-//! correspondence's (`docs/design.md`, "Wrap"). The landmarks also join the user's pairs in a
+//! correspondence's (`docs/design_wrap.md`). The landmarks also join the user's pairs in a
 //! second alignment, through which they act (in the fit alone they changed nothing).
 
 use crate::geometry::bvh::TriangleBvh;

@@ -1,5 +1,5 @@
 //! Wrap: the template fitted onto a character of any topology, and the template's shapes
-//! carried onto the character's own vertices. SPEC section 5 (beyond the papers; the first
+//! carried onto the character's own vertices. Method, section 5 (beyond the papers; the first
 //! step of paper 000's pipeline, its figure 1).
 //!
 //! [`wrap_template`] aligns the template to the character with a similarity from point pairs
@@ -21,7 +21,7 @@
 //! | `u_i` (closest character point) | `SurfacePoint::point` |
 //! | `H_{k,s}` (template delta gradient sampled on a character triangle) | `carry::Shape::delta_gradient` |
 //!
-//! # Deviations (each a decision in docs/design.md, "Wrap", with its numbers)
+//! # Deviations (each a decision in docs/design_wrap.md, with its numbers)
 //! - **Displacements with a bending stiffness, not per-vertex affine maps.** The unknowns are
 //!   the skin's displacements (N x N, three right-hand sides) with the bending energy
 //!   `alpha |L d|^2` (`L` the template's uniform Laplacian) instead of Amberg's 3x4 affine map
@@ -38,7 +38,7 @@
 //!   template piece's own motion mapped by the similarity that placed it
 //!   (`pieces::PieceMapping`): an eyeball's turn stays a turn about its centre.
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected
-//!   (SPEC), which leaves rim vertices without a data term; the skin's small boundary loops
+//!   (the method), which leaves rim vertices without a data term; the skin's small boundary loops
 //!   (ear canals, open lids or lips; not the neck cut) are paired with the character's by
 //!   place and size, and each rim vertex targets its arc-length place on the matching loop
 //!   (`rims`), with weight 1 like a closest point. An avatar's lid holes, which no template
@@ -49,15 +49,15 @@
 //!   `l` = 2 template edges, less on a coarser character (the copy sets the shape above that
 //!   scale, the gradients below it), and each character triangle samples the template
 //!   triangles whose normals agree, on the matching part, at four points.
-//!   `anchor_length = 0` is SPEC's pure Poisson solve.
-//! - **Symmetric in, symmetric out** (`symmetry`, beyond SPEC): with a symmetric template and
+//!   `anchor_length = 0` is the method's pure Poisson solve.
+//! - **Symmetric in, symmetric out** (`symmetry`, beyond the method): with a symmetric template and
 //!   character the fit gains mirrored pairs and is averaged with its mirror, and each carried
 //!   shape is averaged with the mirror of its partner's before the collision pass.
 //! - **Static vertices are zeroed after the solve.** Screened, the system is definite, so it
 //!   is factorised once for all shapes and each shape is one back-substitution; the vertices
 //!   bound to static template vertices are then set to exactly zero. With
 //!   `anchor_length = 0` each shape factorises the submatrix on its moving vertices instead.
-//! - **The carried keys get their own collision pass** (`collisions`, beyond SPEC section 5):
+//! - **The carried keys get their own collision pass** (`collisions`, beyond method, section 5):
 //!   the character's lips are closer and coarser than the wrapped template's, so a faithful
 //!   copy of its motion still crosses them.
 

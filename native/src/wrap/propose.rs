@@ -1,7 +1,7 @@
 //! Point pairs proposed, not clicked: the same named features (eye and mouth corners, nose tip,
 //! chin) found on the template and on the character, so that Wrap works on a new character
 //! with no click. Lid and lip centres, brows and the nose wings are not proposed: found the
-//! same way they made the carried keys worse (docs/design.md, "Proposed pairs").
+//! same way they made the carried keys worse (docs/design_wrap.md, "Proposed pairs").
 //!
 //! How (geometry only on the character; the template's rig only tells where its face is):
 //! 1. **The template's frame.** Front and up from the rig ([`find_front`]: where its shapes

@@ -1,9 +1,9 @@
-//! Bilateral symmetry of the wrap (beyond SPEC section 5): a symmetric template wrapped onto a
+//! Bilateral symmetry of the wrap (beyond method, section 5): a symmetric template wrapped onto a
 //! symmetric character gives Left/Right keys that mirror each other, and self-symmetric keys
 //! that stay symmetric.
 //!
-//! Three parts, each needed (docs/design.md, "Wrap", has the numbers):
-//! - **The template's mirror map** is Analyze Rig's ([`MirrorMap`], SPEC section 0: each
+//! Three parts, each needed (docs/design_wrap.md, has the numbers):
+//! - **The template's mirror map** is Analyze Rig's ([`MirrorMap`], method, section 0: each
 //!   vertex's nearest vertex to its image across a coordinate plane, within 1e-3 of the
 //!   diagonal), on the first axis that covers the skin ([`template_mirror`]).
 //! - **The character's mirror plane** is the template's plane carried by the alignment, then
@@ -29,7 +29,7 @@ use crate::geometry::mirror::MirrorMap;
 
 use super::nricp::TargetSurface;
 
-/// The template's vertex mirror tolerance, of its bbox diagonal (Analyze Rig's, SPEC 0).
+/// The template's vertex mirror tolerance, of its bbox diagonal (Analyze Rig's, method, section 0).
 pub const TEMPLATE_TOLERANCE: f64 = 1e-3;
 /// A character vertex whose mirror image lies within this fraction of the diagonal of the
 /// character's surface is matched (the surface map's tolerance: on Character_YoungWoman, a
@@ -38,7 +38,7 @@ pub const SURFACE_TOLERANCE: f64 = 2e-3;
 /// Template and character are symmetric when their maps cover at least this fraction of the
 /// skin's vertices.
 pub const MIN_COVERAGE: f64 = 0.9;
-/// The SPEC 0 mirror test's tolerance, `|M D_i - D_j| / max(|D_i|, |D_j|)`, for the shapes'
+/// The mirror test (method, section 0)'s tolerance, `|M D_i - D_j| / max(|D_i|, |D_j|)`, for the shapes'
 /// pairs on the wrapped template.
 pub const PAIR_TOLERANCE: f64 = 0.25;
 /// Times each carried shape is averaged with its partner's mirror ([`average_with_mirror`]).
@@ -228,7 +228,7 @@ pub fn symmetrize(positions: &mut [Vec3], partner: &[Option<u32>], used: &[bool]
 }
 
 /// The shapes' mirror partners on a mesh with the vertex map `partner` across `plane`
-/// (`deltas`: K x N, shape-major): `(i, j)`, `i < j`, for a pair passing SPEC 0's mirror test
+/// (`deltas`: K x N, shape-major): `(i, j)`, `i < j`, for a pair passing the method's (section 0) mirror test
 /// (greedy by smallest error, and smaller than each one's own mirror error), `(k, k)` for a
 /// self-symmetric shape.
 pub fn shape_partners(deltas: &[[f32; 3]], n: usize, partner: &[Option<u32>], plane: &MirrorPlane) -> Vec<(usize, usize)> {

@@ -83,7 +83,7 @@
 //! (`TriangleBvh::refit_listed`) and only triangles with a corner written elsewhere are swept
 //! again (`crossings_of`); every number equals a full sweep's to the bit (tested in `geometry/`).
 //!
-//! # Deviations (numbers and the alternatives that lost: docs/design.md, "Transfer")
+//! # Deviations (numbers and the alternatives that lost: docs/design_transfer.md)
 //! - Only the part in excess is acted on, and only pieces whose curve grew: pushing skin off
 //!   the teeth does nothing for lids sliding into the eyeballs and presses the lips together.
 //! - Against static pieces a corner that barely moved goes back to rest rather than to the
