@@ -493,6 +493,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     report["carry"] = carry_report
     # Where riggers look first (eyes closing, the mouth opening, smooth lines and keys), per
     # key; with `truth` (the same-topology keys on the character, a bench's) its roughness too.
+    looking = time.perf_counter()
     report["looks"] = native.module().look_at_keys(
         np.ascontiguousarray(template_neutral, dtype=np.float32),
         np.ascontiguousarray(template_shapes, dtype=np.float32),
@@ -505,6 +506,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
         deltas,
         None if truth is None else np.ascontiguousarray(truth, dtype=np.float32),
     )
+    looked = time.perf_counter()
     report["diagonal"] = float(np.linalg.norm(character_neutral.max(0) - character_neutral.min(0)))
     # The keys as the rigger gets them: judged on the character's own mesh, not on the
     # wrapped template the transfer (and its collision pass) worked on.
@@ -517,7 +519,8 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
     stage_seconds["carry"] = carried - transferred
-    stage_seconds["penetration"] = time.perf_counter() - carried
+    stage_seconds["looks"] = looked - looking
+    stage_seconds["penetration"] = time.perf_counter() - carried - stage_seconds["looks"]
     report["stage_seconds"] = stage_seconds
     groups = carried_vertex_groups(template, onto_wrapped.names, (wrapped_neutral, wrapped_triangles), character_neutral)
     result = Transfer(

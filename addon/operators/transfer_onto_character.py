@@ -72,7 +72,9 @@ class SHAPESMITH_OT_transfer_onto_character(bpy.types.Operator):
             f"{len(written)} shape keys written onto '{character.name}'"
             + (f", {len(skipped)} existing kept" if skipped else "")
             + f" (transfer {seconds['transfer']:.2f} s, carry {seconds['carry']:.2f} s); "
-            + f"{len(worse)} add more intersection than on the template (Transfer panel lists them)",
+            + f"{len(worse)} add more intersection than on the template (Transfer panel lists them); "
+            + f"{sum(1 for line in character.shapesmith_wrap.looks.splitlines() if line.startswith('!'))} "
+            + "look(s) to check (Wrap panel: eyes, mouth, smooth keys)",
         )
         return {"FINISHED"}
 
