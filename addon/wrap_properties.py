@@ -56,6 +56,10 @@ class SHAPESMITH_PG_wrap(bpy.types.PropertyGroup):
     matches: bpy.props.StringProperty(description="Per template piece and opening, what it landed on (one per line)")
     wrapped: bpy.props.PointerProperty(type=bpy.types.Object, description="The wrapped template object")
     written: bpy.props.IntProperty(description="Shape keys written by the last Transfer onto Character")
+    looks: bpy.props.StringProperty(
+        description="Where riggers look first, per key of the last Transfer onto Character: eyes closing, the mouth, "
+        "smooth lines and keys (one per line, '+' fine, '!' look at it)"
+    )
     seconds: bpy.props.FloatProperty()
 
 

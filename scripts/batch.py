@@ -34,6 +34,7 @@ from batch_common import (  # noqa: E402,F401
     load_shapesmith,
     name_map,
     open_blend,
+    print_looks,
     save_copy,
     template_or_bundled,
     tool_settings,
@@ -588,7 +589,7 @@ def run_wrap(args):
     wrapped.seconds["io"] += opened - started
     wrapped_object = wrap.show_wrapped(wrapped)
     written, skipped, warnings, penetration, worse, symmetry = [], [], [], None, None, None
-    seconds = dict(wrapped.seconds)
+    seconds, looks = dict(wrapped.seconds), None
     try:
         if not args.no_transfer:
             result = wrap.carry_onto_character(
@@ -606,7 +607,7 @@ def run_wrap(args):
             seconds["io"] += time.perf_counter() - writing
             penetration = {"neutral": result.report["neutral_penetration"], "shapes": result.report["penetration"]}
             worse = transfer.worse_than_template(result.report)
-            symmetry = result.report["symmetry"]
+            symmetry, looks = result.report["symmetry"], result.report["looks"]
             transfer.store_transfer(result, written, skipped)
             warnings = result.warnings + warnings
     finally:
@@ -626,6 +627,7 @@ def run_wrap(args):
     if not args.no_transfer:
         print(f"{len(written)} shape keys written onto '{character.name}'" + (f", {len(skipped)} kept" if skipped else ""))
         print(f"adding more intersection on the character than on the template: {len(worse)}" + (f" ({', '.join(worse)})" if worse else ""))
+        print_looks(shapesmith, character, looks)
     saving = time.perf_counter()
     if args.output:
         save_copy(args.output)
@@ -644,6 +646,7 @@ def run_wrap(args):
             "penetration": penetration,
             "worse_than_template": worse,
             "symmetry": symmetry,
+            "looks": looks,
             "warnings": warnings + (proposal or {}).get("warnings", []) + wrapped.report["warnings"],
             "seconds": seconds,
         },

@@ -113,3 +113,14 @@ def name_map(args, shapesmith):
 def driver_map(args, shapesmith):
     """The --driver-map table {template object: target object} (None without it)."""
     return _table_file(args.driver_map, shapesmith, "--driver-map")
+
+
+def print_looks(shapesmith, character, looks):
+    """Prints where riggers look first, per key (the Wrap panel's lines), and keeps them on
+    `character` for the panel."""
+    from importlib import import_module
+
+    module = import_module(shapesmith.__name__ + ".blender.looks")
+    module.store_looks(character, looks)
+    for line, good in module.look_lines(looks):
+        print(("  ok    " if good else "  CHECK ") + line)

@@ -446,13 +446,15 @@ def character_rows(report, character_penetration):
 
 
 def carry_onto_character(template, character, wrapped_object, transfer_settings=None, *, seconds=None, symmetric=True,
-                         progress=None):
+                         progress=None, truth=None):
     """Transfers the template's keys onto the wrapped template object (same topology, with
     `transfer_settings`, a `settings.TransferSettings`; None: the defaults), then carries
     them onto the character's own vertices. Returns a `transfer.Transfer` whose target is the
     character, ready for `shape_keys.write_transferred_keys`, with `report["stage_seconds"]`;
     writes nothing. `symmetric=False` carries as if the meshes were not mirror-symmetric (the
-    report's `symmetry` still has the mirror misses)."""
+    report's `symmetry` still has the mirror misses). `report["looks"]` has where riggers look
+    first per key (`looks.look_lines` words it); with `truth` (the same-topology keys on the
+    character, float (K, Nc, 3), a benchmark's) each key's roughness beside the truth's."""
     started = time.perf_counter()
     transfer_settings = transfer_settings or TransferSettings()
     # One bar over both solves: the transfer its first half, the carry the second.
@@ -490,6 +492,22 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     carried = time.perf_counter()
     report = dict(onto_wrapped.report)
     report["carry"] = carry_report
+    # Where riggers look first (eyes closing, the mouth opening, smooth lines and keys), per
+    # key; with `truth` (the same-topology keys on the character, a bench's) its roughness too.
+    looking = time.perf_counter()
+    report["looks"] = native.module().look_at_keys(
+        np.ascontiguousarray(template_neutral, dtype=np.float32),
+        np.ascontiguousarray(template_shapes, dtype=np.float32),
+        wrapped_triangles,
+        list(onto_wrapped.names),
+        np.ascontiguousarray(wrapped_neutral),
+        np.ascontiguousarray(onto_wrapped.deltas, dtype=np.float32),
+        character_neutral,
+        character_triangles,
+        deltas,
+        None if truth is None else np.ascontiguousarray(truth, dtype=np.float32),
+    )
+    looked = time.perf_counter()
     report["diagonal"] = float(np.linalg.norm(character_neutral.max(0) - character_neutral.min(0)))
     # The keys as the rigger gets them: judged on the character's own mesh, not on the
     # wrapped template the transfer (and its collision pass) worked on.
@@ -502,7 +520,8 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     stage_seconds["io"] = stage_seconds.get("io", 0.0) + onto_wrapped.report["seconds"]["read"]
     stage_seconds["transfer"] = transferred - started - onto_wrapped.report["seconds"]["read"]
     stage_seconds["carry"] = carried - transferred
-    stage_seconds["penetration"] = time.perf_counter() - carried
+    stage_seconds["looks"] = looked - looking
+    stage_seconds["penetration"] = time.perf_counter() - carried - stage_seconds["looks"]
     report["stage_seconds"] = stage_seconds
     groups = carried_vertex_groups(template, onto_wrapped.names, (wrapped_neutral, wrapped_triangles), character_neutral)
     result = Transfer(

@@ -5,6 +5,7 @@ solved in full before anything is written."""
 import bpy
 
 from ..blender.settings import transfer_settings
+from ..blender.looks import store_looks
 from ..blender.names import scene_name_map, text_name_map
 from ..blender.shape_keys import write_transferred_keys
 from ..blender.transfer import store_transfer, worse_than_template
@@ -61,6 +62,7 @@ class SHAPESMITH_OT_transfer_onto_character(JobOperator, bpy.types.Operator):
         character = result.target
         character.shapesmith_wrap.written = len(written)
         store_symmetry(character, result.report["symmetry"])
+        store_looks(character, result.report["looks"])
         # The per-shape penetration on the character, listed by the Transfer panel with it active.
         store_transfer(result, written, skipped)
         for warning in result.warnings + warnings:
@@ -72,7 +74,9 @@ class SHAPESMITH_OT_transfer_onto_character(JobOperator, bpy.types.Operator):
             f"{len(written)} shape keys written onto '{character.name}'"
             + (f", {len(skipped)} existing kept" if skipped else "")
             + f" (transfer {seconds['transfer']:.2f} s, carry {seconds['carry']:.2f} s); "
-            + f"{len(worse)} add more intersection than on the template (Transfer panel lists them)",
+            + f"{len(worse)} add more intersection than on the template (Transfer panel lists them); "
+            + f"{sum(1 for line in character.shapesmith_wrap.looks.splitlines() if line.startswith('!'))} "
+            + "look(s) to check (Wrap panel: eyes, mouth, smooth keys)",
         )
         return {"FINISHED"}
 

@@ -84,6 +84,9 @@ class SHAPESMITH_PT_wrap(ShapesmithPanel, bpy.types.Panel):
                         text=f"Adding more intersection than on the template: {worse} (the Transfer panel above lists them)",
                         icon="ERROR" if worse else "CHECKMARK",
                     )
+                # Where riggers look first, per key (eyes close, the mouth, smooth lines and keys).
+                for line in settings.looks.splitlines():
+                    box.label(text=line[2:], icon="CHECKMARK" if line.startswith("+") else "ERROR")
 
 
 register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_UL_point_pairs, SHAPESMITH_PT_wrap))

@@ -1,4 +1,5 @@
-//! Bindings of [`crate::wrap`]: `wrap_template`, `propose_pairs`, `carry_shapes`, `bind_to_surface`.
+//! Bindings of [`crate::wrap`]: `wrap_template`, `propose_pairs`, `carry_shapes`, `bind_to_surface`,
+//! `look_at_keys`.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
@@ -10,6 +11,7 @@ use super::settings::settings as read_settings;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::mat3::{to_f64, unit};
 use crate::rig::RigView;
+use crate::wrap::looks::look_at_keys as run_looks;
 use crate::wrap::{bind, bind_facing_normals, carry_shapes as run_carry, propose_pairs as run_propose, wrap_template as run_wrap, AddedCurve, CarryParams, PointPairs, TemplateCurve, WrapParams};
 
 /// wrap_template(template_neutral, template_triangles, character_neutral, character_triangles,
@@ -232,7 +234,53 @@ fn bind_to_surface<'py>(
     ))
 }
 
+/// look_at_keys(template_neutral, template_deltas, template_triangles, names, wrapped_neutral,
+///              wrapped_deltas, character_neutral, character_triangles, character_deltas,
+///              truth_deltas=None) -> dict
+///
+/// Where riggers look first, per carried key ([`crate::wrap::looks`]): `shapes`, one row per
+/// name (`turned_over`, `roughness`, `copy_roughness`, `truth_roughness`; a blink's
+/// `eye_gap`, `eyes_close` and `lid_turning`; jawOpen's `mouth_opening` and `lip_turning`;
+/// mouthClose's `mouth_closing`; each beside the template's own as `template_*`), and the
+/// `openings` found on the template (margins as template vertices). `template_*`: the
+/// template's rest and own keys float32 (K, Nt, 3) in the order of `names`; `wrapped_*`:
+/// where the fit put each template vertex and the keys the carry carried; `character_deltas`
+/// (and `truth_deltas`, the same-topology truth sampled there) float32 (K, Nc, 3).
+#[pyfunction]
+#[pyo3(signature = (template_neutral, template_deltas, template_triangles, names, wrapped_neutral, wrapped_deltas,
+                    character_neutral, character_triangles, character_deltas, truth_deltas=None))]
+#[allow(clippy::too_many_arguments)]
+fn look_at_keys<'py>(
+    py: Python<'py>,
+    template_neutral: PyReadonlyArray2<'py, f32>,
+    template_deltas: PyReadonlyArray3<'py, f32>,
+    template_triangles: PyReadonlyArray2<'py, i32>,
+    names: Vec<String>,
+    wrapped_neutral: PyReadonlyArray2<'py, f32>,
+    wrapped_deltas: PyReadonlyArray3<'py, f32>,
+    character_neutral: PyReadonlyArray2<'py, f32>,
+    character_triangles: PyReadonlyArray2<'py, i32>,
+    character_deltas: PyReadonlyArray3<'py, f32>,
+    truth_deltas: Option<PyReadonlyArray3<'py, f32>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let template = arrays::points(&template_neutral, "template_neutral").map_err(py_err(py))?;
+    let (deltas, _) = arrays::deltas(&template_deltas, template.len()).map_err(py_err(py))?;
+    let template_tris = arrays::triangles(&template_triangles).map_err(py_err(py))?;
+    let wrapped = arrays::points(&wrapped_neutral, "wrapped_neutral").map_err(py_err(py))?;
+    let (wrapped_keys, _) = arrays::deltas(&wrapped_deltas, wrapped.len()).map_err(py_err(py))?;
+    let character = arrays::points(&character_neutral, "character_neutral").map_err(py_err(py))?;
+    let character_tris = arrays::triangles(&character_triangles).map_err(py_err(py))?;
+    let (keys, _) = arrays::deltas(&character_deltas, character.len()).map_err(py_err(py))?;
+    let truth = truth_deltas.as_ref().map(|t| arrays::deltas(t, character.len())).transpose().map_err(py_err(py))?;
+    let looks = detached(py, || {
+        let rig = RigView::new(template, deltas, &template_tris, &names)?;
+        run_looks(&rig, wrapped, wrapped_keys, character, &character_tris, keys, truth.map(|t| t.0))
+    })?;
+    arrays::to_python(py, &looks)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(look_at_keys, m)?)?;
     m.add_function(wrap_pyfunction!(wrap_template, m)?)?;
     m.add_function(wrap_pyfunction!(propose_pairs, m)?)?;
     m.add_function(wrap_pyfunction!(carry_shapes, m)?)?;

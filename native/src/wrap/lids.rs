@@ -41,15 +41,15 @@ const FACING_DEGREES: f64 = 60.0;
 /// An eyeball: its vertices' centroid, their mean distance from it, its lowest vertex and its
 /// vertex count.
 #[derive(Clone, Copy, Debug)]
-struct Eyeball {
-    centre: Vec3,
+pub(super) struct Eyeball {
+    pub(super) centre: Vec3,
     radius: f64,
     vertex: u32,
     vertices: usize,
 }
 
 /// The round pieces among the mesh's pieces that are not skin.
-fn eyeballs(points: &[Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> Vec<Eyeball> {
+pub(super) fn eyeballs(points: &[Vec3], triangles: &[[u32; 3]], is_skin: &[bool]) -> Vec<Eyeball> {
     pieces(points.len(), triangles, |v| is_skin[v])
         .into_iter()
         .filter(|(members, _)| members.len() >= MIN_EYEBALL_VERTICES)

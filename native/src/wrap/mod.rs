@@ -65,6 +65,8 @@ mod align;
 mod carry;
 mod collisions;
 mod lids;
+pub mod looks;
+pub mod measures;
 mod nricp;
 mod pieces;
 mod propose;
