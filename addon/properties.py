@@ -279,17 +279,18 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         default=_TRANSFER.transfer.virtual_edges is not None,
     )
     tau_d: bpy.props.FloatProperty(
-        name="Distance (tau_d)",
-        description="Vertex pairs closer than this fraction of the bounding-box diagonal are candidates",
+        name="Distance",
+        description="Vertex pairs closer than this fraction of the head's size (bounding-box diagonal) may get a "
+        "virtual edge (the paper's tau_d)",
         default=_TRANSFER.transfer.virtual_edges.tau_d,
         min=0.0001,
         max=0.2,
         precision=4,
     )
     tau_r: bpy.props.FloatProperty(
-        name="Detour (tau_r)",
-        description="A candidate pair becomes a virtual edge when its path along the surface is this many "
-        "times longer than the straight distance",
+        name="Detour",
+        description="A close pair becomes a virtual edge when its path along the surface is this many "
+        "times longer than the straight distance: across a lip or lid gap, not along the skin (the paper's tau_r)",
         default=_TRANSFER.transfer.virtual_edges.tau_r,
         min=1.0,
         soft_max=20.0,
