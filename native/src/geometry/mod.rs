@@ -3,6 +3,7 @@
 pub mod bvh;
 pub mod wide_bvh;
 pub mod closest_point;
+pub mod contact;
 pub mod front;
 pub mod mat3;
 pub mod mesh_faults;

@@ -27,14 +27,12 @@
 //!   `alpha |L d|^2` (`L` the template's uniform Laplacian) instead of Amberg's 3x4 affine map
 //!   per vertex (4N x 4N, `|(M (x) G) X|^2`); like Amberg's it costs nothing for a translation
 //!   and little for a smooth stretch, and it lands closer to the true correspondence.
-//! - **One factorisation per stiffness step, weights frozen within the step.** A vertex whose
-//!   closest point is rejected later in the step is held where it is (its target is its
-//!   current position) rather than released, so the factor stays valid.
+//! - **One factorisation per stiffness step, weights frozen within the step**: a vertex whose
+//!   closest point is rejected later in the step is held where it is, so the factor stays valid.
 //! - **Pieces follow the skin, then fit the character's own.** Every template piece other than
-//!   the skin (the largest component) moves by the similarity that best maps the skin around
-//!   it from aligned to fitted; a piece whose centre and size match a character piece's (one
-//!   to one, by place and size, not by the user's pairs) is then fitted onto it by a
-//!   similarity ICP (`pieces`). Its carried keys are then not the gradients' but the
+//!   the skin moves by the similarity that best maps the skin around it; a piece whose centre
+//!   and size match a character piece's (one to one, by place and size, not by the user's
+//!   pairs) is then fitted onto it by a similarity ICP (`pieces`). Its carried keys are then not the gradients' but the
 //!   template piece's own motion mapped by the similarity that placed it
 //!   (`pieces::PieceMapping`): an eyeball's turn stays a turn about its centre.
 //! - **Holes land on holes.** Closest points on the character's open boundary are rejected

@@ -1,0 +1,260 @@
+//! The contact potential of IPC (Li, Ferguson, Schneider, Langlois, Zorin, Panozzo, Jiang,
+//! Kaufman 2020): per pair closer than `d_hat`, `kappa m(x) b(d^2)` with the log barrier
+//! `b(s) = -(s - s_hat)^2 ln(s / s_hat)` for `s < s_hat = d_hat^2` (zero beyond: C2 at
+//! `s_hat`), on squared distances as ipc-toolkit writes it, and for edge-edge pairs the
+//! mollifier `m(x)` of section 4.3, which smooths the barrier where two edges turn parallel
+//! and the distance type changes. Its Hessian, projected to the nearest positive
+//! semi-definite matrix ([`project_psd`]), is the pair's block of projected Newton.
+
+use super::distance::{edge_edge_type, point_triangle_type, squared};
+use super::dual::{cross, dot, sub, variables, Dual, N};
+
+/// `b(s)` and its first two derivatives in `s`, for `0 < s < s_hat` (zero beyond).
+pub fn barrier(s: f64, s_hat: f64) -> (f64, f64, f64) {
+    if s >= s_hat {
+        return (0.0, 0.0, 0.0);
+    }
+    let (r, l) = (s - s_hat, (s / s_hat).ln());
+    (-r * r * l, -2.0 * r * l - r * r / s, -2.0 * l - 4.0 * r / s + r * r / (s * s))
+}
+
+/// The edge-edge mollifier `m(x) = -x^2 / e^2 + 2 x / e` for `x < e`, else 1, of
+/// `x = |(a1 - a0) x (b1 - b0)|^2`, `e = 1e-3 |a1 - a0|^2 |b1 - b0|^2` at rest (IPC 4.3).
+pub fn mollifier(x: Dual, threshold: f64) -> Dual {
+    if x.v >= threshold {
+        return Dual::constant(1.0);
+    }
+    let e = threshold;
+    x.chain(-x.v * x.v / (e * e) + 2.0 * x.v / e, -2.0 * x.v / (e * e) + 2.0 / e, -2.0 / (e * e))
+}
+
+/// `e` of [`mollifier`] for edges whose rest vectors are `a`, `b`.
+pub fn mollifier_threshold(a: [f64; 3], b: [f64; 3]) -> f64 {
+    1e-3 * dot(a, a) * dot(b, b)
+}
+
+/// Which primitives a pair holds: a point and a triangle, or two edges (with the edges'
+/// mollifier threshold).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PairKind {
+    PointTriangle,
+    EdgeEdge { mollifier: f64 },
+}
+
+/// The pair's squared distance (by its distance type).
+pub fn pair_squared(kind: PairKind, x: &[[f64; 3]; 4]) -> f64 {
+    match kind {
+        PairKind::PointTriangle => squared(point_triangle_type(x), x),
+        PairKind::EdgeEdge { .. } => squared(edge_edge_type(x), x),
+    }
+}
+
+/// `m(x) b(d^2)` of one pair (without `kappa`), zero when the pair is `d_hat` or more apart.
+pub fn pair_energy(kind: PairKind, x: &[[f64; 3]; 4], s_hat: f64) -> f64 {
+    let s = pair_squared(kind, x);
+    let b = barrier(s, s_hat).0;
+    match kind {
+        PairKind::EdgeEdge { mollifier: e } if b != 0.0 => {
+            let c = cross(sub(x[1], x[0]), sub(x[3], x[2]));
+            let m = dot(c, c);
+            if m < e {
+                b * (-m * m / (e * e) + 2.0 * m / e)
+            } else {
+                b
+            }
+        }
+        _ => b,
+    }
+}
+
+/// `m(x) b(d^2)` with its gradient and Hessian in the pair's 12 coordinates.
+pub fn pair_derivatives(kind: PairKind, x: &[[f64; 3]; 4], s_hat: f64) -> Dual {
+    let vars = variables(x);
+    let kind_of = match kind {
+        PairKind::PointTriangle => point_triangle_type(x),
+        PairKind::EdgeEdge { .. } => edge_edge_type(x),
+    };
+    let s = squared(kind_of, &vars);
+    if s.v >= s_hat {
+        return Dual::constant(0.0);
+    }
+    let (b, db, ddb) = barrier(s.v, s_hat);
+    let energy = s.chain(b, db, ddb);
+    match kind {
+        PairKind::EdgeEdge { mollifier: e } => {
+            let c = cross(sub(vars[1], vars[0]), sub(vars[3], vars[2]));
+            let m = mollifier(dot(c, c), e);
+            if m.v == 1.0 && m.g.iter().all(|&g| g == 0.0) {
+                energy
+            } else {
+                energy * m
+            }
+        }
+        PairKind::PointTriangle => energy,
+    }
+}
+
+/// The symmetric matrix `h` with its negative eigenvalues set to zero (cyclic Jacobi
+/// rotations: 12 x 12 blocks, a few sweeps).
+pub fn project_psd(h: &[[f64; N]; N]) -> [[f64; N]; N] {
+    let mut a = *h;
+    let mut v = [[0.0; N]; N];
+    for (i, row) in v.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    let scale: f64 = a.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    if scale == 0.0 {
+        return a;
+    }
+    for _ in 0..50 {
+        let off: f64 = (0..N).flat_map(|i| (0..N).filter(move |&j| j != i).map(move |j| (i, j))).map(|(i, j)| a[i][j] * a[i][j]).sum();
+        if off.sqrt() <= 1e-14 * scale {
+            break;
+        }
+        for p in 0..N {
+            for q in p + 1..N {
+                if a[p][q].abs() <= 1e-300 {
+                    continue;
+                }
+                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = theta.signum().max(0.0).mul_add(2.0, -1.0) / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..N {
+                    let (akp, akq) = (a[k][p], a[k][q]);
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for k in 0..N {
+                    let (apk, aqk) = (a[p][k], a[q][k]);
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for row in v.iter_mut() {
+                    let (vkp, vkq) = (row[p], row[q]);
+                    row[p] = c * vkp - s * vkq;
+                    row[q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    let mut out = [[0.0; N]; N];
+    for k in 0..N {
+        let lambda = a[k][k];
+        if lambda <= 0.0 {
+            continue;
+        }
+        for i in 0..N {
+            for j in 0..N {
+                out[i][j] += lambda * v[i][k] * v[j][k];
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::contact::distance::tests_support::Lcg;
+
+    fn perturbed(x: &[[f64; 3]; 4], i: usize, h: f64) -> [[f64; 3]; 4] {
+        let mut y = *x;
+        y[i / 3][i % 3] += h;
+        y
+    }
+
+    #[test]
+    fn barrier_derivatives_match_finite_differences() {
+        let s_hat = 0.7;
+        for &s in &[0.01, 0.1, 0.3, 0.5, 0.69] {
+            let (_, d, dd) = barrier(s, s_hat);
+            let h = 1e-6;
+            let fd = (barrier(s + h, s_hat).0 - barrier(s - h, s_hat).0) / (2.0 * h);
+            let fdd = (barrier(s + h, s_hat).1 - barrier(s - h, s_hat).1) / (2.0 * h);
+            assert!((d - fd).abs() <= 1e-6 * (1.0 + d.abs()), "{s}: {d} vs {fd}");
+            assert!((dd - fdd).abs() <= 1e-5 * (1.0 + dd.abs()), "{s}: {dd} vs {fdd}");
+        }
+        // C2 at s_hat: value and derivatives vanish from below.
+        let (b, d, _) = barrier(s_hat * (1.0 - 1e-9), s_hat);
+        assert!(b.abs() < 1e-15 && d.abs() < 1e-8);
+        assert!(barrier(1e-12, s_hat).0 > barrier(1e-6, s_hat).0);
+    }
+
+    #[test]
+    fn pair_gradient_and_hessian_match_finite_differences_of_the_energy() {
+        let mut rng = Lcg(3);
+        let mut checked = 0;
+        for trial in 0..400 {
+            let base = [rng.point(), rng.point(), rng.point(), rng.point()];
+            let scale = 0.4;
+            let x: [[f64; 3]; 4] = std::array::from_fn(|p| base[p].map(|c| c * scale));
+            let kind = if trial % 2 == 0 {
+                PairKind::PointTriangle
+            } else {
+                let (a, b) = (sub(x[1], x[0]), sub(x[3], x[2]));
+                // Half the edge pairs near parallel, where the mollifier is active.
+                PairKind::EdgeEdge { mollifier: if trial % 4 == 1 { 10.0 * dot(cross(a, b), cross(a, b)) } else { mollifier_threshold(a, b) } }
+            };
+            let s = pair_squared(kind, &x);
+            let s_hat = 1.5 * s;
+            let d = pair_derivatives(kind, &x, s_hat);
+            assert!((d.v - pair_energy(kind, &x, s_hat)).abs() <= 1e-12 * (1.0 + d.v.abs()));
+            let h = 1e-6 * s.sqrt().max(1e-3);
+            // Skip pairs whose distance type changes within the stencil (a kink of the
+            // distance, not of the formula).
+            let types_same = (0..N).all(|i| {
+                let (p, m) = (perturbed(&x, i, h), perturbed(&x, i, -h));
+                match kind {
+                    PairKind::PointTriangle => point_triangle_type(&p) == point_triangle_type(&x) && point_triangle_type(&m) == point_triangle_type(&x),
+                    PairKind::EdgeEdge { .. } => edge_edge_type(&p) == edge_edge_type(&x) && edge_edge_type(&m) == edge_edge_type(&x),
+                }
+            });
+            if !types_same {
+                continue;
+            }
+            checked += 1;
+            let size = d.g.iter().map(|g| g.abs()).fold(0.0, f64::max).max(1e-12);
+            for i in 0..N {
+                let fd = (pair_energy(kind, &perturbed(&x, i, h), s_hat) - pair_energy(kind, &perturbed(&x, i, -h), s_hat)) / (2.0 * h);
+                assert!((d.g[i] - fd).abs() <= 1e-4 * size, "trial {trial} coordinate {i}: {} vs {fd}", d.g[i]);
+                let gp = pair_derivatives(kind, &perturbed(&x, i, h), s_hat);
+                let gm = pair_derivatives(kind, &perturbed(&x, i, -h), s_hat);
+                let hsize = d.h.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max).max(1e-12);
+                for j in 0..N {
+                    let fd = (gp.g[j] - gm.g[j]) / (2.0 * h);
+                    assert!((d.h[j][i] - fd).abs() <= 1e-4 * hsize, "trial {trial} entry ({j}, {i}): {} vs {fd}", d.h[j][i]);
+                }
+            }
+        }
+        assert!(checked > 300, "only {checked} pairs checked");
+    }
+
+    #[test]
+    fn psd_projection_keeps_positive_parts_and_drops_negative_ones() {
+        let mut rng = Lcg(5);
+        let mut q = [[0.0; N]; N];
+        for row in q.iter_mut() {
+            for x in row.iter_mut() {
+                *x = rng.next() - 0.5;
+            }
+        }
+        // A symmetric matrix with both signs, and its projection.
+        let mut h = [[0.0; N]; N];
+        for i in 0..N {
+            for j in 0..N {
+                h[i][j] = (0..N).map(|k| q[i][k] * q[j][k] * if k % 3 == 0 { -1.0 } else { 1.0 }).sum();
+            }
+        }
+        let p = project_psd(&h);
+        for _ in 0..50 {
+            let v: [f64; N] = std::array::from_fn(|_| rng.next() - 0.5);
+            let quad: f64 = (0..N).map(|i| (0..N).map(|j| v[i] * p[i][j] * v[j]).sum::<f64>()).sum();
+            assert!(quad >= -1e-12);
+        }
+        // A PSD matrix is kept.
+        let psd: [[f64; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| (0..N).map(|k| q[i][k] * q[j][k]).sum()));
+        let kept = project_psd(&psd);
+        assert!((0..N).all(|i| (0..N).all(|j| (kept[i][j] - psd[i][j]).abs() < 1e-10)));
+    }
+}

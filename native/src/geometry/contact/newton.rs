@@ -1,0 +1,436 @@
+//! Projected Newton on `E(x) = 1/2 (x - x*)^T (A + mu diag A) (x - x*) + kappa sum_pairs
+//! m b(d^2)` over a region's vertices, the rest held (IPC, Li et al. 2020, algorithm 1,
+//! without inertia: a static solve). `A` is the caller's quadratic energy (the transfer's
+//! gradient and virtual-edge terms, the carry's screened Poisson term) and `x*` its minimiser,
+//! so without contact the solve returns `x*`; `mu diag A` screens it (the same minimiser, and
+//! a piece floating free inside the region keeps a finite stiffness). Each Newton step's
+//! matrix is `A` per coordinate plus each close pair's barrier Hessian projected to positive
+//! semi-definite, factorised sparse (faer, one fill-reducing order per solve); the step is cut
+//! to what the additive CCD finds safe for every candidate pair, then backtracked until the
+//! energy decreases (Armijo). The start must have no non-exempt pair touching; every iterate
+//! then keeps every non-exempt pair apart.
+
+use std::collections::HashSet;
+
+use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_psd, PairKind};
+use super::broad::{Box3, BoxTree};
+use super::ccd::additive_ccd;
+use super::dual::N;
+use crate::error::ShapesmithResult;
+use crate::geometry::mat3::sub;
+use crate::sparse::{MatrixRows, SymmetricMatrix};
+
+/// The surface contacts are sought on, with its exemptions.
+#[derive(Clone, Copy)]
+pub struct ContactMesh<'a> {
+    pub triangles: &'a [[u32; 3]],
+    /// Unique edges `(a, b)`.
+    pub edges: &'a [(u32, u32)],
+    /// Rest positions: the mollifier's edge lengths and the exemption of pairs close at rest
+    /// are read here.
+    pub rest: &'a [[f64; 3]],
+    /// Per vertex `d_hat`; a pair's is the least of its four vertices' (a coarse piece, teeth
+    /// or an eyeball, does not widen the skin's).
+    pub d_hat: &'a [f64],
+    /// Pairs of vertices whose primitives carry no barrier (the artist's contacts).
+    pub exempt: &'a Exemptions,
+}
+
+/// Pairs exempt from contact. A point-triangle or edge-edge pair is left free (it may touch
+/// or cross) when any of its vertex pairs is listed (the artist's contacts, by index), when a
+/// triangle holding its first primitive and one holding its second are listed as crossing
+/// (the target's rest crossings: skin resting through the teeth is exempt against the faces it
+/// crosses, not against every face of the teeth), or when it is closer than its `d_hat` at
+/// rest.
+#[derive(Clone, Debug, Default)]
+pub struct Exemptions {
+    pairs: HashSet<(u32, u32)>,
+    crossing: HashSet<(u32, u32)>,
+    triangles: Vec<[u32; 3]>,
+    /// Per vertex, the triangles it is a corner of (built with the first crossing pair).
+    at_vertex: Vec<Vec<u32>>,
+}
+
+impl Exemptions {
+    /// Lists every pair of a vertex of `a` with a vertex of `b`.
+    pub fn insert_all(&mut self, a: &[u32], b: &[u32]) {
+        for &u in a {
+            for &v in b {
+                if u != v {
+                    self.pairs.insert((u.min(v), u.max(v)));
+                }
+            }
+        }
+    }
+
+    /// Lists triangles `a` and `b` of `triangles` (all N vertices' triangles) as crossing.
+    pub fn insert_crossing(&mut self, triangles: &[[u32; 3]], n_vertices: usize, a: u32, b: u32) {
+        if self.at_vertex.is_empty() {
+            self.triangles = triangles.to_vec();
+            self.at_vertex = vec![Vec::new(); n_vertices];
+            for (t, tri) in triangles.iter().enumerate() {
+                for &v in tri {
+                    self.at_vertex[v as usize].push(t as u32);
+                }
+            }
+        }
+        self.crossing.insert((a.min(b), a.max(b)));
+    }
+
+    pub fn contains(&self, u: u32, v: u32) -> bool {
+        self.pairs.contains(&(u.min(v), u.max(v)))
+    }
+
+    /// Whether the primitives `a` and `b` (vertex lists) are exempt by index: a vertex pair of
+    /// theirs is listed, or triangles holding each are listed as crossing.
+    pub fn any(&self, a: &[u32], b: &[u32]) -> bool {
+        if a.iter().any(|&u| b.iter().any(|&v| self.contains(u, v))) {
+            return true;
+        }
+        if self.crossing.is_empty() {
+            return false;
+        }
+        let holding = |p: &[u32]| -> Vec<u32> {
+            self.at_vertex[p[0] as usize].iter().copied().filter(|&t| p.iter().all(|v| self.triangles[t as usize].contains(v))).collect()
+        };
+        let (ta, tb) = (holding(a), holding(b));
+        ta.iter().any(|&x| tb.iter().any(|&y| self.crossing.contains(&(x.min(y), x.max(y)))))
+    }
+
+    /// Whether triangles `a`, `b` are listed as crossing.
+    pub fn crossing(&self, a: u32, b: u32) -> bool {
+        self.crossing.contains(&(a.min(b), a.max(b)))
+    }
+
+    pub fn len(&self) -> usize {
+        self.pairs.len() + self.crossing.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty() && self.crossing.is_empty()
+    }
+}
+
+/// One non-exempt pair: its kind and vertices (`[p, t0, t1, t2]` or `[a0, a1, b0, b1]`), and
+/// `s_hat = d_hat^2`.
+#[derive(Clone, Copy, Debug)]
+pub struct Pair {
+    pub kind: PairKind,
+    pub vertices: [u32; 4],
+    pub s_hat: f64,
+}
+
+impl Pair {
+    pub fn points(&self, x: &[[f64; 3]]) -> [[f64; 3]; 4] {
+        self.vertices.map(|v| x[v as usize])
+    }
+}
+
+impl ContactMesh<'_> {
+    fn pair(&self, kind: PairKind, vertices: [u32; 4]) -> Option<Pair> {
+        let (a, b): (&[u32], &[u32]) = match kind {
+            PairKind::PointTriangle => (&vertices[..1], &vertices[1..]),
+            PairKind::EdgeEdge { .. } => (&vertices[..2], &vertices[2..]),
+        };
+        if a.iter().any(|v| b.contains(v)) || self.exempt.any(a, b) {
+            return None;
+        }
+        let d_hat = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
+        let s_hat = d_hat * d_hat;
+        let rest: [[f64; 3]; 4] = vertices.map(|v| self.rest[v as usize]);
+        let kind = match kind {
+            PairKind::EdgeEdge { .. } => PairKind::EdgeEdge { mollifier: mollifier_threshold(sub(rest[1], rest[0]), sub(rest[3], rest[2])) },
+            k => k,
+        };
+        // Close at rest: the target's own contact, exempt.
+        if pair_squared(kind, &rest) < s_hat {
+            return None;
+        }
+        Some(Pair { kind, vertices, s_hat })
+    }
+
+    /// The non-exempt pairs with a vertex in `region` whose boxes, swept from `x` to
+    /// `x + step` and grown by `d_hat`, meet: every pair that can come within `d_hat` or touch
+    /// along the step.
+    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool]) -> Vec<Pair> {
+        let mut pairs = Vec::new();
+        self.broad_phase(x, step, in_region, |kind, vertices| pairs.extend(self.pair(kind, vertices)));
+        pairs
+    }
+
+    /// Every point-triangle and edge-edge pair (sharing no vertex) with a vertex in `moving`
+    /// closer than its `d_hat` at `x`, as the vertex lists of its two primitives, exempt or
+    /// not: the contacts a shape makes.
+    pub fn close_pairs(&self, x: &[[f64; 3]], moving: &[bool]) -> Vec<(Vec<u32>, Vec<u32>)> {
+        let still = vec![[0.0; 3]; x.len()];
+        let mut found = Vec::new();
+        self.broad_phase(x, &still, moving, |kind, v| {
+            let split = if kind == PairKind::PointTriangle { 1 } else { 2 };
+            if v[..split].iter().any(|u| v[split..].contains(u)) {
+                return;
+            }
+            let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
+            if pair_squared(kind, &v.map(|u| x[u as usize])) < d_hat * d_hat {
+                found.push((v[..split].to_vec(), v[split..].to_vec()));
+            }
+        });
+        found
+    }
+
+    /// Whether the point-triangle (`first` one vertex) or edge-edge pair is closer than its
+    /// `d_hat` at rest.
+    pub fn primitives_close_at_rest(&self, first: &[u32], second: &[u32]) -> bool {
+        let (kind, v) = match (first, second) {
+            ([p], [a, b, c]) => (PairKind::PointTriangle, [*p, *a, *b, *c]),
+            ([a, b], [c, d]) => (PairKind::EdgeEdge { mollifier: 0.0 }, [*a, *b, *c, *d]),
+            _ => return false,
+        };
+        let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
+        pair_squared(kind, &v.map(|u| self.rest[u as usize])) < d_hat * d_hat
+    }
+
+    /// Whether triangles `a`, `b` are closer than `d_hat` at rest (any corner against the
+    /// other triangle, any edge against the other's edges).
+    pub fn triangles_close_at_rest(&self, a: [u32; 3], b: [u32; 3]) -> bool {
+        let close = |kind: PairKind, v: [u32; 4]| {
+            let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
+            pair_squared(kind, &v.map(|u| self.rest[u as usize])) < d_hat * d_hat
+        };
+        let shares = |v: &[u32], w: &[u32]| v.iter().any(|u| w.contains(u));
+        for (p, t) in [(a, b), (b, a)] {
+            for &c in &p {
+                if !t.contains(&c) && close(PairKind::PointTriangle, [c, t[0], t[1], t[2]]) {
+                    return true;
+                }
+            }
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                let (e, f) = ([a[i], a[(i + 1) % 3]], [b[j], b[(j + 1) % 3]]);
+                if !shares(&e, &f) && close(PairKind::EdgeEdge { mollifier: 0.0 }, [e[0], e[1], f[0], f[1]]) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Every point-triangle and edge-edge pair with a vertex in `in_region` whose boxes, swept
+    /// from `x` to `x + step` and grown by `d_hat`, meet, passed to `emit`.
+    fn broad_phase(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], mut emit: impl FnMut(PairKind, [u32; 4])) {
+        let moved = |v: u32| in_region[v as usize];
+        let end = |v: u32| {
+            let (p, d) = (x[v as usize], step[v as usize]);
+            [p[0] + d[0], p[1] + d[1], p[2] + d[2]]
+        };
+        let swept = |vs: &[u32]| {
+            let grow = vs.iter().map(|&v| self.d_hat[v as usize]).fold(0.0, f64::max);
+            Box3::around(vs.iter().flat_map(|&v| [x[v as usize], end(v)]), grow)
+        };
+        let region_vertices: Vec<u32> = (0..x.len() as u32).filter(|&v| moved(v)).collect();
+        if region_vertices.is_empty() {
+            return;
+        }
+        let reach = swept(&region_vertices);
+        let near = |vs: &[u32]| swept(vs).overlaps(&reach);
+        // Point-triangle: points against a tree of nearby triangles.
+        let triangles: Vec<u32> = (0..self.triangles.len() as u32).filter(|&t| near(&self.triangles[t as usize])).collect();
+        let tree = BoxTree::build(triangles.iter().map(|&t| swept(&self.triangles[t as usize])).collect());
+        for v in 0..x.len() as u32 {
+            let b = swept(&[v]);
+            if !b.overlaps(&reach) {
+                continue;
+            }
+            tree.for_each_overlap(&b, |k| {
+                let tri = self.triangles[triangles[k as usize] as usize];
+                if !tri.contains(&v) && (moved(v) || tri.iter().any(|&c| moved(c))) {
+                    emit(PairKind::PointTriangle, [v, tri[0], tri[1], tri[2]]);
+                }
+            });
+        }
+        // Edge-edge: each unordered pair once.
+        let edges: Vec<u32> = (0..self.edges.len() as u32).filter(|&e| near(&[self.edges[e as usize].0, self.edges[e as usize].1])).collect();
+        let edge_box = |e: u32| swept(&[self.edges[e as usize].0, self.edges[e as usize].1]);
+        let tree = BoxTree::build(edges.iter().map(|&e| edge_box(e)).collect());
+        for (k, &e) in edges.iter().enumerate() {
+            let (a0, a1) = self.edges[e as usize];
+            let e_moves = moved(a0) || moved(a1);
+            tree.for_each_overlap(&edge_box(e), |j| {
+                let f = edges[j as usize];
+                let (b0, b1) = self.edges[f as usize];
+                let f_moves = moved(b0) || moved(b1);
+                // Both move: once, from the lower index; one moves: from the one that does.
+                let take = if e_moves && f_moves { (j as usize) > k } else { e_moves };
+                if take && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1 {
+                    emit(PairKind::EdgeEdge { mollifier: 0.0 }, [a0, a1, b0, b1]);
+                }
+            });
+        }
+    }
+}
+
+/// Settings of [`solve`].
+#[derive(Clone, Copy, Debug)]
+pub struct NewtonParams {
+    /// Stop when no vertex's Newton step exceeds this fraction of the region's mean `d_hat`.
+    pub tolerance: f64,
+    pub max_iterations: usize,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        Self { tolerance: 1e-3, max_iterations: 100 }
+    }
+}
+
+/// What [`solve`] returns.
+#[derive(Clone, Debug, Default)]
+pub struct NewtonResult {
+    pub positions: Vec<[f64; 3]>,
+    pub iterations: usize,
+    /// Pairs closer than their `d_hat` at the end.
+    pub contacts: usize,
+    pub converged: bool,
+}
+
+/// Minimises `E` (module docs) over the vertices `region` from `start` (all N positions; the
+/// rest held there), `rows` the rows of `A`, `minimiser` `x*` (all N), `screening` `mu` per
+/// vertex (a fraction of its diagonal).
+pub fn solve(
+    mesh: &ContactMesh,
+    rows: &MatrixRows,
+    minimiser: &[[f64; 3]],
+    screening: &[f64],
+    region: &[usize],
+    start: Vec<[f64; 3]>,
+    params: &NewtonParams,
+) -> ShapesmithResult<NewtonResult> {
+    let n = start.len();
+    let mut slot = vec![usize::MAX; n];
+    for (s, &v) in region.iter().enumerate() {
+        slot[v] = s;
+    }
+    let in_region: Vec<bool> = slot.iter().map(|&s| s != usize::MAX).collect();
+    let mut x = start;
+    if region.is_empty() {
+        return Ok(NewtonResult { positions: x, converged: true, ..Default::default() });
+    }
+    let diagonal = |v: usize| rows.row(v).iter().find(|&&(u, _)| u == v).map_or(0.0, |&(_, a)| a);
+    let mean_diagonal = region.iter().map(|&v| diagonal(v)).sum::<f64>() / region.len() as f64;
+    let mean_d_hat = region.iter().map(|&v| mesh.d_hat[v]).sum::<f64>() / region.len() as f64;
+    // The barrier's stiffness (module docs of mod.rs): the energy's mean diagonal per unit of
+    // squared d_hat. A hundredth of it moves pressed lips only 8% closer (the barrier grows
+    // logarithmically) and lets pairs come so close that the positions written in single
+    // precision cross (the crossed strips of the transfer's tests).
+    let kappa = mean_diagonal / (mean_d_hat * mean_d_hat);
+    let quadratic = |x: &[[f64; 3]]| {
+        let mut e = 0.0;
+        for &v in region {
+            let dv = sub(x[v], minimiser[v]);
+            for &(u, a) in rows.row(v) {
+                if in_region[u] {
+                    let du = sub(x[u], minimiser[u]);
+                    e += 0.5 * a * (dv[0] * du[0] + dv[1] * du[1] + dv[2] * du[2]);
+                }
+            }
+            e += 0.5 * screening[v] * diagonal(v) * (dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]);
+        }
+        e
+    };
+    let energy = |x: &[[f64; 3]], pairs: &[Pair]| quadratic(x) + kappa * pairs.iter().map(|p| pair_energy(p.kind, &p.points(x), p.s_hat)).sum::<f64>();
+    let zero = vec![[0.0; 3]; n];
+    let mut order: Option<Vec<usize>> = None;
+    let mut result = NewtonResult::default();
+    let mut step = zero.clone();
+    for iteration in 0..params.max_iterations {
+        result.iterations = iteration + 1;
+        let pairs = mesh.candidates(&x, &zero, &in_region);
+        // Gradient and Hessian.
+        let mut gradient = vec![0.0; 3 * region.len()];
+        let mut entries: Vec<(usize, usize, f64)> = Vec::new();
+        for (s, &v) in region.iter().enumerate() {
+            let dv = sub(x[v], minimiser[v]);
+            for &(u, a) in rows.row(v) {
+                if !in_region[u] {
+                    continue;
+                }
+                let du = sub(x[u], minimiser[u]);
+                for c in 0..3 {
+                    gradient[3 * s + c] += a * du[c];
+                }
+                if slot[u] <= s {
+                    let extra = if u == v { screening[v] * a } else { 0.0 };
+                    for c in 0..3 {
+                        entries.push((3 * s + c, 3 * slot[u] + c, a + extra));
+                    }
+                }
+            }
+            for c in 0..3 {
+                gradient[3 * s + c] += screening[v] * diagonal(v) * dv[c];
+            }
+        }
+        let mut close = 0;
+        for pair in &pairs {
+            let d = pair_derivatives(pair.kind, &pair.points(&x), pair.s_hat);
+            if d.v == 0.0 && d.g.iter().all(|&g| g == 0.0) {
+                continue;
+            }
+            close += 1;
+            let h = project_psd(&d.h);
+            let dof = |i: usize| {
+                let v = pair.vertices[i / 3] as usize;
+                in_region[v].then(|| 3 * slot[v] + i % 3)
+            };
+            for i in 0..N {
+                let Some(r) = dof(i) else { continue };
+                gradient[r] += kappa * d.g[i];
+                for j in 0..N {
+                    if let Some(c) = dof(j) {
+                        if r >= c && h[i][j] != 0.0 {
+                            entries.push((r, c, kappa * h[i][j]));
+                        }
+                    }
+                }
+            }
+        }
+        result.contacts = close;
+        let matrix = SymmetricMatrix::from_triplets(3 * region.len(), entries);
+        if order.is_none() {
+            order = Some(matrix.fill_reducing_order()?);
+        }
+        let factor = matrix.factor(order.as_deref().unwrap_or(&[]))?;
+        let rhs: Vec<[f64; 3]> = gradient.iter().map(|&g| [-g, 0.0, 0.0]).collect();
+        let direction = factor.solve_points(&rhs);
+        let mut longest = 0.0f64;
+        for (s, &v) in region.iter().enumerate() {
+            step[v] = std::array::from_fn(|c| direction[3 * s + c][0]);
+            longest = longest.max(step[v].iter().map(|c| c.abs()).fold(0.0, f64::max));
+        }
+        if longest <= params.tolerance * mean_d_hat {
+            result.converged = true;
+            break;
+        }
+        // The largest safe step along the direction, then Armijo backtracking.
+        let swept = mesh.candidates(&x, &step, &in_region);
+        let mut alpha = swept.iter().map(|p| additive_ccd(p.kind, &p.points(&x), &p.vertices.map(|v| step[v as usize]), 1.0)).fold(1.0, f64::min);
+        let e0 = energy(&x, &swept);
+        let slope: f64 = region.iter().enumerate().map(|(s, &v)| (0..3).map(|c| gradient[3 * s + c] * step[v][c]).sum::<f64>()).sum();
+        let trial = |alpha: f64| {
+            let mut y = x.clone();
+            for &v in region {
+                for c in 0..3 {
+                    y[v][c] += alpha * step[v][c];
+                }
+            }
+            y
+        };
+        let mut next = trial(alpha);
+        while energy(&next, &swept) > e0 + 1e-4 * alpha * slope && alpha > 1e-10 {
+            alpha *= 0.5;
+            next = trial(alpha);
+        }
+        x = next;
+    }
+    result.positions = x;
+    Ok(result)
+}
