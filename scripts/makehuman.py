@@ -64,8 +64,8 @@ def pair_vertices(neutral, skin, count=PAIRS):
     return chosen
 
 
-def largest_piece(n_vertices, faces):
-    """The vertices (sorted) of the mesh's largest connected piece; `faces` any sequence of
+def vertex_pieces(n_vertices, faces):
+    """Per vertex, the root of the connected piece it belongs to; `faces` any sequence of
     vertex-index sequences (union-find over the faces' corners)."""
     parent = np.arange(n_vertices)
 
@@ -81,7 +81,12 @@ def largest_piece(n_vertices, faces):
             other = find(v)
             if other != root:
                 parent[other] = root
-    roots = np.array([find(v) for v in range(n_vertices)])
+    return np.array([find(v) for v in range(n_vertices)])
+
+
+def largest_piece(n_vertices, faces):
+    """The vertices (sorted) of the mesh's largest connected piece (`vertex_pieces`)."""
+    roots = vertex_pieces(n_vertices, faces)
     return np.flatnonzero(roots == np.bincount(roots).argmax())
 
 

@@ -25,29 +25,10 @@ MOUTH_REACH = 3.0
 MUZZLE = 2.0             # the mouth and chin pushed forward this many eyeball radii
 
 
-def pieces(n, faces):
-    """Per vertex, the connected piece it belongs to (union-find over the faces' corners)."""
-    parent = np.arange(n)
-
-    def find(v):
-        while parent[v] != v:
-            parent[v] = parent[parent[v]]
-            v = parent[v]
-        return v
-
-    for face in faces:
-        root = find(face[0])
-        for v in face[1:]:
-            other = find(v)
-            if other != root:
-                parent[other] = root
-    return np.array([find(v) for v in range(n)])
-
-
 def features(neutral, faces, keys):
     """The template's eyeball centres and radius, mouth centre and nose tip (Blender frame:
     Z up, the face towards -Y, X = 0 its midline). `keys`: name -> (N, 3) deltas."""
-    labels = pieces(len(neutral), faces)
+    labels = makehuman.vertex_pieces(len(neutral), faces)
     balls = []
     for piece in np.unique(labels):
         members = neutral[labels == piece]
