@@ -48,14 +48,12 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
             layout.label(text=native.STATUS, icon="ERROR")
         settings = context.scene.shapesmith
         row = layout.row(align=True)
+        row.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
+        row.operator("shapesmith.analyze_rig", text="Reset Pairs", icon="LOOP_BACK").reset_pairs = True
+        row = layout.row(align=True)
         row.prop(settings, "symmetry_axis", expand=True)
         layout.prop(settings, "pair_by_name")
         obj = context.active_object
-        if obj is not None and obj.type == "MESH":
-            self.draw_face_parts(layout, obj)
-        row = layout.row(align=True)
-        row.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
-        row.operator("shapesmith.analyze_rig", text="Reset Pairs", icon="LOOP_BACK").reset_pairs = True
         if obj is None or obj.type != "MESH":
             return
         summary = obj.shapesmith.analysis
@@ -83,11 +81,22 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
             for pair in obj.shapesmith.antagonists:
                 box.label(text=f"{pair.first} / {pair.second}")
 
-    @staticmethod
-    def draw_face_parts(layout, obj):
-        """The head's Face Parts list: separate meshes every tool reads with it."""
-        props = obj.shapesmith
-        layout.label(text=f"Face Parts ({len(props.face_parts)})")
+
+class SHAPESMITH_PT_face_parts(ShapesmithPanel, bpy.types.Panel):
+    """The head's Face Parts: separate meshes (teeth, tongue, eyes, lashes) every tool reads with it."""
+
+    bl_label = "Face Parts"
+    bl_parent_id = "SHAPESMITH_PT_rig"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.active_object.shapesmith
+        layout.label(text=f"Parts of this head ({len(props.face_parts)}), read with it by every tool:")
         row = layout.row()
         row.template_list("SHAPESMITH_UL_face_parts", "face_parts", props, "face_parts", props, "active_face_part", rows=3)
         col = row.column(align=True)
@@ -184,6 +193,7 @@ register, unregister = bpy.utils.register_classes_factory(
         SHAPESMITH_UL_pairs,
         SHAPESMITH_UL_face_parts,
         SHAPESMITH_PT_rig,
+        SHAPESMITH_PT_face_parts,
         SHAPESMITH_PT_landmarks,
         SHAPESMITH_PT_landmarks_advanced,
     )
