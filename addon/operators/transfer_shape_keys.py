@@ -71,7 +71,7 @@ class TransferOperator(JobOperator):
             f"{len(written)} shape keys written onto '{target.name}'"
             + (f", {len(skipped)} existing kept" if skipped else "")
             + f"; {transfer.report['virtual_edges']} virtual edges"
-            + (f"; adding more intersection than on the template: {', '.join(worse)}" if worse else ""),
+            + (f"; passing through more than the template's (the panel lists them): {', '.join(worse)}" if worse else ""),
         )
         return {"FINISHED"}
 
