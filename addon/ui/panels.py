@@ -64,7 +64,9 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"{summary.vertices} vertices, {summary.triangles} triangles")
         col.label(text=f"{summary.shapes} shape keys")
         col.label(text=f"Inert: {summary.inert or 'none'}")
-        col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}")
+        col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}"
+                       + ("" if summary.unmatched_vertices == 0 else " (0 on a mirror-symmetric face)"),
+                  icon="CHECKMARK" if summary.unmatched_vertices == 0 else "INFO")
         if summary.seam_vertices:
             col.label(text=f"Seams welded: {summary.seam_vertices} vertices into {summary.seam_groups} points")
         if summary.degenerate_triangles:
