@@ -95,10 +95,14 @@ class SHAPESMITH_PT_face_parts(ShapesmithPanel, bpy.types.Panel):
     def poll(cls, context):
         return context.active_object is not None and context.active_object.type == "MESH"
 
+    def draw_header(self, context):
+        # The count shows with the sub-panel closed: a head with parts says so.
+        self.layout.label(text=f"({len(context.active_object.shapesmith.face_parts)})")
+
     def draw(self, context):
         layout = self.layout
         props = context.active_object.shapesmith
-        layout.label(text=f"Parts of this head ({len(props.face_parts)}), read with it by every tool:")
+        layout.label(text="Parts of this head, read with it by every tool:")
         row = layout.row()
         row.template_list("SHAPESMITH_UL_face_parts", "face_parts", props, "face_parts", props, "active_face_part", rows=3)
         col = row.column(align=True)
