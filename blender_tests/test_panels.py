@@ -39,7 +39,9 @@ def draw(panel_type):
 
 
 def shapesmith_panels():
-    return [getattr(bpy.types, name) for name in dir(bpy.types) if name.startswith("SHAPESMITH_PT_")]
+    """The sidebar's panels (the header's preset popovers are Blender's own preset lists)."""
+    return [getattr(bpy.types, name) for name in dir(bpy.types)
+            if name.startswith("SHAPESMITH_PT_") and not name.endswith("_presets")]
 
 
 def test_every_panel_draws_before_and_after_results(sample):
@@ -98,3 +100,30 @@ def test_result_lines_speak_a_riggers_words(sample):
     assert row.endswith(", lips or lids") or row.endswith(", through eyes, teeth or lashes"), row
     assert " m" in row or "cm" in row or "mm" in row, row  # the sample is in metres: a unit is shown
     assert not any("allows" in line or "between pieces" in line for line in lines), lines
+
+
+def test_a_saved_preset_brings_back_a_panels_settings_and_the_name_table(sample):
+    """Rig and Transfer presets: saved, the settings changed, the preset picked: the saved
+    values are back (the Shape Key Names rows too), and the picked template is not touched."""
+    scene = bpy.context.scene
+    rig, transfer = scene.shapesmith, scene.shapesmith.transfer
+    rig.symmetry_axis, rig.pair_by_name = "1", False
+    rig.name_map.clear()
+    row = rig.name_map.add()
+    row.theirs, row.standard = "Blink_Left_Eye", "eyeBlinkLeft"
+    transfer.tau_d, transfer.overwrite = 0.02, True
+    assert bpy.ops.shapesmith.add_rig_preset(name="Studio Heads") == {"FINISHED"}
+    assert bpy.ops.shapesmith.add_transfer_preset(name="Studio Heads") == {"FINISHED"}
+
+    rig.symmetry_axis, rig.pair_by_name = "0", True
+    rig.name_map.clear()
+    transfer.tau_d, transfer.overwrite = 0.015, False
+    transfer.source = bpy.data.objects["Template"]
+    for panel in ("rig", "transfer"):
+        path = bpy.utils.preset_find("Studio_Heads", f"shapesmith/{panel}")
+        assert path, panel
+        assert bpy.ops.script.execute_preset(filepath=path, menu_idname=f"SHAPESMITH_PT_{panel}_presets") == {"FINISHED"}
+    assert (rig.symmetry_axis, rig.pair_by_name) == ("1", False)
+    assert [(r.theirs, r.standard) for r in rig.name_map] == [("Blink_Left_Eye", "eyeBlinkLeft")]
+    assert transfer.tau_d == pytest.approx(0.02) and transfer.overwrite
+    assert transfer.source == bpy.data.objects["Template"]

@@ -7,6 +7,7 @@ import bpy
 from .. import native
 from ..blender.landmarks import STOP_REASONS, VERTEX_GROUP_NAME, curve_lines
 from ..operators.job_operator import draw_running
+from . import presets
 
 
 class SHAPESMITH_UL_pairs(bpy.types.UIList):
@@ -41,6 +42,9 @@ class ShapesmithPanel:
 class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Rig"
     bl_order = 0
+
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "rig")
 
     def draw(self, context):
         layout = self.layout
@@ -117,6 +121,9 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Landmarks"
     bl_order = 2
     bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "landmarks")
 
     def draw(self, context):
         layout = self.layout

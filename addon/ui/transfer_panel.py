@@ -6,6 +6,7 @@ import bpy
 
 from ..operators.job_operator import draw_running
 from .panels import ShapesmithPanel
+from . import presets
 
 # Where a shape's extra crossing lies (`blender.transfer.where_added`), in a rigger's words.
 WHERE_WORDS = {"inside one piece": "lips or lids", "between pieces": "through eyes, teeth or lashes"}
@@ -30,6 +31,9 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Transfer"
     bl_order = 3
     bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "transfer")
 
     def draw(self, context):
         layout = self.layout
