@@ -13,7 +13,7 @@ use std::collections::HashMap;
 
 use serde::Serialize;
 
-use super::weld::{is_flat, Weld, WELD_FRACTION};
+use super::weld::{is_flat, weld_tolerance, Weld};
 use crate::error::ShapesmithResult;
 use crate::rig::{bbox_diagonal, validate_triangle_indices};
 
@@ -63,11 +63,11 @@ pub fn find_mesh_faults(points: &[[f32; 3]], triangles: &[[u32; 3]]) -> Shapesmi
         w
     };
     let first_with: HashMap<[u32; 3], u32> = weld.triangle_of.iter().map(|&t| (welded_corners(t as usize), t)).collect();
-    let tolerance = WELD_FRACTION * bbox_diagonal(points);
+    let (diagonal, tolerance) = (bbox_diagonal(points), weld_tolerance(points));
     let (mut zero_area, mut duplicates) = (Vec::new(), Vec::new());
     for t in (0..triangles.len()).filter(|&t| !kept[t]) {
         let w = welded_corners(t);
-        let flat = w[0] == w[1] || w[1] == w[2] || is_flat(points, &w, tolerance);
+        let flat = w[0] == w[1] || w[1] == w[2] || is_flat(points, &w, diagonal, tolerance);
         match first_with.get(&w) {
             Some(&earlier) if !flat => duplicates.push([earlier, t as u32]),
             _ => zero_area.push(t as u32),

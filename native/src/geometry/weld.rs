@@ -17,12 +17,14 @@
 //! partner) is its welded point's representative, the lowest index among the copies.
 //!
 //! # Tolerance
-//! Copies coincide when their rest positions are within [`WELD_FRACTION`] (1e-7) of the
-//! bounding-box diagonal. Importers write the copies from one source vertex, so they agree to
-//! the bit; 1e-7 is about one f32 rounding step at the size of the mesh (f32's epsilon is
-//! 1.2e-7), which forgives a copy that went through one more transform than its twin, and is
-//! four orders below the spacing of any vertices a face mesh holds apart (its shortest edges,
-//! about 1e-3 of the diagonal on the bundled 25k head). Closed lips modelled as separate
+//! Copies coincide when their rest positions are within [`weld_tolerance`]: [`WELD_FRACTION`]
+//! (1e-7) of the bounding-box diagonal, or f32's rounding step at the mesh's largest
+//! coordinate when that is more (a head far from the origin, as one in centimetres at a
+//! body's height, stores its positions no finer). Importers write the copies from one source
+//! vertex, so they agree to the bit; one rounding step (f32's epsilon is 1.2e-7) forgives a
+//! copy that went through one more transform than its twin, and is four orders below the
+//! spacing of any vertices a face mesh holds apart (its shortest edges, about 1e-3 of the
+//! diagonal on the bundled 25k head). Closed lips modelled as separate
 //! vertices resting on each other are not a seam: their shapes move them apart, and
 //! [`Weld::split_where_apart`] keeps them two points.
 
@@ -33,14 +35,14 @@ use super::bvh::TriangleBvh;
 use crate::rig::{bbox_diagonal, triangle_area, RigView, DEGENERATE_AREA_FRACTION};
 
 /// Whether triangle `tri` of `points` has no area at the precision the mesh is stored in: its
-/// area at most [`DEGENERATE_AREA_FRACTION`] of the squared diagonal, or its height (twice its
-/// area over its longest edge) within `tolerance`, the weld's: a corner that close to the
+/// area at most [`DEGENERATE_AREA_FRACTION`] of the squared `diagonal`, or its height (twice
+/// its area over its longest edge) within `tolerance`, the weld's: a corner that close to the
 /// opposite edge is on it, as two points that close are one. An exporter's collinear corners
-/// (a vertex halfway along an edge, written in f32) keep a height of one rounding step, far
-/// above the area bound yet as singular for a gradient operator.
-pub fn is_flat(points: &[[f32; 3]], tri: &[u32; 3], tolerance: f64) -> bool {
+/// (a vertex halfway along an edge, written in f32) keep a height of up to one rounding step
+/// at their coordinates' size, far above the area bound yet as singular for a gradient
+/// operator.
+pub fn is_flat(points: &[[f32; 3]], tri: &[u32; 3], diagonal: f64, tolerance: f64) -> bool {
     let area = triangle_area(points, tri);
-    let diagonal = tolerance / WELD_FRACTION;
     let longest = (0..3)
         .map(|i| {
             let (p, q) = (points[tri[i] as usize], points[tri[(i + 1) % 3] as usize]);
@@ -53,6 +55,15 @@ pub fn is_flat(points: &[[f32; 3]], tri: &[u32; 3], tolerance: f64) -> bool {
 /// Rest positions closer than this fraction of the bounding-box diagonal are one surface
 /// point (see the module's Tolerance section).
 pub const WELD_FRACTION: f64 = 1e-7;
+
+/// The distance within which two rest positions of `points` are one point: [`WELD_FRACTION`]
+/// of the bounding-box diagonal, and at least f32's rounding step at the largest finite
+/// coordinate magnitude `c`, `f32::EPSILON * c` (an f32 value of size at most `c` is off by
+/// half that step per axis at most, `sqrt(3) / 2` of it over the three axes).
+pub fn weld_tolerance(points: &[[f32; 3]]) -> f64 {
+    let largest = points.iter().flatten().map(|c| f64::from(c.abs())).filter(|c| c.is_finite()).fold(0.0, f64::max);
+    (WELD_FRACTION * bbox_diagonal(points)).max(f64::from(f32::EPSILON) * largest)
+}
 
 /// A vertex in no triangle of the valid surface, read at the surface point nearest it at rest:
 /// the welded corners of that point's triangle and its barycentric weights.
@@ -86,8 +97,7 @@ pub struct Weld {
 }
 
 impl Weld {
-    /// Welds the vertices of `points` within [`WELD_FRACTION`] of their bounding-box diagonal,
-    /// transitively. A hash grid in spirit: the points sorted by a cell key (cells 64 times
+    /// Welds the vertices of `points` within [`weld_tolerance`], transitively. A hash grid in spirit: the points sorted by a cell key (cells 64 times
     /// the tolerance), each compared with its own cell and, near a cell wall only, with the
     /// neighbour cell's; O(N log N), a few milliseconds on a 25k head.
     /// Triangles with an index out of range leave the mesh unwelded, for the tool's own
@@ -96,7 +106,7 @@ impl Weld {
         if triangles.iter().flatten().any(|&v| v as usize >= points.len()) {
             return Self::identity(points.len(), triangles);
         }
-        let tolerance = WELD_FRACTION * bbox_diagonal(points);
+        let tolerance = weld_tolerance(points);
         let cell = if tolerance > 0.0 { 64.0 * tolerance } else { 1.0 };
         let key = |p: &[f32; 3], shift: [i64; 3]| -> [i64; 3] {
             [0, 1, 2].map(|a| (f64::from(p[a]) / cell).floor() as i64 + shift[a])
@@ -198,7 +208,7 @@ impl Weld {
             }
             return Self { welded_of, representatives, triangles: welded_triangles, triangle_of, carried: Vec::new(), input_triangles };
         }
-        let tolerances: Vec<f64> = rests.iter().map(|r| WELD_FRACTION * bbox_diagonal(r)).collect();
+        let bounds: Vec<(f64, f64)> = rests.iter().map(|r| (bbox_diagonal(r), weld_tolerance(r))).collect();
         let mut seen = HashSet::with_capacity(triangles.len());
         for (t, tri) in triangles.iter().enumerate() {
             let w = tri.map(|v| welded_of[v as usize]);
@@ -206,7 +216,7 @@ impl Weld {
                 continue;
             }
             let at_points = w.map(|p| representatives[p as usize]);
-            if rests.iter().zip(&tolerances).any(|(rest, &tolerance)| is_flat(rest, &at_points, tolerance)) {
+            if rests.iter().zip(&bounds).any(|(rest, &(diagonal, tolerance))| is_flat(rest, &at_points, diagonal, tolerance)) {
                 continue;
             }
             let mut sorted = w;
@@ -296,7 +306,7 @@ impl Weld {
     /// `deltas` (K x N) moves the copies apart by more than the weld's tolerance (there the
     /// artist split the surface on purpose, as closed lips resting on each other).
     pub fn of_rig(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triangles: &[[u32; 3]]) -> Self {
-        Self::new(neutral, triangles).split_where_apart(deltas, WELD_FRACTION * bbox_diagonal(neutral), triangles, &[neutral])
+        Self::new(neutral, triangles).split_where_apart(deltas, weld_tolerance(neutral), triangles, &[neutral])
     }
 
     pub fn n_vertices(&self) -> usize {
@@ -506,7 +516,7 @@ mod tests {
 
     /// Brute force: the lowest vertex within the tolerance, transitively.
     fn brute_force(points: &[[f32; 3]]) -> Vec<u32> {
-        let tol = WELD_FRACTION * bbox_diagonal(points);
+        let tol = weld_tolerance(points);
         let mut parent: Vec<u32> = (0..points.len() as u32).collect();
         for a in 0..points.len() {
             for b in a + 1..points.len() {
@@ -574,6 +584,24 @@ mod tests {
         let got: Vec<u32> = weld.welded_of.iter().map(|&w| weld.representatives[w as usize]).collect();
         assert_eq!(got, expected);
         assert!(weld.n_welded() < points.len() && weld.n_welded() > 2 + 400, "both welds and non-welds: {}", weld.n_welded());
+    }
+
+    #[test]
+    fn a_vertex_halfway_along_an_edge_far_from_the_origin_is_on_the_edge() {
+        // An edge of a head modelled in centimetres at a body's height (coordinates near 67)
+        // and its midpoint written in f32: the rounding leaves the triangle a height of
+        // 3.8e-6, over ten times 1e-7 of the edge (here the diagonal), within one rounding step.
+        let (a, b) = ([-1.230179f32, 66.68956, 14.469305], [-0.03371877f32, 66.71613, 14.8685]);
+        let points = vec![a, b, [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]))];
+        let (diagonal, tolerance) = (bbox_diagonal(&points), weld_tolerance(&points));
+        let height = 2.0 * triangle_area(&points, &[0, 1, 2]) / diagonal;
+        assert!(height > 10.0 * WELD_FRACTION * diagonal && height < tolerance, "{height} {tolerance}");
+        assert!(is_flat(&points, &[0, 1, 2], diagonal, tolerance));
+        let weld = Weld::new(&points, &[[0, 1, 2]]);
+        assert!(weld.triangles.is_empty() && weld.carried.is_empty(), "no surface left to carry by");
+        // Centred on the origin, the same points keep the diagonal's tolerance.
+        let centred: Vec<[f32; 3]> = points.iter().map(|p| [0, 1, 2].map(|i| p[i] - points[2][i])).collect();
+        assert_eq!(weld_tolerance(&centred), WELD_FRACTION * bbox_diagonal(&centred));
     }
 
     #[test]

@@ -9,7 +9,7 @@ use super::errors::py_err;
 use super::run::{detached, detached_with_progress};
 use super::settings::settings as read_settings;
 use crate::geometry::penetration::intersecting_triangles as find_intersecting_triangles;
-use crate::geometry::weld::{Weld, WELD_FRACTION};
+use crate::geometry::weld::{weld_tolerance, Weld};
 use crate::invalid;
 use crate::transfer::{
     find_virtual_edges as find_edges, measure_rig_penetration, transfer_shapes as run_transfer, RigPenetration, TrainingExpressions,
@@ -175,7 +175,7 @@ fn intersecting_triangles<'py>(
         // On the welded surface: triangles that meet across a seam are neighbours.
         let rest = rest_points.unwrap_or(points);
         let weld = Weld::new(rest, &tris);
-        let weld = weld.split_where_apart(points, WELD_FRACTION * crate::rig::bbox_diagonal(points), &tris, &[rest]);
+        let weld = weld.split_where_apart(points, weld_tolerance(points), &tris, &[rest]);
         let rest_points = rest_points.map(|r| weld.gather(r));
         let crossed = find_intersecting_triangles(&weld.gather(points), rest_points.as_deref(), &weld.triangles);
         Ok(weld.scatter_triangles(&crossed, tris.len(), false))

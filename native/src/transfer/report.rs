@@ -10,9 +10,8 @@ use rayon::prelude::*;
 use crate::geometry::penetration::PenetrationBaseline;
 use super::{AddedCurve, CollisionOutcome, DeformationTransfer, Penetration, PersonaliseParams, TemplateCurve, TransferParams};
 use crate::error::ShapesmithResult;
-use crate::geometry::weld::{Weld, WELD_FRACTION};
+use crate::geometry::weld::{weld_tolerance, Weld};
 use crate::invalid;
-use crate::rig::bbox_diagonal;
 use crate::progress::{NoProgress, Progress, Stage};
 
 /// Everything [`transfer_shapes`] can be asked to do: the transfer tool's settings
@@ -194,7 +193,7 @@ pub fn transfer_weld(source_neutral: &[[f32; 3]], source_deltas: &[[f32; 3]], ta
         return weld;
     }
     // The faults of either neutral are left out of both: one topology, one valid surface.
-    weld.split_where_apart(target_neutral, WELD_FRACTION * bbox_diagonal(target_neutral), triangles, &[source_neutral, target_neutral])
+    weld.split_where_apart(target_neutral, weld_tolerance(target_neutral), triangles, &[source_neutral, target_neutral])
 }
 
 #[allow(clippy::too_many_arguments)]
