@@ -22,6 +22,18 @@ import bpy  # noqa: E402  (after BLENDER_USER_RESOURCES is set)
 BATCH = os.path.join(ROOT, "scripts", "batch.py")
 
 
+def pytest_unconfigure(config):
+    """Blender shuts down (its panels, add-ons and windows freed) when Python frees the `bpy`
+    module, which it does only once nothing else holds it. typing's caches outlive the module:
+    the glTF exporter's `typing.List[Keyframe]` keeps its class, whose module holds `bpy`, so
+    on bpy 4.2 Blender's own exit then frees Python-defined panels after Python has ended
+    (exit code 139 with every test passed). Emptying the caches lets `bpy` go in its turn."""
+    import typing
+
+    for clear in typing._cleanups:
+        clear()
+
+
 def extension_zip():
     path = os.environ.get("SHAPESMITH_ZIP") or max(glob.glob(os.path.join(ROOT, "dist", "shapesmith-*.zip")), default=None)
     if not path or not os.path.isfile(path):
