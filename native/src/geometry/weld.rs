@@ -24,9 +24,9 @@
 //! vertex, so they agree to the bit; one rounding step (f32's epsilon is 1.2e-7) forgives a
 //! copy that went through one more transform than its twin, and is four orders below the
 //! spacing of any vertices a face mesh holds apart (its shortest edges, about 1e-3 of the
-//! diagonal on the bundled 25k head). Closed lips modelled as separate
-//! vertices resting on each other are not a seam: their shapes move them apart, and
-//! [`Weld::split_where_apart`] keeps them two points.
+//! diagonal on the bundled 25k head). Closed lips modelled as separate vertices resting on
+//! each other are not a seam: their shapes move them apart, and [`Weld::split_where_apart`]
+//! keeps them two points.
 
 use std::borrow::Cow;
 use std::collections::HashSet;
@@ -97,9 +97,10 @@ pub struct Weld {
 }
 
 impl Weld {
-    /// Welds the vertices of `points` within [`weld_tolerance`], transitively. A hash grid in spirit: the points sorted by a cell key (cells 64 times
-    /// the tolerance), each compared with its own cell and, near a cell wall only, with the
-    /// neighbour cell's; O(N log N), a few milliseconds on a 25k head.
+    /// Welds the vertices of `points` within [`weld_tolerance`], transitively. A hash grid in
+    /// spirit: the points sorted by a cell key (cells 64 times the tolerance), each compared
+    /// with its own cell and, near a cell wall only, with the neighbour cell's; O(N log N), a
+    /// few milliseconds on a 25k head.
     /// Triangles with an index out of range leave the mesh unwelded, for the tool's own
     /// validation to name them in the user's numbering.
     pub fn new(points: &[[f32; 3]], triangles: &[[u32; 3]]) -> Self {
