@@ -99,7 +99,7 @@ def character(motion, name="Character_Test"):
 def without_collision_pass(shapesmith):
     """Transfer settings with the collision pass off (the carry's then is off too)."""
     tool = module(shapesmith, "blender.settings")
-    return tool.TransferSettings(transfer=tool.DeformationSettings(collisions=None))
+    return tool.TransferSettings(transfer=tool.DeformationSettings(contact=None))
 
 
 def wrap_and_carry(shapesmith, obj, entries, transfer_settings=None):
@@ -263,7 +263,7 @@ def test_buttons_align_wrap_and_transfer_onto_the_character_with_undo(sample, sh
     # The Transfer panel lists, for the character, the shapes judged on its own mesh.
     result = bpy.data.objects["Character_YoungWoman"].shapesmith.transfer
     assert result.done and result.carried and result.source == "Template" and len(result.shapes) == 52
-    assert result.worse_before_collisions == -1
+    assert result.worse_before_contact == -1
     bpy.ops.ed.undo()
     assert bpy.data.objects["Character_YoungWoman"].data.shape_keys is None
 
@@ -302,7 +302,7 @@ def test_keys_carried_onto_the_template_in_centimetres_add_the_templates_own_int
     error = np.linalg.norm(key_deltas(obj, names) - expected, axis=2).max()
     assert error < 2e-3 * diagonal, error / diagonal
     assert transfer.worse_than_template(report) == [], [(r["name"], r["excess"]) for r in report["penetration"] if sum(r["excess"].values()) > 1e-3 * diagonal]
-    assert not any((row["collisions"] or {}).get("applied") for row in report["penetration"])
+    assert not any((row["contact"] or {}).get("applied") for row in report["penetration"])
 
 
 def test_batch_wraps_the_sample_character_and_reports(sample_path, tmp_path):

@@ -436,7 +436,7 @@ def character_rows(report, character_penetration):
                 "template_between_pieces": wrapped_row["template_between_pieces"],
                 "template_added": wrapped_row["template_added"],
                 "template_crossing": wrapped_row["template_crossing"],
-                "collisions": wrapped_row.get("collisions"),
+                "contact": wrapped_row.get("contact"),
                 "carry_collisions": carry_collisions[k] if k < len(carry_collisions) else None,
                 "allowed": allowed,
                 "excess": excess,
@@ -466,7 +466,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     # The carried keys are judged on the character's own mesh by the criterion the transfer
     # used; with the transfer's collision pass on, the carry's holds them to it, with the same
     # margin.
-    collisions = transfer_settings.transfer.collisions
+    collisions = transfer_settings.transfer.contact
     carry = CarrySettings(collision_pass=collisions is not None, symmetrize=symmetric)
     # The template's rest gives the carry its mirror map: with a symmetric character each
     # carried shape is averaged with the mirror of its partner's; its own keys give each
@@ -476,7 +476,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     row = {name: k for k, name in enumerate(template_rig.names)}
     template_shapes = template_rig.deltas[[row[name] for name in onto_wrapped.names]]
     if collisions is not None:
-        carry.collision_margin = collisions.margin
+        carry.collision_margin = contact.distance
     deltas, carry_report = native.module().carry_shapes(
         np.ascontiguousarray(wrapped_neutral),
         wrapped_triangles,

@@ -37,10 +37,10 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
 
         col = layout.column(align=True)
-        col.prop(settings, "collisions")
+        col.prop(settings, "contact")
         sub = col.column(align=True)
-        sub.active = settings.collisions
-        sub.prop(settings, "collision_margin")
+        sub.active = settings.contact
+        sub.prop(settings, "contact_distance")
 
         col = layout.column(align=True)
         col.prop(settings, "overwrite")
@@ -72,14 +72,10 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"Virtual edges: {result.virtual_edges}")
         if result.carried:
             col.label(text="Carried from the wrapped template (Wrap); judged on this mesh")
-        if result.collisions:
-            before = (
-                f", {result.worse_before_collisions} worse than the template before it" if result.worse_before_collisions >= 0 else ""
-            )
+        if result.contact:
+            before = f", {result.worse_before_contact} worse than the template before it" if result.worse_before_contact >= 0 else ""
             where = " on the wrapped template" if result.carried else ""
-            col.label(
-                text=f"Collision pass (margin {result.collision_margin:.2f}): {result.collision_resolved} shapes re-solved{where}{before}"
-            )
+            col.label(text=f"Surfaces kept apart in {result.contact_resolved} shapes{where}{before}")
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")
         worse = [s for s in result.shapes if s.worse]

@@ -23,6 +23,10 @@ pub mod broad;
 pub mod ccd;
 pub mod distance;
 pub mod dual;
+pub mod exemptions;
 pub mod newton;
+pub mod shape;
 
-pub use newton::{solve, ContactMesh, Exemptions, NewtonParams, NewtonResult, Pair};
+pub use exemptions::{Crossed, Exemptions, TemplatePose, Topology};
+pub use newton::{solve, ContactMesh, NewtonParams, NewtonResult, Pair};
+pub use shape::{ContactScene, Resolved, TemplateShape};

@@ -10,12 +10,12 @@
 //! energy decreases (Armijo). The start must have no non-exempt pair touching; every iterate
 //! then keeps every non-exempt pair apart.
 
-use std::collections::HashSet;
 
 use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_psd, PairKind};
 use super::broad::{Box3, BoxTree};
 use super::ccd::additive_ccd;
 use super::dual::N;
+use super::exemptions::Exemptions;
 use crate::error::ShapesmithResult;
 use crate::geometry::mat3::sub;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
@@ -34,81 +34,6 @@ pub struct ContactMesh<'a> {
     pub d_hat: &'a [f64],
     /// Pairs of vertices whose primitives carry no barrier (the artist's contacts).
     pub exempt: &'a Exemptions,
-}
-
-/// Pairs exempt from contact. A point-triangle or edge-edge pair is left free (it may touch
-/// or cross) when any of its vertex pairs is listed (the artist's contacts, by index), when a
-/// triangle holding its first primitive and one holding its second are listed as crossing
-/// (the target's rest crossings: skin resting through the teeth is exempt against the faces it
-/// crosses, not against every face of the teeth), or when it is closer than its `d_hat` at
-/// rest.
-#[derive(Clone, Debug, Default)]
-pub struct Exemptions {
-    pairs: HashSet<(u32, u32)>,
-    crossing: HashSet<(u32, u32)>,
-    triangles: Vec<[u32; 3]>,
-    /// Per vertex, the triangles it is a corner of (built with the first crossing pair).
-    at_vertex: Vec<Vec<u32>>,
-}
-
-impl Exemptions {
-    /// Lists every pair of a vertex of `a` with a vertex of `b`.
-    pub fn insert_all(&mut self, a: &[u32], b: &[u32]) {
-        for &u in a {
-            for &v in b {
-                if u != v {
-                    self.pairs.insert((u.min(v), u.max(v)));
-                }
-            }
-        }
-    }
-
-    /// Lists triangles `a` and `b` of `triangles` (all N vertices' triangles) as crossing.
-    pub fn insert_crossing(&mut self, triangles: &[[u32; 3]], n_vertices: usize, a: u32, b: u32) {
-        if self.at_vertex.is_empty() {
-            self.triangles = triangles.to_vec();
-            self.at_vertex = vec![Vec::new(); n_vertices];
-            for (t, tri) in triangles.iter().enumerate() {
-                for &v in tri {
-                    self.at_vertex[v as usize].push(t as u32);
-                }
-            }
-        }
-        self.crossing.insert((a.min(b), a.max(b)));
-    }
-
-    pub fn contains(&self, u: u32, v: u32) -> bool {
-        self.pairs.contains(&(u.min(v), u.max(v)))
-    }
-
-    /// Whether the primitives `a` and `b` (vertex lists) are exempt by index: a vertex pair of
-    /// theirs is listed, or triangles holding each are listed as crossing.
-    pub fn any(&self, a: &[u32], b: &[u32]) -> bool {
-        if a.iter().any(|&u| b.iter().any(|&v| self.contains(u, v))) {
-            return true;
-        }
-        if self.crossing.is_empty() {
-            return false;
-        }
-        let holding = |p: &[u32]| -> Vec<u32> {
-            self.at_vertex[p[0] as usize].iter().copied().filter(|&t| p.iter().all(|v| self.triangles[t as usize].contains(v))).collect()
-        };
-        let (ta, tb) = (holding(a), holding(b));
-        ta.iter().any(|&x| tb.iter().any(|&y| self.crossing.contains(&(x.min(y), x.max(y)))))
-    }
-
-    /// Whether triangles `a`, `b` are listed as crossing.
-    pub fn crossing(&self, a: u32, b: u32) -> bool {
-        self.crossing.contains(&(a.min(b), a.max(b)))
-    }
-
-    pub fn len(&self) -> usize {
-        self.pairs.len() + self.crossing.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.pairs.is_empty() && self.crossing.is_empty()
-    }
 }
 
 /// One non-exempt pair: its kind and vertices (`[p, t0, t1, t2]` or `[a0, a1, b0, b1]`), and
@@ -132,7 +57,7 @@ impl ContactMesh<'_> {
             PairKind::PointTriangle => (&vertices[..1], &vertices[1..]),
             PairKind::EdgeEdge { .. } => (&vertices[..2], &vertices[2..]),
         };
-        if a.iter().any(|v| b.contains(v)) || self.exempt.any(a, b) {
+        if a.iter().any(|v| b.contains(v)) || self.exempt.primitives(a, b) {
             return None;
         }
         let d_hat = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
@@ -142,11 +67,16 @@ impl ContactMesh<'_> {
             PairKind::EdgeEdge { .. } => PairKind::EdgeEdge { mollifier: mollifier_threshold(sub(rest[1], rest[0]), sub(rest[3], rest[2])) },
             k => k,
         };
-        // Close at rest: the target's own contact, exempt.
-        if pair_squared(kind, &rest) < s_hat {
+        // Closer than d_hat at rest: its barrier starts at half its rest distance, so that it
+        // is inactive at rest and still keeps the pair from crossing; touching at rest, exempt.
+        // So is one the template's shape presses closer: half its distance there.
+        let rest_squared = pair_squared(kind, &rest);
+        let template_squared = self.exempt.template_squared(kind, vertices).unwrap_or(f64::INFINITY);
+        let closest = rest_squared.min(template_squared);
+        if closest == 0.0 {
             return None;
         }
-        Some(Pair { kind, vertices, s_hat })
+        Some(Pair { kind, vertices, s_hat: s_hat.min(0.25 * closest) })
     }
 
     /// The non-exempt pairs with a vertex in `region` whose boxes, swept from `x` to

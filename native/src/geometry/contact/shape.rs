@@ -1,0 +1,189 @@
+//! One shape's contact solve (method, section 3), shared by the transfer and the wrap's carry:
+//! which crossings a shape may keep, which it adds, and the solve that removes the added ones.
+//!
+//! A shape may keep the crossings its target's neutral has and those the template's own shape
+//! makes ([`super::exemptions`]); a shape adding no other crossing is returned as it is. Otherwise [`ContactScene::resolve`] minimises the caller's quadratic energy plus the
+//! IPC barrier ([`super::newton::solve`]) over the vertices of the added crossings and a few
+//! rings around them, the rest held as solved, started where the target's neutral is there:
+//! from a start with no added crossing the continuous collision check keeps every iterate so.
+
+use std::collections::HashSet;
+use std::sync::Arc;
+
+use super::exemptions::{Crossed, Exemptions, TemplatePose, Topology};
+use super::newton::{solve, ContactMesh, NewtonParams, NewtonResult};
+use crate::error::ShapesmithResult;
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::penetration::crossings;
+use crate::geometry::topology::{unique_edges, Adjacency};
+use crate::sparse::MatrixRows;
+
+/// Rings of mesh neighbours added around the vertices of the added crossings: the barrier
+/// then has room to bend the surface around the contact instead of folding one ring.
+const REGION_RINGS: usize = 3;
+
+/// Newton's screening `mu` (a fraction of each vertex's diagonal): a piece floating free inside
+/// the region keeps a finite stiffness; the minimiser is unchanged.
+const SCREENING: f64 = 1e-3;
+
+/// One neutral as the contact solve sees it: its surface, rest crossings and `d_hat`.
+pub struct ContactScene {
+    topology: Arc<Topology>,
+    edges: Vec<(u32, u32)>,
+    rest: Vec<[f64; 3]>,
+    d_hat: Vec<f64>,
+    adjacency: Adjacency,
+    /// Triangle pairs crossing at rest.
+    rest_crossing: Arc<Crossed>,
+    rest_pairs: HashSet<(u32, u32)>,
+    bvh: TriangleBvh,
+}
+
+/// A template's shape: its neutral's scene, its positions, the vertices it moves and the
+/// factor that carries its lengths into the target's units.
+#[derive(Clone, Copy)]
+pub struct TemplateShape<'a> {
+    pub scene: &'a ContactScene,
+    pub positions: &'a [[f64; 3]],
+    pub moving: &'a [bool],
+    pub scale: f64,
+}
+
+/// What [`ContactScene::resolve`] did.
+#[derive(Clone, Debug, Default)]
+pub struct Resolved {
+    pub newton: NewtonResult,
+    /// The vertices solved for.
+    pub region: Vec<usize>,
+    /// Added crossings left at the start once the region covered every movable vertex of
+    /// theirs (0 unless the neutral itself is not a clean start).
+    pub unclean_start: usize,
+}
+
+impl ContactScene {
+    /// `distance`: `d_hat` as a fraction of the mean length of the edges at each vertex.
+    pub fn new(rest: &[[f64; 3]], triangles: &[[u32; 3]], distance: f64) -> Self {
+        let adjacency = Adjacency::from_triangles(rest.len(), triangles);
+        let d_hat = adjacency.mean_edge_lengths(rest).into_iter().map(|l| distance * l).collect();
+        let bvh = TriangleBvh::build(rest, triangles);
+        let rest_pairs: HashSet<(u32, u32)> = crossings(rest, triangles, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        Self {
+            topology: Arc::new(Topology::new(rest.len(), triangles)),
+            edges: unique_edges(triangles),
+            rest: rest.to_vec(),
+            d_hat,
+            adjacency,
+            rest_crossing: Arc::new(Crossed::from_pairs(rest_pairs.iter().copied())),
+            rest_pairs,
+            bvh,
+        }
+    }
+
+    pub fn n_vertices(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Whether triangles `a` and `b` cross at rest.
+    pub fn rest_crosses(&self, a: u32, b: u32) -> bool {
+        self.rest_pairs.contains(&(a.min(b), a.max(b)))
+    }
+
+    fn triangles(&self) -> &[[u32; 3]] {
+        &self.topology.triangles
+    }
+
+    fn mesh<'a>(&'a self, exempt: &'a Exemptions) -> ContactMesh<'a> {
+        ContactMesh { triangles: self.triangles(), edges: &self.edges, rest: &self.rest, d_hat: &self.d_hat, exempt }
+    }
+
+    /// What a shape may leave crossing: the pairs crossing at this neutral's rest and, given
+    /// the template's shape (same topology), those crossing in it but not at the template's
+    /// rest, unless this neutral crosses there too (a template whose lips rest through each
+    /// other does not license the target's to cross) ([`Exemptions`]).
+    pub fn exemptions(&self, template: Option<TemplateShape>) -> Exemptions {
+        let Some(template) = template else {
+            return Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::default(), None);
+        };
+        let moved: Vec<bool> = self.triangles().iter().map(|t| t.iter().any(|&v| template.moving[v as usize])).collect();
+        let bvh = template.scene.bvh.refitted(template.positions, self.triangles());
+        let shape = crossings(template.positions, self.triangles(), &bvh, Some(&moved))
+            .into_iter()
+            .filter(|&(a, b, _)| !template.scene.rest_crosses(a, b) || self.rest_crosses(a, b))
+            .map(|(a, b, _)| (a, b));
+        let pose = TemplatePose { positions: template.positions.to_vec(), scale: template.scale };
+        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape), Some(pose))
+    }
+
+    /// The crossing triangle pairs of `swept` (as [`crossings`] lists them) a shape adds: not
+    /// exempt (a pair crossing at rest is).
+    pub fn added_crossings(&self, swept: &[(u32, u32, f64)], exempt: &Exemptions) -> Vec<(u32, u32)> {
+        swept
+            .iter()
+            .filter(|&&(a, b, _)| !exempt.triangles(a, b))
+            .map(|&(a, b, _)| (a, b))
+            .collect()
+    }
+
+    /// Removes the crossings `added` from the solved positions `minimiser` (all N, the
+    /// minimiser of the quadratic energy whose rows are `rows`): projected Newton with the
+    /// barrier over the `movable` vertices of the added crossings and [`REGION_RINGS`] rings,
+    /// started at this neutral's rest there and at `minimiser` elsewhere; the region grows by a
+    /// ring around any added crossing the start still has, so the start is clean. Positions
+    /// outside the region are returned as given.
+    pub fn resolve(
+        &self,
+        rows: &MatrixRows,
+        minimiser: &[[f64; 3]],
+        movable: &[bool],
+        added: &[(u32, u32)],
+        exempt: &Exemptions,
+        params: &NewtonParams,
+    ) -> ShapesmithResult<Resolved> {
+        let n = self.n_vertices();
+        let mut in_region = vec![false; n];
+        let seed: Vec<u32> = added.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize])).collect();
+        let mut frontier = self.take_movable(&seed, movable, &mut in_region);
+        for _ in 0..REGION_RINGS {
+            frontier = self.grow(&frontier, movable, &mut in_region);
+        }
+        let (start, unclean_start) = loop {
+            let mut start = minimiser.to_vec();
+            for v in (0..n).filter(|&v| in_region[v]) {
+                start[v] = self.rest[v];
+            }
+            let touched: Vec<bool> = self.triangles().iter().map(|t| t.iter().any(|&v| in_region[v as usize])).collect();
+            let bvh = self.bvh.refitted(&start, self.triangles());
+            let still = self.added_crossings(&crossings(&start, self.triangles(), &bvh, Some(&touched)), exempt);
+            if still.is_empty() {
+                break (start, 0);
+            }
+            let corners: Vec<u32> = still.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize])).collect();
+            let new = self.take_movable(&corners, movable, &mut in_region);
+            if self.grow(&new.iter().chain(&corners).copied().collect::<Vec<_>>(), movable, &mut in_region).is_empty() && new.is_empty() {
+                break (start, still.len());
+            }
+        };
+        let region: Vec<usize> = (0..n).filter(|&v| in_region[v]).collect();
+        let screening = vec![SCREENING; n];
+        let newton = solve(&self.mesh(exempt), rows, minimiser, &screening, &region, start, params)?;
+        Ok(Resolved { newton, region, unclean_start })
+    }
+
+    /// Marks the `movable` vertices of `vertices` not yet in the region; returns them.
+    fn take_movable(&self, vertices: &[u32], movable: &[bool], in_region: &mut [bool]) -> Vec<u32> {
+        let mut taken = Vec::new();
+        for &v in vertices {
+            if movable[v as usize] && !in_region[v as usize] {
+                in_region[v as usize] = true;
+                taken.push(v);
+            }
+        }
+        taken
+    }
+
+    /// Adds the movable neighbours of `frontier` to the region; returns the ones added.
+    fn grow(&self, frontier: &[u32], movable: &[bool], in_region: &mut [bool]) -> Vec<u32> {
+        let next: Vec<u32> = frontier.iter().flat_map(|&v| self.adjacency.neighbours(v as usize).iter().copied()).collect();
+        self.take_movable(&next, movable, in_region)
+    }
+}
