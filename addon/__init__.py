@@ -37,6 +37,7 @@ _MODULE_NAMES = (
     "operators.cancel_performance_solve",
     "operators.import_capture",
     "operators.save_performance_report",
+    "ui.presets",
     "ui.panels",
     "ui.names_panel",
     "ui.pack_panel",

@@ -358,7 +358,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         name="Regularisation",
         description="How strongly personalised shapes stay close to the transferred ones where the training "
         "expressions are noisy (their noise is estimated from the vertices they do not move); exact scans are "
-        "followed wherever a shape moves",
+        "followed wherever a shape moves (the paper's beta)",
         default=_TRANSFER.personalise.beta_reg,
         min=0.01,
         soft_max=10.0,

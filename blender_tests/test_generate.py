@@ -1,7 +1,8 @@
 """Generate ARKit Keys with the bundled template alone, on characters as they come: a cartoon
 head (the MakeHuman identity warped to large eyes and a wide mouth, decimated, with n-gons,
 Y up in centimetres); a full body (a head joined to a body), whose body keeps still; Cancel
-during a wrap and a transfer, leaving the file as it was; and the zip installed in a fresh
+during a wrap, a transfer onto a character, Pack, Place Landmarks and Transfer Shape Keys,
+leaving the file as it was; and the zip installed in a fresh
 user directory giving a character its 52 keys."""
 
 import importlib
@@ -321,6 +322,42 @@ def test_cancel_during_pack_and_place_landmarks_leaves_the_rig_as_it_was(sample,
     assert bpy.ops.shapesmith.place_landmarks() == {"CANCELLED"}
     cancelled_once(capfd, "Place Landmarks")
     assert (state(template), template.shapesmith.pack.result.done, template.shapesmith.landmarks.done) == before
+
+
+def test_cancel_during_transfer_shape_keys_leaves_the_target_and_its_sculpted_key_as_they_were(sample, shapesmith, cancel_midway, capfd):
+    target = make_active(bpy.data.objects["Target_Boy"])
+    target.shape_key_add(name="Basis")
+    sculpted = target.shape_key_add(name="jawOpen", from_mix=False)
+    co = positions(target)
+    co[:, 2] -= 0.01
+    sculpted.data.foreach_set("co", co.astype(np.float32).ravel())
+    settings = bpy.context.scene.shapesmith.transfer
+    settings.source, settings.overwrite = bpy.data.objects["Template"], True
+
+    def target_state():
+        return state(target), key_delta(target, "jawOpen").tobytes(), target.shapesmith.transfer.done
+
+    before = target_state()
+    capfd.readouterr()
+    assert bpy.ops.shapesmith.transfer_shape_keys() == {"CANCELLED"}
+    assert target_state() == before
+    cancelled_once(capfd, "Transfer Shape Keys")
+
+    # The threaded path the panel runs, stepped as its timer would: cancelled the same way.
+    jobs = cancel_midway
+    operator = module(shapesmith, "operators.transfer_shape_keys")
+    job = jobs.ThreadedJob("Transfer Shape Keys", operator.transfer_and_write, settings.source, target, settings, (), {}, {})
+    while job.step():
+        if job.fraction > 0.05 and not jobs.cancelling():
+            threading.Thread(target=jobs.cancel).start()
+    job.wait()
+    assert job.state == "cancelled" and target_state() == before
+
+    # Not cancelled, the same job writes the 52 keys over the sculpted one.
+    job = jobs.ThreadedJob("Transfer Shape Keys", operator.transfer_and_write, settings.source, target, settings, (), {}, {})
+    job.wait()
+    assert job.state == "finished" and len(target.data.shape_keys.key_blocks) == 53
+    assert np.abs(key_delta(target, "jawOpen")[:, 2] + 0.01).max() > 1e-3
 
 
 def test_objects_within_the_head_are_its_face_parts_by_their_place(sample, shapesmith):

@@ -104,9 +104,9 @@ def add_pack_args(parser, settings):
                         "face parts, the head then its parts, comma separated")
     # Unset flags keep the settings stored on the object, whose own defaults are these.
     default = settings.PackSettings()
-    parser.add_argument("--mu", type=float, help=f"binary blendshape threshold (default: the object's; {default.mu})")
-    parser.add_argument("--a", type=float, help=f"strength vs distortion weight (default: the object's; {default.a})")
-    parser.add_argument("--beta", type=float, help=f"uniqueness weight (default: the object's; {default.beta})")
+    parser.add_argument("--mu", type=float, help=f"the panel's Moving Region: share of a shape's largest motion (default: the object's; {default.mu})")
+    parser.add_argument("--a", type=float, help=f"the panel's Strong Motion First: strength vs distortion (default: the object's; {default.a})")
+    parser.add_argument("--beta", type=float, help=f"the panel's Unlike Shapes First (default: the object's; {default.beta})")
     parser.add_argument("--max-expressions", type=int, help="J max: stop after this many expressions")
     parser.add_argument("--fewest", action="store_true", help="also prove the fewest expressions possible")
     parser.add_argument("--no-symmetry", action="store_true", help="do not force symmetric partners together")
@@ -199,10 +199,10 @@ def add_landmarks_args(parser, settings):
         help="face parts landmarks may go on, comma separated (default: the parts ticked in the stored list; none: the head only)",
     )
     default = settings.LandmarkSettings()
-    parser.add_argument("--epsilon", type=float, default=default.epsilon, help="candidate threshold in (0, 1] (default %(default)s)")
-    parser.add_argument("--alpha", type=float, default=default.alpha, help="visibility against displacement (default %(default)s)")
+    parser.add_argument("--epsilon", type=float, default=default.epsilon, help="the panel's Strong Motion, in (0, 1] (default %(default)s)")
+    parser.add_argument("--alpha", type=float, default=default.alpha, help="the panel's Visible over Moving (default %(default)s)")
     parser.add_argument("--gamma", type=float, default=default.gamma,
-                        help="quality against count; 0 = fewest (default %(default)s)")
+                        help="the panel's Quality: quality against count; 0 = fewest (default %(default)s)")
     parser.add_argument("--rays", type=int, default=default.rays, help="visibility rays per vertex and pose (default %(default)s)")
     parser.add_argument("--symmetric", action=argparse.BooleanOptionalAction, default=default.symmetric,
                         help="mirror-symmetric layout")
@@ -299,9 +299,9 @@ def add_transfer_settings_args(parser, settings, onto):
         "transfer)",
     )
     parser.add_argument("--tau-d", type=float, default=edges.tau_d,
-                        help="virtual-edge distance, fraction of the bbox diagonal (default %(default)s)")
+                        help="the panel's Distance: virtual-edge pairs closer than this fraction of the bbox diagonal (default %(default)s)")
     parser.add_argument("--tau-r", type=float, default=edges.tau_r,
-                        help="virtual-edge surface-to-straight distance ratio (default %(default)s)")
+                        help="the panel's Detour: surface-to-straight distance ratio of a virtual edge (default %(default)s)")
     parser.add_argument("--edge-weight", type=float, default=default.transfer.edge_weight,
                         help="weight of each virtual edge (default %(default)s)")
     parser.add_argument(
@@ -338,7 +338,7 @@ def add_transfer_args(parser, settings):
     parser.add_argument("--pack-json", help="Pack Expressions JSON report naming the expressions' shapes")
     parser.add_argument(
         "--beta-reg", type=float, default=default.personalise.beta_reg,
-        help="personalisation: pull towards the transferred shapes against noisy training expressions (default %(default)s)",
+        help="the panel's Regularisation: pull towards the transferred shapes against noisy scans (default %(default)s)",
     )
     parser.add_argument(
         "--refine-weights", action=argparse.BooleanOptionalAction, default=default.personalise.refine_weights,

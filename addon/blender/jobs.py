@@ -1,5 +1,5 @@
-"""Cancel for the long tools (Generate ARKit Keys, Wrap, Transfer onto Character): one job at a
-time, whose stop request every native loop sees through its progress callback (returning
+"""Cancel for the long tools (Generate ARKit Keys, Wrap, Transfer onto Character, Transfer Shape
+Keys, Personalise, Pack Expressions, Place Landmarks, Score Layout): one job at a time, whose stop request every native loop sees through its progress callback (returning
 False stops the core at its next checkpoint with `CancelledError`). Each tool solves in full
 before it writes, and removes what it made on the way, so a cancelled job leaves the file as
 it was.

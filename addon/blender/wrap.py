@@ -413,7 +413,7 @@ def character_rows(report, character_penetration):
     """The transfer report's per-shape penetration rows, for the keys carried onto the
     character: its own curve lengths, the template's beside them, and the criterion of method, section 3 as
     the native carry judged it on the character's mesh (`excess`, per part). What the
-    collision pass did on the wrapped template stays with each row (`collisions`), what the
+    contact solve did on the wrapped template stays with each row (`contact`), what the
     carry's did on the character beside it (`carry_collisions`, when it ran)."""
     carry_collisions = report.get("carry", {}).get("collisions") or []
     rows = []
@@ -464,10 +464,10 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
     # The carried keys are judged on the character's own mesh by the criterion the transfer
-    # used; with the transfer's collision pass on, the carry's holds them to it, with the same
-    # margin.
-    collisions = transfer_settings.transfer.contact
-    carry = CarrySettings(collision_pass=collisions is not None, symmetrize=symmetric)
+    # used; with the transfer's contact solve on, the carry's collision pass holds them to it,
+    # its margin the contact distance.
+    contact = transfer_settings.transfer.contact
+    carry = CarrySettings(collision_pass=contact is not None, symmetrize=symmetric)
     # The template's rest gives the carry its mirror map: with a symmetric character each
     # carried shape is averaged with the mirror of its partner's; its own keys give each
     # matched piece its motion (an eyeball turns as the template's does).
@@ -475,7 +475,7 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     template_neutral = template_rig.neutral  # the reference keys in the head's space, as read_surface reads them
     row = {name: k for k, name in enumerate(template_rig.names)}
     template_shapes = template_rig.deltas[[row[name] for name in onto_wrapped.names]]
-    if collisions is not None:
+    if contact is not None:
         carry.collision_margin = contact.distance
     deltas, carry_report = native.module().carry_shapes(
         np.ascontiguousarray(wrapped_neutral),

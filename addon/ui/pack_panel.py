@@ -9,6 +9,7 @@ import bpy
 from ..blender.front import front_summary
 from ..operators.job_operator import draw_running
 from .panels import ShapesmithPanel
+from . import presets
 
 
 class SHAPESMITH_UL_expressions(bpy.types.UIList):
@@ -69,6 +70,9 @@ class SHAPESMITH_PT_pack(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Pack Expressions"
     bl_order = 1
     bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "pack")
 
     def draw(self, context):
         layout = self.layout

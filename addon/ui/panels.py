@@ -7,6 +7,7 @@ import bpy
 from .. import native
 from ..blender.landmarks import STOP_REASONS, VERTEX_GROUP_NAME, curve_lines
 from ..operators.job_operator import draw_running
+from . import presets
 
 
 class SHAPESMITH_UL_pairs(bpy.types.UIList):
@@ -42,20 +43,21 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Rig"
     bl_order = 0
 
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "rig")
+
     def draw(self, context):
         layout = self.layout
         if not native.STATUS.startswith("native core "):
             layout.label(text=native.STATUS, icon="ERROR")
         settings = context.scene.shapesmith
         row = layout.row(align=True)
+        row.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
+        row.operator("shapesmith.analyze_rig", text="Reset Pairs", icon="LOOP_BACK").reset_pairs = True
+        row = layout.row(align=True)
         row.prop(settings, "symmetry_axis", expand=True)
         layout.prop(settings, "pair_by_name")
         obj = context.active_object
-        if obj is not None and obj.type == "MESH":
-            self.draw_face_parts(layout, obj)
-        row = layout.row(align=True)
-        row.operator("shapesmith.analyze_rig", icon="VIEWZOOM")
-        row.operator("shapesmith.analyze_rig", text="Reset Pairs", icon="LOOP_BACK").reset_pairs = True
         if obj is None or obj.type != "MESH":
             return
         summary = obj.shapesmith.analysis
@@ -66,7 +68,9 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"{summary.vertices} vertices, {summary.triangles} triangles")
         col.label(text=f"{summary.shapes} shape keys")
         col.label(text=f"Inert: {summary.inert or 'none'}")
-        col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}")
+        col.label(text=f"Unmatched mirror vertices: {summary.unmatched_vertices}"
+                       + ("" if summary.unmatched_vertices == 0 else " (0 on a mirror-symmetric face)"),
+                  icon="CHECKMARK" if summary.unmatched_vertices == 0 else "INFO")
         if summary.seam_vertices:
             col.label(text=f"Seams welded: {summary.seam_vertices} vertices into {summary.seam_groups} points")
         if summary.degenerate_triangles:
@@ -83,11 +87,26 @@ class SHAPESMITH_PT_rig(ShapesmithPanel, bpy.types.Panel):
             for pair in obj.shapesmith.antagonists:
                 box.label(text=f"{pair.first} / {pair.second}")
 
-    @staticmethod
-    def draw_face_parts(layout, obj):
-        """The head's Face Parts list: separate meshes every tool reads with it."""
-        props = obj.shapesmith
-        layout.label(text=f"Face Parts ({len(props.face_parts)})")
+
+class SHAPESMITH_PT_face_parts(ShapesmithPanel, bpy.types.Panel):
+    """The head's Face Parts: separate meshes (teeth, tongue, eyes, lashes) every tool reads with it."""
+
+    bl_label = "Face Parts"
+    bl_parent_id = "SHAPESMITH_PT_rig"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def draw_header(self, context):
+        # The count shows with the sub-panel closed: a head with parts says so.
+        self.layout.label(text=f"({len(context.active_object.shapesmith.face_parts)})")
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.active_object.shapesmith
+        layout.label(text="Parts of this head, read with it by every tool:")
         row = layout.row()
         row.template_list("SHAPESMITH_UL_face_parts", "face_parts", props, "face_parts", props, "active_face_part", rows=3)
         col = row.column(align=True)
@@ -102,6 +121,9 @@ class SHAPESMITH_PT_landmarks(ShapesmithPanel, bpy.types.Panel):
     bl_label = "Landmarks"
     bl_order = 2
     bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "landmarks")
 
     def draw(self, context):
         layout = self.layout
@@ -184,6 +206,7 @@ register, unregister = bpy.utils.register_classes_factory(
         SHAPESMITH_UL_pairs,
         SHAPESMITH_UL_face_parts,
         SHAPESMITH_PT_rig,
+        SHAPESMITH_PT_face_parts,
         SHAPESMITH_PT_landmarks,
         SHAPESMITH_PT_landmarks_advanced,
     )

@@ -1,9 +1,23 @@
-"""The Transfer panel: template, options, Preview Virtual Edges, Transfer, Personalise, and
-the last transfer's report on the active mesh."""
+"""The Transfer panel: the template, Transfer first, then what a rerun keeps and which keys go;
+the last transfer's result on the active mesh in the head's own units. Personalise and the
+advanced settings (virtual edges, keeping surfaces apart) in sub-panels."""
 
 import bpy
 
+from ..operators.job_operator import draw_running
 from .panels import ShapesmithPanel
+from . import presets
+
+# Where a shape's extra crossing lies (`blender.transfer.where_added`), in a rigger's words.
+WHERE_WORDS = {"inside one piece": "lips or lids", "between pieces": "through eyes, teeth or lashes"}
+
+
+def scene_length(context, value):
+    """`value` (scene units) as the scene shows lengths: 3 mm, 0.12 in, or plain units."""
+    unit = context.scene.unit_settings
+    if unit.system == "NONE":
+        return f"{value:.3g}"
+    return bpy.utils.units.to_string(unit.system, "LENGTH", value * unit.scale_length, precision=2)
 
 
 class SHAPESMITH_UL_key_choice(bpy.types.UIList):
@@ -18,29 +32,18 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
     bl_order = 3
     bl_options = {"DEFAULT_CLOSED"}
 
+    def draw_header_preset(self, context):
+        presets.draw_header(self.layout, "transfer")
+
     def draw(self, context):
         layout = self.layout
         settings = context.scene.shapesmith.transfer
+        layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
+        draw_running(layout)
         layout.prop(settings, "source")
         obj = context.active_object
         if obj is not None and obj.type == "MESH":
             layout.label(text=f"Target: {obj.name}", icon="MESH_DATA")
-
-        col = layout.column(align=True)
-        col.prop(settings, "virtual_edges")
-        sub = col.column(align=True)
-        sub.active = settings.virtual_edges
-        sub.prop(settings, "tau_d")
-        sub.prop(settings, "tau_r")
-        sub.prop(settings, "edge_weight")
-        sub.prop(settings, "compare_plain")
-        layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
-
-        col = layout.column(align=True)
-        col.prop(settings, "contact")
-        sub = col.column(align=True)
-        sub.active = settings.contact
-        sub.prop(settings, "contact_distance")
 
         col = layout.column(align=True)
         col.prop(settings, "overwrite")
@@ -51,19 +54,13 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         if settings.copy_drivers:
             col.prop(settings, "driver_map")
         self.draw_key_choice(layout, settings)
-        layout.operator("shapesmith.transfer_shape_keys", icon="SHAPEKEY_DATA")
-
-        box = layout.box()
-        box.label(text="Personalise")
-        box.prop(settings, "training", text="")
-        row = box.row(align=True)
-        row.prop(settings, "beta_reg")
-        row.prop(settings, "refine_weights", text="Refine")
-        box.operator("shapesmith.personalise_shape_keys", icon="USER")
 
         if obj is None or obj.type != "MESH" or not obj.shapesmith.transfer.done:
             return
-        result = obj.shapesmith.transfer
+        self.draw_result(context, layout, obj.shapesmith.transfer)
+
+    @staticmethod
+    def draw_result(context, layout, result):
         box = layout.box()
         col = box.column(align=True)
         col.label(text=f"From '{result.source}': {result.written} keys written in {result.seconds:.2f} s")
@@ -79,14 +76,17 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")
         worse = [s for s in result.shapes if s.worse]
-        col.label(text=f"Adding more intersection than on the template: {len(worse)}", icon="ERROR" if worse else "CHECKMARK")
+        if not worse:
+            col.label(text="No shape passes through itself more than the template's: good", icon="CHECKMARK")
+            return
+        col.label(text=f"Passing through more than the template's: {len(worse)} (sculpt or re-run)", icon="ERROR")
+        col.label(text="Extra length of the crossing line, and where:")
         for shape in sorted(worse, key=lambda s: -s.added)[:12]:
             row = col.row(align=True)
-            row.label(text=f"  {shape.name}: +{shape.added:.4f} beyond the {shape.allowed:.4f} the template's allows, {shape.where}")
+            row.label(text=f"  {shape.name}: {scene_length(context, shape.added)}, {WHERE_WORDS.get(shape.where, shape.where)}")
             row.operator("shapesmith.show_crossings", text="", icon="RESTRICT_SELECT_OFF").shape = shape.name
         if len(worse) > 12:
             col.label(text=f"  ... and {len(worse) - 12} more (batch --json lists all)")
-
 
     @staticmethod
     def draw_key_choice(layout, settings):
@@ -103,4 +103,52 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         row.operator("shapesmith.list_template_keys", text="Tick None").tick = "NONE"
 
 
-register, unregister = bpy.utils.register_classes_factory((SHAPESMITH_UL_key_choice, SHAPESMITH_PT_transfer))
+class SHAPESMITH_PT_transfer_personalise(ShapesmithPanel, bpy.types.Panel):
+    """Transfer fitted to scans of the actor (training expressions)."""
+
+    bl_label = "Personalise"
+    bl_parent_id = "SHAPESMITH_PT_transfer"
+    bl_options = {"DEFAULT_CLOSED"}
+    bl_order = 1
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.shapesmith.transfer
+        layout.operator("shapesmith.personalise_shape_keys", icon="USER")
+        layout.prop(settings, "training")
+        row = layout.row(align=True)
+        row.prop(settings, "beta_reg")
+        row.prop(settings, "refine_weights", text="Refine")
+
+
+class SHAPESMITH_PT_transfer_advanced(ShapesmithPanel, bpy.types.Panel):
+    """Virtual edges (lips and lids held as the template holds them) and keeping surfaces apart."""
+
+    bl_label = "Advanced"
+    bl_parent_id = "SHAPESMITH_PT_transfer"
+    bl_options = {"DEFAULT_CLOSED"}
+    bl_order = 2
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.shapesmith.transfer
+        col = layout.column(align=True)
+        col.prop(settings, "virtual_edges")
+        sub = col.column(align=True)
+        sub.active = settings.virtual_edges
+        sub.prop(settings, "tau_d")
+        sub.prop(settings, "tau_r")
+        sub.prop(settings, "edge_weight")
+        sub.prop(settings, "compare_plain")
+        layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
+
+        col = layout.column(align=True)
+        col.prop(settings, "contact")
+        sub = col.column(align=True)
+        sub.active = settings.contact
+        sub.prop(settings, "contact_distance")
+
+
+register, unregister = bpy.utils.register_classes_factory(
+    (SHAPESMITH_UL_key_choice, SHAPESMITH_PT_transfer, SHAPESMITH_PT_transfer_personalise, SHAPESMITH_PT_transfer_advanced)
+)

@@ -88,63 +88,6 @@ impl ContactMesh<'_> {
         pairs
     }
 
-    /// Every point-triangle and edge-edge pair (sharing no vertex) with a vertex in `moving`
-    /// closer than its `d_hat` at `x`, as the vertex lists of its two primitives, exempt or
-    /// not: the contacts a shape makes.
-    pub fn close_pairs(&self, x: &[[f64; 3]], moving: &[bool]) -> Vec<(Vec<u32>, Vec<u32>)> {
-        let still = vec![[0.0; 3]; x.len()];
-        let mut found = Vec::new();
-        self.broad_phase(x, &still, moving, |kind, v| {
-            let split = if kind == PairKind::PointTriangle { 1 } else { 2 };
-            if v[..split].iter().any(|u| v[split..].contains(u)) {
-                return;
-            }
-            let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
-            if pair_squared(kind, &v.map(|u| x[u as usize])) < d_hat * d_hat {
-                found.push((v[..split].to_vec(), v[split..].to_vec()));
-            }
-        });
-        found
-    }
-
-    /// Whether the point-triangle (`first` one vertex) or edge-edge pair is closer than its
-    /// `d_hat` at rest.
-    pub fn primitives_close_at_rest(&self, first: &[u32], second: &[u32]) -> bool {
-        let (kind, v) = match (first, second) {
-            ([p], [a, b, c]) => (PairKind::PointTriangle, [*p, *a, *b, *c]),
-            ([a, b], [c, d]) => (PairKind::EdgeEdge { mollifier: 0.0 }, [*a, *b, *c, *d]),
-            _ => return false,
-        };
-        let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
-        pair_squared(kind, &v.map(|u| self.rest[u as usize])) < d_hat * d_hat
-    }
-
-    /// Whether triangles `a`, `b` are closer than `d_hat` at rest (any corner against the
-    /// other triangle, any edge against the other's edges).
-    pub fn triangles_close_at_rest(&self, a: [u32; 3], b: [u32; 3]) -> bool {
-        let close = |kind: PairKind, v: [u32; 4]| {
-            let d_hat = v.iter().map(|&u| self.d_hat[u as usize]).fold(f64::INFINITY, f64::min);
-            pair_squared(kind, &v.map(|u| self.rest[u as usize])) < d_hat * d_hat
-        };
-        let shares = |v: &[u32], w: &[u32]| v.iter().any(|u| w.contains(u));
-        for (p, t) in [(a, b), (b, a)] {
-            for &c in &p {
-                if !t.contains(&c) && close(PairKind::PointTriangle, [c, t[0], t[1], t[2]]) {
-                    return true;
-                }
-            }
-        }
-        for i in 0..3 {
-            for j in 0..3 {
-                let (e, f) = ([a[i], a[(i + 1) % 3]], [b[j], b[(j + 1) % 3]]);
-                if !shares(&e, &f) && close(PairKind::EdgeEdge { mollifier: 0.0 }, [e[0], e[1], f[0], f[1]]) {
-                    return true;
-                }
-            }
-        }
-        false
-    }
-
     /// Every point-triangle and edge-edge pair with a vertex in `in_region` whose boxes, swept
     /// from `x` to `x + step` and grown by `d_hat`, meet, passed to `emit`.
     fn broad_phase(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], mut emit: impl FnMut(PairKind, [u32; 4])) {
