@@ -3,7 +3,7 @@ undo restores them) and per-scene tool settings."""
 
 import bpy
 
-from .blender.settings import AnalyzeSettings, LandmarkSettings, PackSettings, TransferSettings
+from .blender.settings import AnalyzeSettings, ContactSettings, LandmarkSettings, PackSettings, TransferSettings
 
 # The defaults of every tool option below: the core's, through the add-on's dataclasses.
 _PACK = PackSettings()
@@ -309,7 +309,7 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         name="Contact Distance",
         description="How close two surfaces may come before they push each other apart, as a fraction of the local edge "
         "length (d_hat of Incremental Potential Contact); smaller lets pressed lips meet more tightly",
-        default=_TRANSFER.transfer.contact.distance,
+        default=ContactSettings().distance,
         min=0.01,
         max=2.0,
         precision=3,

@@ -84,7 +84,7 @@ def test_the_panels_defaults_are_the_dataclasses(shapesmith):
         same_in_float32(plain(read.as_native()), plain(settings.TOOLS[tool]().as_native()), tool)
     # The properties whose default is the dataclass's own, read off the registered types.
     transfer_type = type(scene.shapesmith.transfer).bl_rna.properties
-    assert transfer_type["virtual_edges"].default and transfer_type["contact"].default
+    assert transfer_type["virtual_edges"].default and not transfer_type["contact"].default
     assert np.float32(transfer_type["tau_d"].default) == np.float32(settings.VirtualEdgeSettings().tau_d)
     assert np.float32(transfer_type["contact_distance"].default) == np.float32(settings.ContactSettings().distance)
     pack_type = type(obj.shapesmith.pack).bl_rna.properties
@@ -172,9 +172,15 @@ def test_the_transfer_panels_settings_reach_the_core(sample, shapesmith):
     panel = bpy.context.scene.shapesmith.transfer
     panel.source = bpy.data.objects["Template"]
     panel.virtual_edges = False
-    panel.contact_distance = 0.5
+    panel.contact, panel.contact_distance = True, 0.5
+    # two keys: the contact solve is the slow part of a transfer
+    assert bpy.ops.shapesmith.list_template_keys(tick="NONE") == {"FINISHED"}
+    for item in panel.key_choice:
+        item.chosen = item.name in ("mouthClose", "cheekPuff")
+    panel.only_ticked = True
     target = make_active(bpy.data.objects["Target_Boy"])
     assert bpy.ops.shapesmith.transfer_shape_keys() == {"FINISHED"}
+    panel.only_ticked, panel.contact = False, False
     result = target.shapesmith.transfer
     # the core's report: no virtual edges, and the contact distance as the core used it
     assert result.virtual_edges == 0 and result.contact

@@ -126,7 +126,7 @@ class DeformationSettings(NativeSettings):
     edge_weight: float = 3.0
     static_fraction: float = 1e-5
     align_rotation: bool = True
-    contact: Optional[ContactSettings] = field(default_factory=ContactSettings)
+    contact: Optional[ContactSettings] = None
 
 
 @dataclass

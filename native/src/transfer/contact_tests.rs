@@ -380,7 +380,8 @@ fn self_transfer_of_a_head_of_many_pieces_crossing_at_rest_comes_back_as_it_is()
     let rest = measure_penetration(&pts, &tris);
     assert!(rest.pairs > 300 && rest.between_pieces == rest.length, "{rest:?}");
     assert!(crate::geometry::topology::connected_components(pts.len(), &tris).1 >= 49);
-    let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
+    let transfer = TransferParams { contact: Some(ContactParams::default()), ..Default::default() };
+    let params = TransferShapesParams { transfer, measure_penetration: true, ..Default::default() };
     let (out, report) = transfer_shapes(&pts, &deltas, &pts, &tris, &names, None, None, &params, &NoProgress).unwrap();
     let diagonal = crate::rig::bbox_diagonal(&pts);
     let n = pts.len();

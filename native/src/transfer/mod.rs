@@ -44,7 +44,7 @@
 //! - **`w_ve = 3`**: the springs hold the template's final gap, so they need more pull than 1
 //!   against the gradient term (the two-layer lip test in `tests.rs`).
 //! - **Contact as one solve** ([`ContactParams`], `contact.rs`; method, section 3, beyond paper
-//!   004), on by default: a shape adding a crossing beyond its neutral's and the template
+//!   004), when asked for: a shape adding a crossing beyond its neutral's and the template
 //!   shape's own contacts is solved again with the IPC barrier around the added crossings;
 //!   every other shape comes out bit for bit as without it.
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
@@ -83,8 +83,8 @@ pub struct TransferParams {
     pub static_fraction: f64,
     /// Solve in the source's orientation (Kabsch) so that a rotated target gets rotated shapes.
     pub align_rotation: bool,
-    /// The contact solve after each shape's solve (on by default); `None` leaves the solve as
-    /// it is.
+    /// The contact solve after each shape's solve; `None` (the default) leaves the solve as it
+    /// is: on the bench heads the solve costs hundreds of times the transfer (docs/design_transfer.md).
     pub contact: Option<ContactParams>,
 }
 
@@ -95,7 +95,7 @@ impl Default for TransferParams {
             edge_weight: 3.0,
             static_fraction: 1e-5,
             align_rotation: true,
-            contact: Some(ContactParams::default()),
+            contact: None,
         }
     }
 }

@@ -488,7 +488,8 @@ mod tests {
         let template = measure_rig_penetration(&source, &pressing, &tris).unwrap();
         assert!(template.shapes[0].length > template.neutral.length + 0.05, "the template's shape should cross: {template:?}");
         let names = vec!["press".to_owned()];
-        let params = TransferShapesParams { measure_penetration: true, ..Default::default() };
+        let transfer = TransferParams { contact: Some(ContactParams::default()), ..Default::default() };
+        let params = TransferShapesParams { transfer, measure_penetration: true, ..Default::default() };
         for scale in [1.0f32, 100.0] {
             let target: Vec<[f32; 3]> = source.iter().map(|p| moved(&p.map(|x| scale * x))).collect();
             let (out, report) = transfer_shapes(&source, &pressing, &target, &tris, &names, None, Some(&template), &params, &NoProgress).unwrap();

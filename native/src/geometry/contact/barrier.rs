@@ -69,6 +69,10 @@ pub fn pair_energy(kind: PairKind, x: &[[f64; 3]; 4], s_hat: f64) -> f64 {
 
 /// `m(x) b(d^2)` with its gradient and Hessian in the pair's 12 coordinates.
 pub fn pair_derivatives(kind: PairKind, x: &[[f64; 3]; 4], s_hat: f64) -> Dual {
+    // Most candidates of a broad phase are beyond `d_hat`: tested in plain numbers first.
+    if pair_squared(kind, x) >= s_hat {
+        return Dual::constant(0.0);
+    }
     let vars = variables(x);
     let kind_of = match kind {
         PairKind::PointTriangle => point_triangle_type(x),
