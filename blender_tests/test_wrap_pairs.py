@@ -107,6 +107,54 @@ def test_pairs_proposed_on_the_sample_character_with_its_lids_open(sample, shape
     assert max(errors["mouth corner left"], errors["mouth corner right"]) < MEDIAN_TOLERANCE, errors
 
 
+def jittered(obj, seed):
+    """`obj`'s vertices moved by a random 1e-4 of its diagonal: a different collapse order."""
+    rest = positions(obj)
+    rng = np.random.default_rng(seed)
+    rest += rng.normal(scale=1e-4 * np.linalg.norm(rest.max(0) - rest.min(0)), size=rest.shape)
+    obj.data.vertices.foreach_set("co", rest.astype(np.float32).ravel())
+    obj.data.update()
+
+
+def unsubdivided(obj):
+    modifier = obj.modifiers.new("Decimate", "DECIMATE")
+    modifier.decimate_type, modifier.iterations = "UNSUBDIV", 1
+    obj.data = bpy.data.meshes.new_from_object(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    obj.modifiers.clear()
+
+
+@pytest.mark.parametrize("remake", ["ratio 0.3", "ratio 0.6", "ratio 0.8", "seed 1, ratio 0.45", "seed 2, ratio 0.45", "unsubdivided"])
+def test_the_proposal_does_not_hang_on_the_vertex_layout(sample, shapesmith, remake):
+    """The lids-open sample character decimated by Blender's Decimate (collapse at several
+    ratios, also after its vertices were jittered by 1e-4 of the diagonal, which changes the
+    collapse order; un-subdivide): every feature is proposed within the coarse tolerance
+    (measured on bpy 4.2 and 4.5: the largest 3.25%, an outer eye corner at a lid hole; the chin
+    at most 3.24%). The chin was missed at ratios 0.3 and 0.45 before it was read from the
+    profile's front outline."""
+    import makehuman  # scripts/ is on the path (conftest)
+    from bench_wrap import decimate, open_lids
+
+    wrap = module(shapesmith, "blender.wrap")
+    obj = bpy.data.objects["Character_YoungWoman"]
+    words = remake.replace(",", "").split()
+    if "seed" in words:
+        jittered(obj, int(words[words.index("seed") + 1]))
+    if "ratio" in words:
+        decimate(obj, float(words[words.index("ratio") + 1]))
+    if "unsubdivided" in words:
+        unsubdivided(obj)
+    assert open_lids(shapesmith, obj) > 50
+    identity = positions(bpy.data.objects["Target_YoungWoman"])
+    proposal = wrap.propose_pairs(bpy.data.objects["Template"], obj)
+    points = positions(obj)
+    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
+    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
+    errors = proposal_errors(proposal, lambda v: makehuman.character_frame(identity[[v]], scale)[0], diagonal)
+    print(remake, len(points), {k: round(100 * e, 2) for k, e in errors.items()})
+    assert sorted(errors) == sorted(FEATURES), proposal["missing"]
+    assert max(errors.values()) < COARSE_HOLE_TOLERANCE, errors
+
+
 def test_pairs_proposed_on_a_decimated_turned_rescaled_template(sample, shapesmith):
     """The Template decimated, turned off every axis and in millimetres: each template point's
     true place is the template vertex moved."""

@@ -22,10 +22,10 @@
 //!    the inner side of a parted lip) or which lie on an open boundary (a lid or lip hole).
 //!    Around each opening's seed (on the character: where the aligned template's opening is)
 //!    the margin's connected run nearest the seed among the wide ones is the opening, its
-//!    lateral extremes the corners. The
-//!    nose tip is the most frontal skin on the symmetry plane between the upper lip and the
-//!    eyes; the chin the bulge of the midline profile below the mouth past the hollow under
-//!    the lower lip.
+//!    lateral extremes the corners. The nose tip is the most frontal skin on the symmetry
+//!    plane between the upper lip and the eyes; the chin the most frontal point of the
+//!    midline profile under the hollow below the lower lip, found by where the profile's
+//!    front outline bridges that hollow.
 //! 4. A feature found on both meshes is a pair (template vertex, character vertex); one
 //!    missing on either (a closed scan without openings) is left out and named.
 
@@ -47,7 +47,7 @@ use super::skin_flags;
 /// The farthest share of closest-point pairs dropped at each alignment step (necks cut at
 /// different heights, a character with shoulders).
 pub const TRIM: f64 = 0.25;
-/// Vertices sampled from each skin for the alignment.
+/// Points sampled over each skin by area for its moments, symmetry plane and alignment.
 const SAMPLES: usize = 1500;
 /// Alignment iterations per starting turn, then for the best one. A turn near the truth
 /// converges slowly from 15 degrees off: after 4 steps a coarse avatar with its lids open
@@ -244,10 +244,37 @@ impl Mesh {
         scale(self.skin.iter().fold([0.0; 3], |acc, &v| add(acc, self.points[v as usize])), 1.0 / self.skin.len().max(1) as f64)
     }
 
-    /// Every `stride`-th skin vertex, at most about `count` of them.
-    fn samples(&self, count: usize) -> Vec<u32> {
-        let stride = (self.skin.len() / count.max(1)).max(1);
-        self.skin.iter().step_by(stride).copied().collect()
+    /// About `count` points spread over the skin by area, whatever its vertices' layout: the
+    /// k-th at cumulative area `(k + 1/2) / count` of the whole (triangles in order), inside
+    /// its triangle at the k-th point of the R2 sequence (Roberts 2018: fractional parts of
+    /// `1/2 + k a`, `a` = (1/g, 1/g^2) for the plastic number g), folded into the triangle.
+    fn samples(&self, count: usize) -> Vec<Vec3> {
+        let area = |t: &[u32; 3]| {
+            let [a, b, c] = t.map(|v| self.points[v as usize]);
+            0.5 * length(cross(sub(b, a), sub(c, a)))
+        };
+        let mut cumulative = Vec::with_capacity(self.skin_triangles.len());
+        let mut total = 0.0;
+        for t in &self.skin_triangles {
+            total += area(t);
+            cumulative.push(total);
+        }
+        if !(total > 0.0) {
+            return self.skin.iter().map(|&v| self.points[v as usize]).collect();
+        }
+        const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+        (0..count)
+            .map(|k| {
+                let at = (k as f64 + 0.5) / count as f64 * total;
+                let t = cumulative.partition_point(|&c| c < at).min(cumulative.len() - 1);
+                let [a, b, c] = self.skin_triangles[t].map(|v| self.points[v as usize]);
+                let [mut u, mut w] = R2.map(|r| (0.5 + r * k as f64).fract());
+                if u + w > 1.0 {
+                    (u, w) = (1.0 - u, 1.0 - w);
+                }
+                add(a, add(scale(sub(b, a), u), scale(sub(c, a), w)))
+            })
+            .collect()
     }
 
     /// Skin vertices a ray towards `front` leaves free (no triangle of the skin or of a round
@@ -329,7 +356,7 @@ impl Frame {
     }
 }
 
-/// The mirror plane of a mesh's skin near (`normal`, through `origin`): each sampled vertex
+/// The mirror plane of a mesh's skin near (`normal`, through `origin`): each sample
 /// reflected, its closest skin point found, and the plane re-fitted as the one that best
 /// swaps each pair (normal: the principal direction of the pairs' differences; origin: the
 /// mean of their midpoints), ten times.
@@ -340,8 +367,7 @@ fn symmetry_plane(mesh: &Mesh, normal: Vec3, origin: Vec3) -> (Vec3, Vec3) {
     for _ in 0..10 {
         let mut spread = [[0.0; 3]; 3];
         let (mut middle, mut count) = ([0.0; 3], 0.0);
-        for &v in &samples {
-            let p = mesh.points[v as usize];
+        for &p in &samples {
             let reflected = sub(p, scale(normal, 2.0 * dot(sub(p, origin), normal)));
             let Some(hit) = surface.closest_point(&reflected, 0.05 * mesh.diagonal) else { continue };
             let d = sub(p, hit.point);
@@ -453,21 +479,59 @@ fn find_features(mesh: &Mesh, frame: &Frame, seeds: &Seeds) -> Features {
 
 /// The chin: on the skin's midline section (its cut by the symmetry plane, the front-most
 /// point at each height; see [`midline_section`]) down from the mouth's corners (height
-/// `start`) for `reach` in `bin`s of height, past the first bulge (a bin more frontal than both
-/// neighbours: the lower lip) and the hollow after it (less frontal than both), the next bulge;
-/// the skin vertex nearest it. The section, not the vertices near the plane: on a decimated
-/// head those lie up to the band's width behind the midline, and a bin holding only such a
-/// vertex made a bulge of the lower lip's own profile (the lip taken for the chin).
+/// `start`) for `reach` in `bin`s of height, the front outline's bridge over the hollow under
+/// the lower lip ([`lip_chin_bridge`]) lands on the chin's lower half: the chin is the point
+/// between the hollow and that landing farthest in front of the line joining them (the top of
+/// the chin's bulge, or of its curve where a decimation flattened the bulge); the skin vertex
+/// nearest it. The bridge is a property of the curve, not of its vertices: the chin's own
+/// bulge past the hollow (a local maximum of depth) is often under a hundredth of the mouth's
+/// width high, and a decimation that flattened it left no chin.
 fn chin(mesh: &Mesh, local: &[Vec3], start: f64, reach: f64, bin: f64) -> Option<u32> {
     let points: Vec<[f64; 2]> = midline_section(mesh, local, start, reach, bin).into_iter().flatten().collect();
-    let z = |i: usize| points[i][1];
-    let last = points.len().saturating_sub(1);
-    let bulge = |from: usize| (from.max(1)..last).find(|&i| z(i) >= z(i - 1) && z(i) > z(i + 1));
-    let hollow = |from: usize| (from.max(1)..last).find(|&i| z(i) < z(i - 1) && z(i) <= z(i + 1));
-    let lip = bulge(0)?;
-    let [y, z] = points[bulge(hollow(lip + 1)? + 1)?];
+    let (hollow, lands) = lip_chin_bridge(&points)?;
+    let (p, q) = (points[hollow], points[lands]);
+    let ahead = |r: [f64; 2]| (q[1] - p[1]) * (r[0] - p[0]) - (q[0] - p[0]) * (r[1] - p[1]);
+    let [y, z] = points[hollow..=lands].iter().copied().max_by(|a, b| ahead(*a).total_cmp(&ahead(*b)))?;
     let at = [0.0, y, z];
     mesh.skin.iter().copied().min_by(|&a, &b| length(sub(local[a as usize], at)).total_cmp(&length(sub(local[b as usize], at))))
+}
+
+/// Of a profile (`[height, depth]` points, downwards), its front outline (the side of its
+/// convex hull facing +depth: Andrew's monotone chain) and, of the outline's edges that skip
+/// points (bridges), front-facing (rising less than 45 degrees from the vertical: not the
+/// underside of the chin) and not ending at the profile's last point (the neck below the
+/// chin), the one with the deepest point behind it (its distance from the edge's line):
+/// returns that deepest point and the edge's lower end. Turning the profile turns its outline
+/// with it, so the bridge does not hang on the frame's tilt, nor on where the section's
+/// vertices fall.
+fn lip_chin_bridge(points: &[[f64; 2]]) -> Option<(usize, usize)> {
+    let mut outline: Vec<usize> = Vec::with_capacity(points.len());
+    for i in 0..points.len() {
+        while let [.., a, b] = outline[..] {
+            let (p, q, r) = (points[a], points[b], points[i]);
+            // q stays when it lies in front of the line from p to r (heights decrease).
+            if (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]) > 0.0 {
+                break;
+            }
+            outline.pop();
+        }
+        outline.push(i);
+    }
+    // The point between a and b farthest behind the line through them, and that distance.
+    let deepest = |a: usize, b: usize| {
+        let (p, q) = (points[a], points[b]);
+        let (dy, dz) = (q[0] - p[0], q[1] - p[1]);
+        let norm = dy.hypot(dz);
+        (a + 1..b).map(|i| ((dz * (points[i][0] - p[0]) - dy * (points[i][1] - p[1])).abs() / norm, i)).max_by(|x, y| x.0.total_cmp(&y.0))
+    };
+    let last = points.len().checked_sub(1)?;
+    outline
+        .windows(2)
+        .filter(|w| w[1] > w[0] + 1 && w[1] < last && (points[w[1]][1] - points[w[0]][1]).abs() < (points[w[1]][0] - points[w[0]][0]).abs())
+        .filter_map(|w| deepest(w[0], w[1]).map(|(depth, i)| (depth, i, w[1])))
+        .filter(|(depth, _, _)| *depth > 0.0)
+        .max_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(_, hollow, lands)| (hollow, lands))
 }
 
 /// The skin's cut by the plane `x = 0` of `local`, from height `start` down for `reach`: per
@@ -566,8 +630,8 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
         .map(|&axis| symmetry_plane(character, axis, character_centre))
         .min_by(|a, b| mirror_distance(character, a.0, a.1).total_cmp(&mirror_distance(character, b.0, b.1)))
         .ok_or_else(|| invalid!("the character's symmetry plane could not be found"))?;
-    let template_samples: Vec<Vec3> = template.samples(SAMPLES).iter().map(|&v| template.points[v as usize]).collect();
-    let character_samples: Vec<Vec3> = character.samples(SAMPLES).iter().map(|&v| character.points[v as usize]).collect();
+    let template_samples = template.samples(SAMPLES);
+    let character_samples = character.samples(SAMPLES);
     let target = TriangleBvh::build(&character.points, &character.skin_triangles);
     let template_skin = TriangleBvh::build(&template.points, &template.skin_triangles);
     let s = character_size / template_size;
@@ -607,9 +671,9 @@ fn align_skins(template: &Mesh, template_frame: &Frame, character: &Mesh, progre
     Ok((motion, distance / character.diagonal))
 }
 
-/// Centre, root-mean-square radius and principal axes (unit) of a mesh's skin vertices.
+/// Centre, root-mean-square radius and principal axes (unit) of a mesh's skin (its samples).
 fn moments(mesh: &Mesh) -> ShapesmithResult<(Vec3, f64, [Vec3; 3])> {
-    let points: Vec<Vec3> = mesh.skin.iter().map(|&v| mesh.points[v as usize]).collect();
+    let points = mesh.samples(SAMPLES);
     let centre = scale(points.iter().fold([0.0; 3], |acc, p| add(acc, *p)), 1.0 / points.len().max(1) as f64);
     let mut covariance = [[0.0; 3]; 3];
     for p in &points {
@@ -624,14 +688,13 @@ fn moments(mesh: &Mesh) -> ShapesmithResult<(Vec3, f64, [Vec3; 3])> {
     Ok((centre, values.iter().sum::<f64>().sqrt(), [0, 1, 2].map(|k| [vectors[0][k], vectors[1][k], vectors[2][k]])))
 }
 
-/// Mean distance of the sampled skin vertices, mirrored across the plane, to the skin.
+/// Mean distance of the skin's samples, mirrored across the plane, to the skin.
 fn mirror_distance(mesh: &Mesh, normal: Vec3, origin: Vec3) -> f64 {
     let surface = TriangleBvh::build(&mesh.points, &mesh.skin_triangles);
     let samples = mesh.samples(SAMPLES);
     let total: f64 = samples
         .iter()
-        .map(|&v| {
-            let p = mesh.points[v as usize];
+        .map(|&p| {
             let reflected = sub(p, scale(normal, 2.0 * dot(sub(p, origin), normal)));
             surface.closest_point(&reflected, f64::INFINITY).map_or(f64::INFINITY, |h| h.distance_squared.sqrt())
         })

@@ -65,15 +65,43 @@ fn the_midline_section_is_the_skins_cut_by_the_plane() {
 }
 
 #[test]
-fn the_chin_is_the_bulge_past_the_hollow_under_the_lower_lip() {
+fn the_chin_lies_between_the_hollow_under_the_lower_lip_and_where_the_outline_lands() {
     // Down from the mouth's corners (y = 0): the lower lip bulges at y = -1, the hollow
-    // under it at -2, the chin at -3.
+    // under it at -2, the chin's top at -3, where the outline from the lip lands. The point
+    // between hollow and landing farthest in front of their chord is where the profile's slope
+    // is the chord's, y = -3 + asin(2 / pi) / pi = -2.78: the vertex row at -2.8.
     let (local, mesh) = sheet(-4.5, 0.5, 0.1, |_, y| (std::f64::consts::PI * (y + 1.0)).cos());
     let found = chin(&mesh, &local, 0.0, 4.5, 0.05).expect("a chin");
-    assert!((local[found as usize][1] + 3.0).abs() < 1e-9, "chin at {:?}", local[found as usize]);
-    // A profile with no bulge past the hollow (the sheet ends in it) has none.
+    assert!((local[found as usize][1] + 2.8).abs() < 1e-9, "chin at {:?}", local[found as usize]);
+    // A profile with nothing past the hollow (the sheet ends in it) has none.
     let (local, mesh) = sheet(-2.0, 0.5, 0.1, |_, y| (std::f64::consts::PI * (y + 1.0)).cos());
     assert_eq!(chin(&mesh, &local, 0.0, 4.5, 0.05), None);
+}
+
+#[test]
+fn a_chin_with_no_bulge_of_its_own_is_found_in_any_tilt() {
+    // The lip at y = -1, the skin falling steeply under it to -2, then gently and ever
+    // further back but rounded (a flat chin: no local maximum or minimum of depth) to its
+    // underside at -3, steeply after: the outline from the lip lands at -3, the hollow is the
+    // kink at -2 and the roundest point between them, t(1 - t) at its largest, is y = -2.5.
+    // Tilted by up to 10 degrees one way and 15 the other, the same vertex (at 15 degrees
+    // chin up, this profile's lip edge becomes the deepest front-facing bridge).
+    let profile = |y: f64| {
+        let t = -(y + 2.0);
+        match y {
+            y if y > -1.0 => 1.0 - 0.5 * (y + 1.0).abs(),
+            y if y > -2.0 => y + 2.0,
+            y if y > -3.0 => -0.3 * t + 0.2 * t * (1.0 - t),
+            y => -0.3 + 3.0 * (y + 3.0),
+        }
+    };
+    let (rest, mesh) = sheet(-4.5, 0.5, 0.1, |_, y| profile(y));
+    for degrees in [0.0_f64, 5.0, 10.0, -10.0, -15.0] {
+        let (sin, cos) = degrees.to_radians().sin_cos();
+        let local: Vec<Vec3> = rest.iter().map(|p| [p[0], cos * p[1] - sin * p[2], sin * p[1] + cos * p[2]]).collect();
+        let found = chin(&mesh, &local, 0.0, 4.5, 0.05).expect("a chin");
+        assert!((rest[found as usize][1] + 2.5).abs() < 1e-9, "{degrees} degrees: chin at {:?}", rest[found as usize]);
+    }
 }
 
 #[test]
