@@ -307,10 +307,10 @@ def add_transfer_settings_args(parser, settings, onto):
     parser.add_argument(
         "--contact", action=argparse.BooleanOptionalAction, default=contact is not None,
         help="keep lips, lids and skin from passing through each other or through teeth and eyes where the template's "
-        "shape does not (on by default, --no-contact turns it off)",
+        "shape does not (off by default: slow on dense heads)",
     )
     parser.add_argument(
-        "--contact-distance", type=float, default=contact.distance,
+        "--contact-distance", type=float, default=settings.ContactSettings().distance,
         help="how close two surfaces may come before they push apart, fraction of the local edge length (default %(default)s)",
     )
     return default

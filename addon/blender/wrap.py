@@ -464,10 +464,10 @@ def carry_onto_character(template, character, wrapped_object, transfer_settings=
     character_neutral, character_triangles = read_surface(character, "character")
     wrapped_neutral, wrapped_triangles = rest_positions(wrapped_object), read_triangles(wrapped_object)
     # The carried keys are judged on the character's own mesh by the criterion the transfer
-    # used; with the transfer's contact solve on, the carry's collision pass holds them to it,
-    # its margin the contact distance.
+    # used, and the carry's collision pass holds them to it (its margin the contact distance
+    # when the transfer keeps surfaces apart).
     contact = transfer_settings.transfer.contact
-    carry = CarrySettings(collision_pass=contact is not None, symmetrize=symmetric)
+    carry = CarrySettings(symmetrize=symmetric)
     # The template's rest gives the carry its mirror map: with a symmetric character each
     # carried shape is averaged with the mirror of its partner's; its own keys give each
     # matched piece its motion (an eyeball turns as the template's does).
