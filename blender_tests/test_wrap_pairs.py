@@ -53,6 +53,22 @@ FEATURES = [
 ]
 
 
+def proposed_on_open_lids(shapesmith, wrap, obj):
+    """The pairs proposed on the character `obj` with its lids opened, its points, and each
+    feature's distance from its true place (of the diagonal)."""
+    import makehuman  # scripts/ is on the path (conftest)
+    from bench_wrap import open_lids
+
+    assert open_lids(shapesmith, obj) > 50
+    identity = positions(bpy.data.objects["Target_YoungWoman"])
+    proposal = wrap.propose_pairs(bpy.data.objects["Template"], obj)
+    points = positions(obj)
+    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
+    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
+    errors = proposal_errors(proposal, lambda v: makehuman.character_frame(identity[[v]], scale)[0], diagonal)
+    return proposal, points, errors
+
+
 def check_proposal(errors, proposal):
     assert sorted(errors) == sorted(FEATURES), proposal["missing"]
     worst = max(errors, key=errors.get)
@@ -84,20 +100,13 @@ def test_pairs_proposed_on_the_sample_character_with_its_lids_open(sample, shape
     under the lower lip seen from the front runs wider than the closed mouth: the mouth
     corners were proposed 10-11% of the diagonal off, the chin 19%); also on a coarser copy
     (1.1k vertices), which the alignment's screening of 4 steps a turn left face down."""
-    import makehuman  # scripts/ is on the path (conftest)
-    from bench_wrap import decimate, open_lids
+    from bench_wrap import decimate
 
     wrap = module(shapesmith, "blender.wrap")
     obj = bpy.data.objects["Character_YoungWoman"]
     if ratio is not None:
         decimate(obj, ratio)
-    assert open_lids(shapesmith, obj) > 50
-    identity = positions(bpy.data.objects["Target_YoungWoman"])
-    proposal = wrap.propose_pairs(bpy.data.objects["Template"], obj)
-    points = positions(obj)
-    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
-    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
-    errors = proposal_errors(proposal, lambda v: makehuman.character_frame(identity[[v]], scale)[0], diagonal)
+    proposal, _, errors = proposed_on_open_lids(shapesmith, wrap, obj)
     print({k: round(100 * e, 2) for k, e in errors.items()})
     # The holes are cut rounder than lids: their outer ends lie up to 2.2% from the lids'
     # corners (measured), so the median is not the uncut character's; every pair is still
@@ -131,8 +140,7 @@ def test_the_proposal_does_not_hang_on_the_vertex_layout(sample, shapesmith, rem
     (measured on bpy 4.2 and 4.5: the largest 3.25%, an outer eye corner at a lid hole; the chin
     at most 3.24%). The chin was missed at ratios 0.3 and 0.45 before it was read from the
     profile's front outline."""
-    import makehuman  # scripts/ is on the path (conftest)
-    from bench_wrap import decimate, open_lids
+    from bench_wrap import decimate
 
     wrap = module(shapesmith, "blender.wrap")
     obj = bpy.data.objects["Character_YoungWoman"]
@@ -143,13 +151,7 @@ def test_the_proposal_does_not_hang_on_the_vertex_layout(sample, shapesmith, rem
         decimate(obj, float(words[words.index("ratio") + 1]))
     if "unsubdivided" in words:
         unsubdivided(obj)
-    assert open_lids(shapesmith, obj) > 50
-    identity = positions(bpy.data.objects["Target_YoungWoman"])
-    proposal = wrap.propose_pairs(bpy.data.objects["Template"], obj)
-    points = positions(obj)
-    diagonal = float(np.linalg.norm(points.max(0) - points.min(0)))
-    scale = makehuman.CHARACTERS["Character_YoungWoman"]["scale"]
-    errors = proposal_errors(proposal, lambda v: makehuman.character_frame(identity[[v]], scale)[0], diagonal)
+    proposal, points, errors = proposed_on_open_lids(shapesmith, wrap, obj)
     print(remake, len(points), {k: round(100 * e, 2) for k, e in errors.items()})
     assert sorted(errors) == sorted(FEATURES), proposal["missing"]
     assert max(errors.values()) < COARSE_HOLE_TOLERANCE, errors
