@@ -16,7 +16,7 @@
 //! ground truth makes them), it also prints the warp error, mean over shapes of the mean
 //! error on each shape's active vertices / diagonal, with virtual edges and with the pass.
 
-use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, AddedCurve, TransferShapesParams};
+use shapesmith_native::transfer::{measure_rig_penetration, ContactParams, transfer_shapes, AddedCurve, TransferShapesParams};
 use shapesmith_native::NoProgress;
 
 #[path = "common/arrays.rs"]
@@ -36,7 +36,8 @@ fn main() {
     };
     assert_eq!(names.len(), count, "one name per shape");
     let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
-    let params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
+    let mut params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
+    params.transfer.contact = Some(ContactParams::default());
     let started = std::time::Instant::now();
     let (_, report) =
         transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress).expect("transfer");
