@@ -114,7 +114,7 @@ def test_batchs_flag_defaults_are_the_dataclasses(shapesmith):
     stored = settings.PackSettings(mu=0.4, symmetric=False, collision_conflicts=False)
     assert batch.pack_settings(pack, stored) == stored
     # and a flag reaches the settings under the core's key
-    flagged = parsed("transfer", "--input", "in.blend", "--source", "T", "--no-virtual-edges", "--contact-distance", "0.5")
+    flagged = parsed("transfer", "--input", "in.blend", "--source", "T", "--no-virtual-edges", "--contact", "--contact-distance", "0.5")
     chosen = settings.transfer_settings(flagged)
     assert chosen.transfer.virtual_edges is None and chosen.transfer.contact.distance == 0.5
 

@@ -311,7 +311,7 @@ def add_transfer_settings_args(parser, settings, onto):
     )
     parser.add_argument(
         "--contact-distance", type=float, default=settings.ContactSettings().distance,
-        help="how close two surfaces may come before they push apart, fraction of the local edge length (default %(default)s)",
+        help="with --contact: how close two surfaces may come before they push apart, fraction of the local edge length (default %(default)s)",
     )
     return default
 
