@@ -226,7 +226,9 @@ impl ClosePaths {
 }
 
 /// The vertices along a Z-order curve over the bounding box, so that the balls searched one
-/// after the other overlap and their vertices stay in cache.
+/// after the other overlap and their vertices stay in cache (the production bench's 77k
+/// target, one thread: 1.58 -> 1.37 CPU-seconds; subdivided meshes number their vertices by
+/// level, not by place).
 fn spatial_order(points: &[[f64; 3]]) -> Vec<u32> {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points {
