@@ -49,7 +49,8 @@ cheekSquintLeft facs_bs_CheekSquintLeft_div2 | cheekSquintRight facs_bs_CheekSqu
 noseSneerLeft facs_bs_NoseSneerLeft_div2 | noseSneerRight facs_bs_NoseSneerRight_div2 | jawForward facs_jnt_JawForward
 jawLeft facs_jnt_JawLeft | jawOpen facs_jnt_JawOpen | jawRight facs_jnt_JawRight | mouthClose facs_bs_MouthClose_div2
 mouthFunnel facs_bs_MouthFunnel_div2 | mouthPucker facs_bs_MouthPucker_div2 | mouthLeft facs_bs_MouthLeft_div2
-mouthRight facs_bs_MouthRight_div2 | mouthRollLower facs_bs_MouthRollLower_div2 | mouthRollUpper facs_bs_MouthRollUpper_div2
+mouthRight facs_bs_MouthRight_div2 | mouthRollLower facs_bs_MouthRollLower_div2
+mouthRollUpper facs_bs_MouthRollUpper_div2
 mouthShrugLower facs_bs_MouthShrugLower_div2 | mouthShrugUpper facs_bs_MouthShrugUpper_div2
 mouthDimpleLeft facs_bs_MouthDimpleLeft_div2 | mouthDimpleRight facs_bs_MouthDimpleRight_div2
 mouthFrownLeft facs_bs_MouthFrownLeft_div2 | mouthFrownRight facs_bs_MouthFrownRight_div2
@@ -133,8 +134,9 @@ def test_the_rig_menu_lists_the_shipped_presets_beside_the_users_and_keeps_them(
             return record
 
     menu = bpy.types.SHAPESMITH_PT_rig_presets
+    members = {k: getattr(menu, k) for k in ("preset_subdir", "preset_operator", "preset_add_operator")}
     drawn = type("Menu", (), {"layout": Layout(), "bl_idname": menu.__name__, "path_menu": bpy.types.Menu.path_menu,
-                              **{k: getattr(menu, k) for k in ("preset_subdir", "preset_operator", "preset_add_operator")}})
+                              **members})
     bpy.types.Menu.draw_preset(drawn(), bpy.context)
     listed = [text for method, text in calls if method == "operator" and text]
     assert set(SHIPPED) | {"Studio Heads"} <= set(listed), listed
@@ -182,8 +184,8 @@ def test_batch_name_map_takes_a_shipped_or_saved_presets_name(sample, shapesmith
     """Character Creator's parts of mouthFunnel and mouthPucker are those shapes only through
     the preset's table; a preset saved by the user works alike; an unknown name exits 2."""
     keys = bpy.data.objects["Template"].data.shape_keys.key_blocks
-    renamed = {"eyeLookInLeft": "Eye_L_Look_R", "mouthFunnel": "Mouth_Funnel_Up_L", "mouthPucker": "Mouth_Pucker_Down_R",
-               "jawOpen": "myJaw"}
+    renamed = {"eyeLookInLeft": "Eye_L_Look_R", "mouthFunnel": "Mouth_Funnel_Up_L",
+               "mouthPucker": "Mouth_Pucker_Down_R", "jawOpen": "myJaw"}
     for arkit, theirs in renamed.items():
         keys[arkit].name = theirs
     settings = bpy.context.scene.shapesmith

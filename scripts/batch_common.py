@@ -88,11 +88,11 @@ def save_copy(path):
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path), copy=True)
 
 
-NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), or the name "
-                 "of a Rig preset whose Shape Key Names table to use (shipped: 'ARKit', 'Character Creator', "
-                 "'Daz Genesis 8.1', 'Unified Expressions', 'Suffix .L .R', 'Suffix L R (underscore)'; or one you saved), "
-                 "read besides the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., Character Creator, "
-                 "Daz, Unified Expressions)")
+NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), or "
+                 "the name of a Rig preset whose Shape Key Names table to use (shipped: 'ARKit', 'Character Creator', "
+                 "'Daz Genesis 8.1', 'Unified Expressions', 'Suffix .L .R', 'Suffix L R (underscore)'; or one you "
+                 "saved), read besides the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., "
+                 "Character Creator, Daz, Unified Expressions)")
 
 
 def _table_file(path, shapesmith, flag):
