@@ -3,7 +3,7 @@ undo restores them) and per-scene tool settings."""
 
 import bpy
 
-from .blender.settings import AnalyzeSettings, LandmarkSettings, PackSettings, TransferSettings
+from .blender.settings import AnalyzeSettings, ContactSettings, LandmarkSettings, PackSettings, TransferSettings
 
 # The defaults of every tool option below: the core's, through the add-on's dataclasses.
 _PACK = PackSettings()
@@ -299,17 +299,18 @@ class SHAPESMITH_PG_transfer_settings(bpy.types.PropertyGroup):
         name="Weight", description="Weight of each virtual edge against the shape-following energy",
         default=_TRANSFER.transfer.edge_weight, min=0.0, soft_max=100.0
     )
-    collisions: bpy.props.BoolProperty(
-        name="Collision Pass",
-        description="After each shape is solved, push back lips, lids and skin that pass through each other or "
-        "through teeth, eyes and lashes, and solve the shape again (shapes that add no more intersection than the template's own are unchanged)",
-        default=_TRANSFER.transfer.collisions is not None,
+    contact: bpy.props.BoolProperty(
+        name="Keep Surfaces Apart",
+        description="After each shape is solved, keep lips, lids and skin from passing through each other or through teeth, "
+        "eyes and lashes where the template's shape does not (shapes that add no crossing come out unchanged)",
+        default=_TRANSFER.transfer.contact is not None,
     )
-    collision_margin: bpy.props.FloatProperty(
-        name="Margin",
-        description="Distance the collision pass keeps from the other surface, as a fraction of the local edge length",
-        default=_TRANSFER.transfer.collisions.margin,
-        min=0.0,
+    contact_distance: bpy.props.FloatProperty(
+        name="Contact Distance",
+        description="How close two surfaces may come before they push each other apart, as a fraction of the local edge "
+        "length (d_hat of Incremental Potential Contact); smaller lets pressed lips meet more tightly",
+        default=ContactSettings().distance,
+        min=0.01,
         max=2.0,
         precision=3,
     )
@@ -395,9 +396,9 @@ class SHAPESMITH_PG_transfer_shape(bpy.types.PropertyGroup):
         "crosses, whichever is more",
     )
     before_length: bpy.props.FloatProperty(
-        name="Curve Length Before the Collision Pass", subtype="DISTANCE"
+        name="Curve Length Before Keeping Surfaces Apart", subtype="DISTANCE"
     )
-    collision_solves: bpy.props.IntProperty(name="Collision Re-solves")
+    contact_iterations: bpy.props.IntProperty(name="Contact Solve Iterations")
     where: bpy.props.StringProperty(
         name="Where",
         description="Where most of the extra intersection lies: inside one piece (lips, lids) or between pieces "
@@ -414,17 +415,17 @@ class SHAPESMITH_PG_transfer_result(bpy.types.PropertyGroup):
     examples: bpy.props.IntProperty(name="Training Expressions")
     seconds: bpy.props.FloatProperty(name="Seconds")
     neutral_length: bpy.props.FloatProperty(name="Target Neutral Curve Length", subtype="DISTANCE")
-    collisions: bpy.props.BoolProperty(name="Collision Pass")
-    collision_margin: bpy.props.FloatProperty(name="Collision Margin")
-    worse_before_collisions: bpy.props.IntProperty(
-        name="Worse Before the Collision Pass",
+    contact: bpy.props.BoolProperty(name="Keep Surfaces Apart")
+    contact_distance: bpy.props.FloatProperty(name="Contact Distance")
+    worse_before_contact: bpy.props.IntProperty(
+        name="Worse Before Keeping Surfaces Apart",
         description="Shapes adding more intersection than on the template before the pass (-1: not measured, as for keys "
         "carried onto a character of other topology, where the pass ran on the wrapped template)",
     )
     carried: bpy.props.BoolProperty(
         name="Carried", description="The keys were carried onto this mesh from a wrapped template (Wrap), not transferred onto it"
     )
-    collision_resolved: bpy.props.IntProperty(name="Shapes Re-solved by the Collision Pass")
+    contact_resolved: bpy.props.IntProperty(name="Shapes Kept Apart")
     template_neutral_length: bpy.props.FloatProperty(name="Template Neutral Curve Length", subtype="DISTANCE")
     shapes: bpy.props.CollectionProperty(type=SHAPESMITH_PG_transfer_shape)
 

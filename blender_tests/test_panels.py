@@ -89,7 +89,7 @@ def test_result_lines_speak_a_riggers_words(sample):
     a bare number against 'the template's allows'; the wrap's pairs show no vertex index."""
     target = make_active(bpy.data.objects["Target_OldMan"])
     settings = bpy.context.scene.shapesmith.transfer
-    settings.source, settings.collisions, settings.virtual_edges = bpy.data.objects["Template"], False, False
+    settings.source, settings.contact, settings.virtual_edges = bpy.data.objects["Template"], False, False
     assert bpy.ops.shapesmith.transfer_shape_keys() == {"FINISHED"}
     worse = [shape for shape in target.shapesmith.transfer.shapes if shape.worse]
     assert worse, "plain transfer onto OldMan adds crossings the template does not have"

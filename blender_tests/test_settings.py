@@ -84,9 +84,9 @@ def test_the_panels_defaults_are_the_dataclasses(shapesmith):
         same_in_float32(plain(read.as_native()), plain(settings.TOOLS[tool]().as_native()), tool)
     # The properties whose default is the dataclass's own, read off the registered types.
     transfer_type = type(scene.shapesmith.transfer).bl_rna.properties
-    assert transfer_type["virtual_edges"].default and transfer_type["collisions"].default
+    assert transfer_type["virtual_edges"].default and not transfer_type["contact"].default
     assert np.float32(transfer_type["tau_d"].default) == np.float32(settings.VirtualEdgeSettings().tau_d)
-    assert np.float32(transfer_type["collision_margin"].default) == np.float32(settings.CollisionSettings().margin)
+    assert np.float32(transfer_type["contact_distance"].default) == np.float32(settings.ContactSettings().distance)
     pack_type = type(obj.shapesmith.pack).bl_rna.properties
     assert np.float32(pack_type["collision_tolerance"].default) == np.float32(settings.PackSettings().collision_tolerance)
     assert not pack_type["limit_expressions"].default and settings.PackSettings().max_expressions is None
@@ -114,9 +114,9 @@ def test_batchs_flag_defaults_are_the_dataclasses(shapesmith):
     stored = settings.PackSettings(mu=0.4, symmetric=False, collision_conflicts=False)
     assert batch.pack_settings(pack, stored) == stored
     # and a flag reaches the settings under the core's key
-    flagged = parsed("transfer", "--input", "in.blend", "--source", "T", "--no-virtual-edges", "--collision-margin", "0.5")
+    flagged = parsed("transfer", "--input", "in.blend", "--source", "T", "--no-virtual-edges", "--contact", "--contact-distance", "0.5")
     chosen = settings.transfer_settings(flagged)
-    assert chosen.transfer.virtual_edges is None and chosen.transfer.collisions.margin == 0.5
+    assert chosen.transfer.virtual_edges is None and chosen.transfer.contact.distance == 0.5
 
 
 def tiny_rig():
@@ -172,22 +172,28 @@ def test_the_transfer_panels_settings_reach_the_core(sample, shapesmith):
     panel = bpy.context.scene.shapesmith.transfer
     panel.source = bpy.data.objects["Template"]
     panel.virtual_edges = False
-    panel.collision_margin = 0.5
+    panel.contact, panel.contact_distance = True, 0.5
+    # two keys: the contact solve is the slow part of a transfer
+    assert bpy.ops.shapesmith.list_template_keys(tick="NONE") == {"FINISHED"}
+    for item in panel.key_choice:
+        item.chosen = item.name in ("mouthClose", "cheekPuff")
+    panel.only_ticked = True
     target = make_active(bpy.data.objects["Target_Boy"])
     assert bpy.ops.shapesmith.transfer_shape_keys() == {"FINISHED"}
+    panel.only_ticked, panel.contact = False, False
     result = target.shapesmith.transfer
-    # the core's report: no virtual edges, and the pass's margin as the core used it
-    assert result.virtual_edges == 0 and result.collisions
-    assert result.collision_margin == pytest.approx(0.5)
+    # the core's report: no virtual edges, and the contact distance as the core used it
+    assert result.virtual_edges == 0 and result.contact
+    assert result.contact_distance == pytest.approx(0.5)
 
 
 def test_batchs_transfer_flags_reach_the_core(sample, tmp_path):
     report = tmp_path / "transfer.json"
     run_batch("transfer", "--input", sample, "--source", "Template", "--target", "Target_Boy", "--tau-d", "0.02",
-              "--edge-weight", "2", "--no-collisions", "--json", str(report), check=True)
+              "--edge-weight", "2", "--no-contact", "--json", str(report), check=True)
     params = json.loads(report.read_text())["params"]
     assert params["transfer"]["virtual_edges"]["tau_d"] == 0.02 and params["transfer"]["edge_weight"] == 2.0
-    assert params["transfer"]["collisions"] is None and params["measure_penetration"] is True
+    assert params["transfer"]["contact"] is None and params["measure_penetration"] is True
 
 
 def test_the_landmark_panels_settings_reach_the_core(sample, shapesmith):

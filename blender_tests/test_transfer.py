@@ -116,16 +116,16 @@ def test_transfer_writes_the_templates_52_keys_with_their_settings(sample, targe
 def test_the_template_onto_a_copy_of_itself_reproduces_its_keys(sample, virtual_edges):
     template = bpy.data.objects["Template"]
     twin = copy_of(template, "Twin")
-    # With the collision pass on (the default): the template onto itself comes back as it is.
-    assert transfer_onto(twin, virtual_edges=virtual_edges) == {"FINISHED"}
-    assert twin.shapesmith.transfer.collisions and twin.shapesmith.transfer.collision_resolved == 0
+    # Keeping surfaces apart too: the template onto itself comes back as it is.
+    assert transfer_onto(twin, virtual_edges=virtual_edges, contact=True) == {"FINISHED"}
+    assert twin.shapesmith.transfer.contact and twin.shapesmith.transfer.contact_resolved == 0
     tolerance = 1e-5 * diagonal(template)
     for name in template_names():
         error = np.abs(key_positions(twin, name) - key_positions(template, name)).max()
         assert error < tolerance, f"{name}: {error} >= {tolerance}"
 
 
-# --- the collision pass ------------------------------------------------------------------
+# --- keeping surfaces apart (the contact solve) --------------------------------------------
 
 
 def transfer_module(shapesmith):
@@ -134,60 +134,46 @@ def transfer_module(shapesmith):
     return importlib.import_module(shapesmith.__name__ + ".blender.transfer")
 
 
-def test_the_collision_pass_on_by_default_lists_what_is_still_worse(sample, shapesmith):
+CONTACT_KEYS = ["mouthClose", "mouthPucker", "mouthRollUpper", "mouthSmileLeft", "cheekPuff"]
+
+
+def test_keeping_surfaces_apart_is_off_by_default_and_when_ticked_leaves_no_added_crossing(sample, shapesmith):
     s = settings()
-    assert s.collisions and s.collision_margin == pytest.approx(0.25)
-    target = bpy.data.objects["Target_OldMan"]
-    assert transfer_onto(target) == {"FINISHED"}
-    result = target.shapesmith.transfer
-    assert result.collisions and result.collision_margin == pytest.approx(0.25)
-    assert result.collision_resolved > 0, "the pass should re-solve some shapes on a MakeHuman identity"
-    # The panel's list: the shapes still adding more intersection than the template's own,
-    # with that amount (beyond a thousandth of the diagonal), and no other shape.
-    tolerance = 1e-3 * diagonal(target)
-    for shape in result.shapes:
-        assert shape.worse == (shape.added > tolerance), (shape.name, shape.added)
-        if shape.collision_solves == 0:
-            assert shape.before_length == shape.length
-    worse_after = sum(shape.worse for shape in result.shapes)
-    assert worse_after < result.worse_before_collisions, (worse_after, result.worse_before_collisions)
-
-
-def test_shapes_the_pass_leaves_alone_are_bit_for_bit_as_without_it(sample, shapesmith):
+    assert not s.contact and s.contact_distance == pytest.approx(0.25)
     transfer = transfer_module(shapesmith)
-    template, target = bpy.data.objects["Template"], bpy.data.objects["Target_YoungWoman"]
+    template, target = bpy.data.objects["Template"], bpy.data.objects["Target_OldMan"]
     tool = shapesmith.blender.settings
-    off = transfer.transfer_object(template, target, tool.TransferSettings(transfer=tool.DeformationSettings(collisions=None)))
-    on = transfer.transfer_object(template, target, tool.TransferSettings())
-    applied = [row["collisions"]["applied"] for row in on.report["penetration"]]
-    assert "before_collisions_length" not in off.report["penetration"][0]
-    untouched = [k for k, a in enumerate(applied) if not a]
+    off = transfer.transfer_object(template, target, tool.TransferSettings(), keys=CONTACT_KEYS)
+    chosen = tool.TransferSettings(transfer=tool.DeformationSettings(contact=tool.ContactSettings()))
+    on = transfer.transfer_object(template, target, chosen, keys=CONTACT_KEYS)
+    assert "before_contact_length" not in off.report["penetration"][0]
+    applied = [row["contact"]["applied"] for row in on.report["penetration"]]
     touched = [k for k, a in enumerate(applied) if a]
-    assert untouched and touched
-    np.testing.assert_array_equal(on.deltas[untouched], off.deltas[untouched])
-    for k in touched:
-        row = on.report["penetration"][k]
+    assert touched, "some of these shapes add crossings on a MakeHuman identity"
+    for k, row in enumerate(on.report["penetration"]):
+        if not applied[k]:
+            # a shape adding no crossing is written bit for bit as without contact
+            np.testing.assert_array_equal(on.deltas[k], off.deltas[k])
+            continue
         assert np.abs(on.deltas[k] - off.deltas[k]).max() > 0
-        # the numbers before the pass are those of the transfer without it, and the pass
-        # keeps a re-solve only when it adds less curve
-        assert row["before_collisions_length"] == pytest.approx(off.report["penetration"][k]["length"], abs=1e-9)
-        assert row["length"] < row["before_collisions_length"] + 1e-9
-    # no shape comes out adding more curve than without the pass
-    assert len(transfer.worse_than_template(on.report)) < len(transfer.worse_than_template(off.report))
+        # the numbers before the solve are those of the transfer without it, and no crossing
+        # it added is left
+        assert row["before_contact_length"] == pytest.approx(off.report["penetration"][k]["length"], abs=1e-9)
+        assert row["contact"]["added_pairs"] > 0 and row["contact"]["remaining_pairs"] == 0
 
 
-def test_a_bad_collision_margin_is_refused_and_the_target_left_alone(sample, shapesmith):
+def test_a_bad_contact_distance_is_refused_and_the_target_left_alone(sample, shapesmith):
     transfer = transfer_module(shapesmith)
     target = bpy.data.objects["Target_Boy"]
     before = snapshot(target)
     tool = shapesmith.blender.settings
-    for margin in (-0.5, float("nan"), 10.0):
-        chosen = tool.TransferSettings(transfer=tool.DeformationSettings(collisions=tool.CollisionSettings(margin=margin)))
-        with pytest.raises(ValueError, match="margin"):
+    for distance in (-0.5, float("nan"), 10.0):
+        chosen = tool.TransferSettings(transfer=tool.DeformationSettings(contact=tool.ContactSettings(distance=distance)))
+        with pytest.raises(ValueError, match="contact.distance"):
             transfer.transfer_object(bpy.data.objects["Template"], target, chosen)
     assert snapshot(target) == before
-    settings().collision_margin = 10.0  # the panel's field clamps to what the core accepts
-    assert settings().collision_margin == pytest.approx(2.0)
+    settings().contact_distance = 10.0  # the panel's field clamps to what the core accepts
+    assert settings().contact_distance == pytest.approx(2.0)
 
 
 def test_existing_keys_are_skipped_unless_overwrite(sample):
@@ -472,19 +458,19 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
     assert file_digest(sample_path) == digest
     report = json.loads(out_json.read_text())
     assert [t["target"] for t in report["targets"]] == sorted(TARGETS)
-    assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "template_penetration", "total"} <= set(
+    assert {"io", "factorisation", "virtual_edges", "solves", "contact", "template_penetration", "total"} <= set(
         report["seconds"]
     )
-    assert report["params"]["transfer"]["collisions"]["margin"] == 0.25  # the pass is on by default
+    assert report["params"]["transfer"]["contact"] is None  # keeping surfaces apart is opt-in
     template_lengths = None
     for target in report["targets"]:
         assert len(target["shapes"]) == 52 and target["virtual_edges"] > 0
-        assert {"io", "factorisation", "virtual_edges", "solves", "collisions", "penetration"} <= set(target["seconds"])
+        assert {"io", "factorisation", "virtual_edges", "solves", "contact", "penetration"} <= set(target["seconds"])
         row = target["penetrations"][0]
         assert {"name", "length", "pairs", "template_length", "template_pairs"} <= set(row)
-        # the plain comparison is opt-in; the collision pass reports each shape before it
+        # the plain comparison and the contact solve are opt-in
         assert "plain_length" not in row and target["plain_worse_than_template"] is None
-        assert "before_collisions_length" in row and len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
+        assert "before_contact_length" not in row and target["worse_before_contact"] is None
         assert set(target["worse_than_template"]) <= set(target["penetrations"][k]["name"] for k in range(52))
         # the template's own numbers are measured once and are the same for every target
         lengths = [r["template_length"] for r in target["penetrations"]]
@@ -512,7 +498,7 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
             assert crossing["inside"] == pytest.approx(row["template_length"] - row["template_between_pieces"], abs=1e-9)
             allowed_inside = max(template_inside, 0.0, crossing["inside"] - rest_inside)
             allowed_between = max(template_between, 0.0, crossing["between"] - rest_between)
-            for key in ("length", "before_collisions_length"):
+            for key in ("length",):  # no before_contact_* rows: keeping surfaces apart is off
                 between = row[key.replace("length", "between_pieces")] - rest_between
                 inside = row[key] - rest["length"] - between
                 excess = row[key.replace("length", "excess")]
@@ -553,33 +539,33 @@ def test_batch_personalises_with_packed_expressions_from_a_pack_json(sample, tmp
     assert len(report["example_noise"]) == 1 and report["example_noise"][0] < 1e-6
 
 
-def test_batch_collision_flags(sample_path, tmp_path):
+def test_batch_contact_flags(sample_path, tmp_path):
     out = tmp_path / "transfer.json"
     run_batch(
-        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy", "--no-collisions",
+        "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy", "--no-contact",
         "--compare-plain", "--json", str(out), check=True,
     )
     report = json.loads(out.read_text())
-    assert report["params"]["transfer"]["collisions"] is None
+    assert report["params"]["transfer"]["contact"] is None
     target = report["targets"][0]
-    assert target["worse_before_collisions"] is None and isinstance(target["plain_worse_than_template"], list)
-    assert "before_collisions_length" not in target["penetrations"][0] and "plain_length" in target["penetrations"][0]
+    assert target["worse_before_contact"] is None and isinstance(target["plain_worse_than_template"], list)
+    assert "before_contact_length" not in target["penetrations"][0] and "plain_length" in target["penetrations"][0]
     run_batch(
         "transfer", "--input", sample_path, "--source", "Template", "--target", "Target_Boy",
-        "--collision-margin", "0.5", "--json", str(out), check=True,
+        "--contact", "--contact-distance", "0.5", "--keys", "mouthClose,cheekPuff", "--json", str(out), check=True,
     )
     report = json.loads(out.read_text())
-    assert report["params"]["transfer"]["collisions"]["margin"] == 0.5
+    assert report["params"]["transfer"]["contact"]["distance"] == 0.5
     target = report["targets"][0]
     row = target["penetrations"][0]
-    assert {"before_collisions_length", "before_collisions_pairs", "collisions"} <= set(row)
-    assert len(target["worse_before_collisions"]) >= len(target["worse_than_template"])
+    assert {"before_contact_length", "before_contact_pairs", "contact"} <= set(row)
+    assert len(target["worse_before_contact"]) >= len(target["worse_than_template"])
 
 
 @pytest.mark.parametrize(
     "args, message",
     [
-        (("--target", "Target_Boy", "--collisions", "--collision-margin", "-1"), "collision margin must lie in"),
+        (("--target", "Target_Boy", "--contact", "--contact-distance", "-1"), "contact distance must lie in"),
         (("--target", "Target_Nobody"), "no object named 'Target_Nobody'"),
         (("--target", "Template"), "is the template itself"),
         (("--targets", "Nope_*"), "matches no object"),

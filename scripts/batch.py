@@ -292,7 +292,7 @@ def add_transfer_settings_args(parser, settings, onto):
     panel's properties) for `transfer` and for `wrap`'s transfer `onto` the wrapped template;
     returns the defaults."""
     default = settings.TransferSettings()
-    edges, collisions = default.transfer.virtual_edges, default.transfer.collisions
+    edges, contact = default.transfer.virtual_edges, default.transfer.contact
     parser.add_argument(
         "--virtual-edges", action=argparse.BooleanOptionalAction, default=edges is not None,
         help=f"virtual edges against lips and lids passing through each other{onto} (--no-virtual-edges: plain deformation "
@@ -305,12 +305,13 @@ def add_transfer_settings_args(parser, settings, onto):
     parser.add_argument("--edge-weight", type=float, default=default.transfer.edge_weight,
                         help="weight of each virtual edge (default %(default)s)")
     parser.add_argument(
-        "--collisions", action=argparse.BooleanOptionalAction, default=collisions is not None,
-        help="run the collision pass (lips, lids, skin through teeth and eyes; on by default, --no-collisions turns it off)",
+        "--contact", action=argparse.BooleanOptionalAction, default=contact is not None,
+        help="keep lips, lids and skin from passing through each other or through teeth and eyes where the template's "
+        "shape does not (off by default: slow on dense heads)",
     )
     parser.add_argument(
-        "--collision-margin", type=float, default=collisions.margin,
-        help="distance the collision pass keeps from the other surface, fraction of the local edge length (default %(default)s)",
+        "--contact-distance", type=float, default=settings.ContactSettings().distance,
+        help="with --contact: how close two surfaces may come before they push apart, fraction of the local edge length (default %(default)s)",
     )
     return default
 
@@ -327,7 +328,7 @@ def add_transfer_args(parser, settings):
     default = add_transfer_settings_args(parser, settings, "")
     parser.add_argument(
         "--compare-plain", action=argparse.BooleanOptionalAction, default=default.compare_plain,
-        help="also transfer without virtual edges and collision pass and report its penetration (one more solve)",
+        help="also transfer without virtual edges and contact solve and report its penetration (one more solve)",
     )
     parser.add_argument(
         "--examples",
@@ -441,9 +442,9 @@ def run_transfer(args):
                 "weights": result.report.get("weights"),
                 "example_noise": result.report.get("example_noise"),
                 "worse_than_template": transfer.worse_than_template(result.report),
-                "worse_before_collisions": (
-                    transfer.worse_than_template(result.report, key="before_collisions_length")
-                    if transfer.collision_traced(result.report)
+                "worse_before_contact": (
+                    transfer.worse_than_template(result.report, key="before_contact_length")
+                    if transfer.contact_traced(result.report)
                     else None
                 ),
                 "plain_worse_than_template": (

@@ -88,9 +88,11 @@ def save_copy(path):
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path), copy=True)
 
 
-NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), read besides "
-                 "the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., Character Creator, Daz, "
-                 "Unified Expressions)")
+NAME_MAP_HELP = ("your names for shapes: a file of lines 'your name = the name it means' (or a JSON object), or "
+                 "the name of a Rig preset whose Shape Key Names table to use (shipped: 'ARKit', 'Character Creator', "
+                 "'Daz Genesis 8.1', 'Unified Expressions', 'Suffix .L .R', 'Suffix L R (underscore)'; or one you "
+                 "saved), read besides the conventions every tool knows (ARKit, _L/_R, .L/.R, L_, blendShape1., "
+                 "Character Creator, Daz, Unified Expressions)")
 
 
 def _table_file(path, shapesmith, flag):
@@ -106,8 +108,19 @@ def _table_file(path, shapesmith, flag):
 
 
 def name_map(args, shapesmith):
-    """The user's name table of --name-map (None without it)."""
-    return _table_file(args.name_map, shapesmith, "--name-map")
+    """The user's name table of --name-map (None without it): a file's, else the Shape Key Names
+    table of the Rig preset of that name, picked for the file's scene as the preset menu does
+    (a saved copy keeps it)."""
+    from importlib import import_module
+
+    value = args.name_map
+    if not value or os.path.isfile(value):
+        return _table_file(value, shapesmith, "--name-map")
+    presets = import_module(shapesmith.__name__ + ".ui.presets")
+    if not presets.apply_preset("rig", value):
+        raise BatchError(f"name map not found: {value} is neither a file nor a Rig preset "
+                         f"({', '.join(presets.preset_names('rig'))})")
+    return import_module(shapesmith.__name__ + ".blender.names").scene_name_map(bpy.context.scene)
 
 
 def driver_map(args, shapesmith):

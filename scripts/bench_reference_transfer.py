@@ -20,7 +20,7 @@ skin, the lashes copied), in one run:
    transfer without the pass), and the ratio reference / virtual edges.
 
 `--keep DIR` leaves each head's arrays in DIR/<head>/ for
-`cargo run --release --example time_transfer -- DIR/<head> --no-collisions --no-report`.
+`cargo run --release --example time_transfer -- DIR/<head> --no-contact --no-report`.
 """
 
 import argparse
@@ -157,8 +157,8 @@ def main():
             production_heads.write_head(head, folder)
             reference, reference_deltas = run_reference(binary, folder, args.runs)
             plain, plain_deltas = run_native(nat, head, names, args.runs,
-                                              {"virtual_edges": None, "collisions": None, "align_rotation": False})
-            edges, _ = run_native(nat, head, names, args.runs, {"collisions": None})
+                                              {"virtual_edges": None, "contact": None, "align_rotation": False})
+            edges, _ = run_native(nat, head, names, args.runs, {"contact": None})
             rows[label] = {
                 "vertices": len(head["source"]),
                 "triangles": len(head["triangles"]),

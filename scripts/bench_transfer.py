@@ -40,7 +40,7 @@ def added_summary(transfer_module, report):
     over the shapes (positive parts only: a shape removing curve does not pay for another),
     for plain transfer, virtual edges before the collision pass, and the result."""
     out = {}
-    for label, key in (("plain", "plain_length"), ("before collision pass", "before_collisions_length"), ("result", "length")):
+    for label, key in (("plain", "plain_length"), ("before collision pass", "before_contact_length"), ("result", "length")):
         if key not in report["penetration"][0]:
             continue
         added = [sum(transfer_module.added_beyond_template(report, row, key)) for row in report["penetration"]]
@@ -246,7 +246,7 @@ def timing_benchmark(nat, mesh_arrays, transfer_module, template, target, rest_p
     started = time.perf_counter()
     template_penetration = nat.measure_penetration(rig.neutral, rig.deltas, rig.triangles)
     template_seconds = time.perf_counter() - started
-    without = best({"measure_penetration": False, "transfer": {"collisions": None}})
+    without = best({"measure_penetration": False, "transfer": {"contact": None}})
     with_pass = best({"measure_penetration": False})
     reported = best(None, template_penetration=template_penetration)
     _, report = nat.transfer_shapes(

@@ -1,5 +1,5 @@
 """Bench heads resembling production rigs, made from the arrays that
-scripts/save_collision_arrays.py writes (plain numpy, no Blender):
+scripts/save_contact_arrays.py writes (plain numpy, no Blender):
 
     python scripts/production_heads.py DIR [HEAD ...]
 
@@ -16,7 +16,7 @@ For each HEAD (default: every DIR/Target_* head) it writes, beside it:
   into the upper one; its shapes keep that crossing, as their deltas are unchanged) onto the
   head's clean target.
 
-Then `cargo run --release --example collision_counts -- DIR/<head> DIR/names.txt` on each.
+Then `cargo run --release --example contact_counts -- DIR/<head> DIR/names.txt` on each.
 """
 
 import glob

@@ -36,7 +36,7 @@ def transferred_copy(modules, template, target, name, virtual_edges, collisions)
     settings = modules["settings"]
     chosen = settings.TransferSettings(transfer=settings.DeformationSettings(
         virtual_edges=settings.VirtualEdgeSettings() if virtual_edges else None,
-        collisions=settings.CollisionSettings() if collisions else None,
+        contact=settings.ContactSettings() if collisions else None,
     ))
     transfer = modules["transfer"].transfer_object(template, copy, chosen)
     modules["shape_keys"].write_transferred_keys(transfer)

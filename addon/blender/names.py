@@ -4,13 +4,15 @@ Capture, Analyze Rig's pairing) decides that two names mean the same shape.
 A name is reduced to a key `(base, side)`: `base` the shape in lower case without its side,
 `side` "L", "R" or None. On the way:
 - Blender's duplicate suffixes go (`eyeBlink.L.001` is `eyeBlink.L`);
+- the user's table (their name -> the name it stands for, e.g. ARKit's; a shipped Rig preset
+  fills it with a convention's names) is read on the name as written, then without the
+  prefixes below;
 - exporter and namespace prefixes go (`blendShape2.eyeBlinkLeft`, `head_blendShapes.jawOpen`,
   `Char:jawOpen`), and Daz's (`eCTRLEyesClosedL`, `facs_bs_CheekSquintLeft_div2`);
-- the user's table comes next (their name -> the name it stands for, e.g. ARKit's);
 - the name is split into words (camelCase, `_`, `.`, `-`, spaces); a side word (`Left`,
   `LEFT`, `L`, `l`, `right`, ...) last, first or alone among the words is the side, so
   `eyeBlinkLeft`, `eyeBlink_L`, `eyeBlink.L`, `L_eyeBlink`, `EYEBLINK_LEFT` are one shape;
-- the remaining words, run together, go through the conventions' equivalents (the presets):
+- the remaining words, run together, go through the conventions' equivalents (`EQUIVALENTS`):
   Character Creator (`Eye_Blink_L`, `Brow_Drop_L`, `Mouth_Roll_In_Upper`, `Eye_L_Look_L`),
   Daz (`EyesClosedL`), VRChat's Unified Expressions as its ARKit equivalents
   (`EyeClosedLeft` = `eyeBlinkLeft`, `LipSuckUpper` = `mouthRollUpper`, ...), so every
@@ -40,7 +42,7 @@ WHOLE_NAMES = {
 }
 
 # Each convention's base names (side removed) for ARKit's.
-PRESETS = {
+EQUIVALENTS = {
     "Character Creator": {
         "browdrop": "browdown", "browraiseinner": "browinnerup", "browraiseouter": "browouterup",
         "cheekraise": "cheeksquint", "mouthupupper": "mouthupperup", "mouthdownlower": "mouthlowerdown",
@@ -54,7 +56,7 @@ PRESETS = {
         "mouthcornerpull": "mouthsmile",
     },
 }
-_BASES = {alias: base for table in PRESETS.values() for alias, base in table.items()}
+_BASES = {alias: base for table in EQUIVALENTS.values() for alias, base in table.items()}
 
 
 def bare(name):
@@ -64,14 +66,22 @@ def bare(name):
     return _DAZ_SUFFIX.sub("", _DAZ_PREFIX.sub("", name) or name)
 
 
+def _meant(name, table):
+    """What `name` stands for in the user's table: its row as spelled, else in any case (None: no row)."""
+    if name in table:
+        return table[name]
+    return {k.lower(): v for k, v in table.items()}.get(name.lower())
+
+
 def shape_key(name, table=None):
     """(base, side) of a shape name (the module's header); `table`: the user's names
-    ({their name: the name it stands for}), matched as spelled, then in any case."""
+    ({their name: the name it stands for}), matched on the name as written (without Blender's
+    duplicate suffix: `facs_bs_MouthSmileLeft_div2`), then on its bare name (`MouthSmileLeft`)."""
+    written = _DUPLICATE.sub("", name.strip())
     name = bare(name)
-    if table:
-        lowered = {k.lower(): v for k, v in table.items()}
-        if name in table or name.lower() in lowered:
-            name = bare(table.get(name, lowered.get(name.lower())))
+    meant = table and (_meant(written, table) or _meant(name, table))
+    if meant:
+        name = bare(meant)
     words = [w.lower() for w in _WORDS.findall(name)]
     whole = "".join(words)
     if whole in WHOLE_NAMES:

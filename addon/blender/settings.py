@@ -112,24 +112,21 @@ class VirtualEdgeSettings(NativeSettings):
 
 
 @dataclass
-class CollisionSettings(NativeSettings):
-    """`CollisionParams`: the collision pass after each shape's solve (method, section 3)."""
+class ContactSettings(NativeSettings):
+    """`ContactParams`: the contact solve after each shape's solve (method, section 3)."""
 
-    margin: float = 0.25
-    min_margin: float = 0.001
-    max_iterations: int = 4
-    stiffness: float = 100.0
+    distance: float = 0.25
 
 
 @dataclass
 class DeformationSettings(NativeSettings):
-    """`TransferParams`; None for `virtual_edges` or `collisions` turns that stage off."""
+    """`TransferParams`; None for `virtual_edges` or `contact` turns that stage off."""
 
     virtual_edges: Optional[VirtualEdgeSettings] = field(default_factory=VirtualEdgeSettings)
     edge_weight: float = 3.0
-    static_fraction: float = 1e-4
+    static_fraction: float = 1e-5
     align_rotation: bool = True
-    collisions: Optional[CollisionSettings] = field(default_factory=CollisionSettings)
+    contact: Optional[ContactSettings] = None
 
 
 @dataclass
@@ -265,7 +262,7 @@ def transfer_settings(props):
         transfer=DeformationSettings(
             virtual_edges=VirtualEdgeSettings(tau_d=props.tau_d, tau_r=props.tau_r) if props.virtual_edges else None,
             edge_weight=props.edge_weight,
-            collisions=CollisionSettings(margin=props.collision_margin) if props.collisions else None,
+            contact=ContactSettings(distance=props.contact_distance) if props.contact else None,
         ),
         personalise=PersonaliseSettings(beta_reg=props.beta_reg, refine_weights=props.refine_weights),
         compare_plain=props.compare_plain,

@@ -387,14 +387,14 @@ def store_transfer(transfer, written, skipped):
     result.seconds = sum(report["seconds"].values())
     result.neutral_length = report["neutral_penetration"]["length"]
     result.template_neutral_length = report["template_neutral_penetration"]["length"]
-    collisions = report["params"]["transfer"]["collisions"]
-    result.collisions = collisions is not None
-    result.collision_margin = collisions["margin"] if collisions else 0.0
+    contact = report["params"]["transfer"]["contact"]
+    result.contact = contact is not None
+    result.contact_distance = contact["distance"] if contact else 0.0
     rows = report["penetration"]
-    traced = collision_traced(report)
-    result.worse_before_collisions = len(worse_than_template(report, key="before_collisions_length")) if traced else -1
+    traced = contact_traced(report)
+    result.worse_before_contact = len(worse_than_template(report, key="before_contact_length")) if traced else -1
     result.carried = "carry" in report
-    result.collision_resolved = sum(1 for row in rows if (row.get("collisions") or {}).get("applied", False))
+    result.contact_resolved = sum(1 for row in rows if (row.get("contact") or {}).get("applied", False))
     worse = set(worse_than_template(report))
     result.shapes.clear()
     for row in rows:
@@ -406,16 +406,16 @@ def store_transfer(transfer, written, skipped):
         item.added = sum(added_beyond_template(report, row))
         item.allowed = row["allowed"]["inside"] + row["allowed"]["between"]
         item.where = where_added(report, row)
-        item.before_length = row.get("before_collisions_length", row["length"])
-        item.collision_solves = (row.get("collisions") or {}).get("solves", 0)
+        item.before_length = row.get("before_contact_length", row["length"])
+        item.contact_iterations = (row.get("contact") or {}).get("iterations", 0)
     result.done = True
 
 
-def collision_traced(report):
-    """Whether the report has each shape's numbers before the collision pass (the pass was on
-    and the shapes were transferred, not personalised)."""
+def contact_traced(report):
+    """Whether the report has each shape's numbers before the contact solve (it was on and the
+    shapes were transferred, not personalised)."""
     rows = report["penetration"]
-    return bool(rows) and all("before_collisions_length" in row for row in rows)
+    return bool(rows) and all("before_contact_length" in row for row in rows)
 
 
 def added_beyond_template(report, row, key="length"):
@@ -426,7 +426,7 @@ def added_beyond_template(report, row, key="length"):
     add what the template's adds to its neutral, a removal allowing none, or cross as much as
     the template's shape does, `template_added` and `template_crossing`; removing in one part
     does not pay for adding in the other). `key="plain_length"` reads plain transfer's,
-    `key="before_collisions_length"` the result's before the collision pass."""
+    `key="before_contact_length"` the result's before the contact solve."""
     excess = row[key.replace("length", "excess")]
     return excess["inside"], excess["between"]
 
@@ -434,8 +434,8 @@ def added_beyond_template(report, row, key="length"):
 def worse_than_template(report, key="length", tolerance=1e-3):
     """Names of shapes that add more intersection curve to the target's neutral than they add
     to the template's (`added_beyond_template`, both parts together beyond `tolerance` x the
-    bbox diagonal); `key="plain_length"` judges plain transfer, `key="before_collisions_length"`
-    the result before the collision pass."""
+    bbox diagonal); `key="plain_length"` judges plain transfer, `key="before_contact_length"`
+    the result before the contact solve."""
     margin = tolerance * report["diagonal"]
     return [row["name"] for row in report["penetration"] if sum(added_beyond_template(report, row, key)) > margin]
 
@@ -451,12 +451,12 @@ def summary_lines(transfer, written, skipped):
     report = transfer.report
     seconds = report["seconds"]
     worse = worse_than_template(report)
-    collision_line = []
-    if collision_traced(report):
-        resolved = sum(1 for row in report["penetration"] if (row.get("collisions") or {}).get("applied", False))
-        collision_line = [
-            f"collision pass: {resolved} shapes re-solved; shapes adding more intersection than on the template "
-            f"{len(worse_than_template(report, key='before_collisions_length'))} before the pass, {len(worse)} after"
+    contact_line = []
+    if contact_traced(report):
+        resolved = sum(1 for row in report["penetration"] if (row.get("contact") or {}).get("applied", False))
+        contact_line = [
+            f"surfaces kept apart in {resolved} shapes; shapes adding more intersection than on the template "
+            f"{len(worse_than_template(report, key='before_contact_length'))} before, {len(worse)} after"
         ]
     lines = [
         f"'{transfer.source.name}' -> '{transfer.target.name}': {len(written)} shape keys written"
@@ -464,7 +464,7 @@ def summary_lines(transfer, written, skipped):
         f"virtual edges: {report['virtual_edges']}"
         + (f"; personalised with {len(transfer.training)} training expressions" if transfer.training else ""),
         "seconds: " + ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
-        *collision_line,
+        *contact_line,
         "shapes adding more intersection than on the template: "
         + (
             ", ".join(

@@ -1,6 +1,7 @@
 """Rig > Shape Key Names: the user's name table, read by Transfer, Wrap, Import Capture and
 Analyze Rig's pairing beside the conventions they know (ARKit, _L/_R, .L/.R, L_ prefixes,
-exporters' prefixes, Character Creator, Daz, Unified Expressions)."""
+exporters' prefixes, Character Creator, Daz, Unified Expressions); the Rig panel's shipped
+presets fill it with a common rig's names."""
 
 import bpy
 
@@ -26,6 +27,7 @@ class SHAPESMITH_PT_names(ShapesmithPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Known: ARKit, _L/_R, .L/.R, L_, blendShape1.,")
         col.label(text="Character Creator, Daz, Unified Expressions")
+        col.label(text="A common rig's table: Rig's preset icon")
         col.label(text="Yours (name -> the name it means):")
         row = layout.row()
         row.template_list("SHAPESMITH_UL_name_map", "name_map", settings, "name_map", settings, "active_name_row", rows=3)

@@ -3,7 +3,14 @@ of head) and picks them for the next rig, from the preset icon in the panel's he
 Blender's own presets work. Each is a small script in the user's presets folder
 (`presets/shapesmith/<panel>/`) that sets the values listed here: the settings, never a
 rig's own objects, results or picked template. The Rig preset carries the Shape Key Names
-table, so a naming convention is one click on the next head."""
+table, so a naming convention is one click on the next head.
+
+The extension ships Rig presets for common rigs (`presets/shapesmith/rig/` beside this
+package: ARKit, Character Creator, Daz Genesis 8.1, Unified Expressions, `.L`/`.R` and `_L`/`_R`
+suffixes) on Blender's preset path, so they are listed with the user's own; Blender refuses
+to delete them (they live in the extension)."""
+
+import os
 
 import bpy
 from bl_operators.presets import AddPresetBase
@@ -25,7 +32,7 @@ PRESETS = {
     "transfer": (
         "settings = bpy.context.scene.shapesmith.transfer",
         ("overwrite", "keep_sculpted", "copy_drivers", "virtual_edges", "tau_d", "tau_r", "edge_weight",
-         "compare_plain", "beta_reg", "refine_weights"),
+         "compare_plain", "contact", "contact_distance", "beta_reg", "refine_weights"),
     ),
 }
 
@@ -58,9 +65,41 @@ def _classes(panel):
 _PANELS = {panel: _classes(panel) for panel in PRESETS}
 
 
+# The folder holding `presets/shapesmith/<panel>/`: the presets shipped with the extension.
+_SHIPPED = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
 def draw_header(layout, panel):
     """The preset icon in a panel's header (its `draw_header_preset`)."""
     _PANELS[panel][0].draw_panel_header(layout)
 
 
-register, unregister = bpy.utils.register_classes_factory([cls for pair in _PANELS.values() for cls in pair])
+def preset_names(panel):
+    """The names `panel`'s preset menu lists (shipped and the user's), sorted."""
+    subdir = f"shapesmith/{panel}"
+    return sorted({bpy.path.display_name(f, title_case=False) for folder in bpy.utils.preset_paths(subdir)
+                   for f in os.listdir(folder) if f.endswith(".py")}, key=str.lower)
+
+
+def apply_preset(panel, name):
+    """Picks `panel`'s preset `name` (as its menu lists it, or its file name without `.py`) as
+    the menu does; False when there is none."""
+    subdir = f"shapesmith/{panel}"
+    path = bpy.utils.preset_find(name, subdir) or bpy.utils.preset_find(name, subdir, display_name=True)
+    if path is None:
+        return False
+    return bpy.ops.script.execute_preset(filepath=path, menu_idname=_PANELS[panel][0].__name__) == {"FINISHED"}
+
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(
+    [cls for pair in _PANELS.values() for cls in pair])
+
+
+def register():
+    _register_classes()
+    bpy.utils.register_preset_path(_SHIPPED)
+
+
+def unregister():
+    bpy.utils.unregister_preset_path(_SHIPPED)
+    _unregister_classes()

@@ -1,6 +1,6 @@
 """The Transfer panel: the template, Transfer first, then what a rerun keeps and which keys go;
 the last transfer's result on the active mesh in the head's own units. Personalise and the
-advanced settings (virtual edges, the collision pass) in sub-panels."""
+advanced settings (virtual edges, keeping surfaces apart) in sub-panels."""
 
 import bpy
 
@@ -69,14 +69,10 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         col.label(text=f"Virtual edges: {result.virtual_edges}")
         if result.carried:
             col.label(text="Carried from the wrapped template (Wrap); judged on this mesh")
-        if result.collisions:
-            before = (
-                f", {result.worse_before_collisions} worse than the template before it" if result.worse_before_collisions >= 0 else ""
-            )
+        if result.contact:
+            before = f", {result.worse_before_contact} worse than the template before it" if result.worse_before_contact >= 0 else ""
             where = " on the wrapped template" if result.carried else ""
-            col.label(
-                text=f"Collision pass (margin {result.collision_margin:.2f}): {result.collision_resolved} shapes re-solved{where}{before}"
-            )
+            col.label(text=f"Surfaces kept apart in {result.contact_resolved} shapes{where}{before}")
         if result.examples:
             col.label(text=f"Training expressions: {result.examples}")
         worse = [s for s in result.shapes if s.worse]
@@ -126,7 +122,7 @@ class SHAPESMITH_PT_transfer_personalise(ShapesmithPanel, bpy.types.Panel):
 
 
 class SHAPESMITH_PT_transfer_advanced(ShapesmithPanel, bpy.types.Panel):
-    """Virtual edges (lips and lids held as the template holds them) and the collision pass."""
+    """Virtual edges (lips and lids held as the template holds them) and keeping surfaces apart."""
 
     bl_label = "Advanced"
     bl_parent_id = "SHAPESMITH_PT_transfer"
@@ -147,10 +143,10 @@ class SHAPESMITH_PT_transfer_advanced(ShapesmithPanel, bpy.types.Panel):
         layout.operator("shapesmith.preview_virtual_edges", icon="MOD_WIREFRAME")
 
         col = layout.column(align=True)
-        col.prop(settings, "collisions")
+        col.prop(settings, "contact")
         sub = col.column(align=True)
-        sub.active = settings.collisions
-        sub.prop(settings, "collision_margin")
+        sub.active = settings.contact
+        sub.prop(settings, "contact_distance")
 
 
 register, unregister = bpy.utils.register_classes_factory(

@@ -1,12 +1,14 @@
 //! Times the virtual-edge search alone (`find_virtual_edges` at the default parameters) on the
 //! target neutral of the arrays `scripts/bench_transfer.py -- --save-arrays DIR` (or
-//! `scripts/bench_reference_transfer.py -- --keep DIR`) writes:
+//! `scripts/bench_reference_transfer.py -- --keep DIR`, or `scripts/save_production_arrays.py
+//! -- DIR` for the production bench's 4.9k / 19k / 77k target) writes:
 //!
-//!     cargo run --release --example time_virtual_edges -- DIR/<head> [RUNS]
+//!     cargo run --release --example time_virtual_edges -- DIR/<head> [RUNS [TAU_D]]
 //!
 //! Prints the best of RUNS (default 3) wall seconds, the number of edges and a hash of the
 //! edge list, so that two builds run one after the other compare for speed and sameness (run
-//! it with `RAYON_NUM_THREADS=1` for CPU seconds).
+//! it with `RAYON_NUM_THREADS=1` for CPU seconds). TAU_D overrides the default distance
+//! threshold (a fraction of the diagonal).
 
 use std::time::Instant;
 
@@ -18,11 +20,14 @@ use arrays::{points, read};
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let dir = args.next().expect("usage: time_virtual_edges DIR [RUNS]");
+    let dir = args.next().expect("usage: time_virtual_edges DIR [RUNS [TAU_D]]");
     let runs: usize = args.next().map_or(3, |r| r.parse().expect("RUNS is a count"));
     let target = points(&format!("{dir}/target.f32"));
     let triangles = read(&format!("{dir}/triangles.u32"));
-    let params = VirtualEdgeParams::default();
+    let params = match args.next() {
+        Some(tau_d) => VirtualEdgeParams { tau_d: tau_d.parse().expect("TAU_D is a fraction of the diagonal"), ..Default::default() },
+        None => VirtualEdgeParams::default(),
+    };
     let mut best = f64::INFINITY;
     let mut edges = Vec::new();
     for _ in 0..runs {

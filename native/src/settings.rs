@@ -3,7 +3,7 @@
 //!
 //! Every `*Params` struct a caller may set derives serde's `Deserialize` with
 //! `#[serde(default, deny_unknown_fields)]`: a key left out keeps its default, a nested
-//! struct may be given in part, `null` turns an optional stage off (`"collisions": null`), and
+//! struct may be given in part, `null` turns an optional stage off (`"contact": null`), and
 //! a key the struct does not have (a misspelt option) is refused. What is not a setting (the
 //! rig's data: arrays, shape-name lists, a stored cache) is `#[serde(skip)]` and reaches the
 //! core through the entry point's own arguments.

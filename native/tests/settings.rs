@@ -43,14 +43,14 @@ fn every_tools_defaults_round_trip_and_unknown_keys_are_refused() {
 
 #[test]
 fn a_partial_transfer_object_changes_only_what_it_names() {
-    let given = json!({"transfer": {"virtual_edges": {"tau_d": 0.02}, "collisions": null}, "compare_plain": true});
+    let given = json!({"transfer": {"virtual_edges": {"tau_d": 0.02}, "contact": {"distance": 0.1}}, "compare_plain": true});
     let params: TransferShapesParams = settings_from_json(given, "transfer").unwrap();
     let defaults = TransferShapesParams::default();
     let edges = params.transfer.virtual_edges.unwrap();
     assert_eq!(edges.tau_d, 0.02);
     assert_eq!(edges.tau_r, defaults.transfer.virtual_edges.unwrap().tau_r);
-    assert_eq!(params.transfer.collisions, None);
-    assert!(defaults.transfer.collisions.is_some() && params.compare_plain && params.measure_penetration);
+    assert_eq!(params.transfer.contact.map(|c| c.distance), Some(0.1));
+    assert!(defaults.transfer.contact.is_none() && params.compare_plain && params.measure_penetration);
     assert_eq!(params.personalise, defaults.personalise);
     assert_eq!(params.transfer.edge_weight, defaults.transfer.edge_weight);
 }

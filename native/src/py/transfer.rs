@@ -24,8 +24,8 @@ use crate::transfer::{
 /// `settings`: a dict onto [`TransferShapesParams`] (None: the defaults,
 /// `default_settings("transfer")`): `transfer` (`virtual_edges`: `tau_d`, `tau_r`,
 /// `max_per_vertex`, or None for none; `edge_weight`, `static_fraction`, `align_rotation`;
-/// `collisions`: `margin`, `min_margin`, `max_iterations`, `stiffness`, or None for no
-/// collision pass), `personalise` (`beta_reg`, `refine_weights`), `compare_plain`,
+/// `contact`: `distance`, or None for no
+/// contact solve), `personalise` (`beta_reg`, `refine_weights`), `compare_plain`,
 /// `measure_penetration`. A key left out keeps its default; an unknown one is an
 /// InvalidInputError naming it. The report's `params` echoes the settings used.
 ///

@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
-use super::collisions::{AddedCurve, CollisionGuard, CollisionOutcome, ShapeSystem, TemplateCurve};
+use super::contact::{ContactGuard, ContactOutcome};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     HatGradients, Vec3, IDENTITY, ZERO,
@@ -50,25 +50,25 @@ pub struct DeformationTransfer {
     pub(super) template_to_target: f64,
     source_diagonal: f64,
     static_fraction: f64,
-    /// The collision pass's view of the target neutral; `None` when the pass is off.
-    collisions: Option<CollisionGuard>,
-    /// Wall-clock seconds of the setup without the virtual-edge search and the collision
-    /// pass's rest sweep, of that search, and of that sweep.
+    /// The contact solve's view of the two neutrals; `None` when contact is off.
+    contact: Option<ContactGuard>,
+    /// Wall-clock seconds of the setup without the virtual-edge search and the contact
+    /// solve's setup, of that search, and of that setup.
     pub setup_seconds: f64,
     pub virtual_edge_seconds: f64,
-    pub collision_setup_seconds: f64,
+    pub contact_setup_seconds: f64,
 }
 
-/// One shape solved, with what the collision pass did to it.
+/// One shape solved, with what the contact solve did to it.
 pub(super) struct SolvedShape {
     /// Working-frame deltas.
     pub deltas: Vec<Vec3>,
-    /// The deltas before the collision pass, when the pass changed them.
-    pub before_collisions: Option<Vec<Vec3>>,
-    pub collisions: Option<CollisionOutcome>,
-    /// Thread-seconds of the plain solve and of the collision pass.
+    /// The deltas before the contact solve, when it changed them.
+    pub before_contact: Option<Vec<Vec3>>,
+    pub contact: Option<ContactOutcome>,
+    /// Thread-seconds of the plain solve and of the contact solve.
     pub solve_seconds: f64,
-    pub collision_seconds: f64,
+    pub contact_seconds: f64,
 }
 
 impl DeformationTransfer {
@@ -126,23 +126,23 @@ impl DeformationTransfer {
         let size_ratio = piece_scales(&source, &target, &vec![0; n], 1)[0];
         let template_to_target = if size_ratio.ln().abs() > OTHER_UNITS.ln() { size_ratio } else { 1.0 };
 
-        // The virtual-edge search and the collision pass's view of the neutrals (hierarchies,
+        // The virtual-edge search and the contact solve's view of the neutrals (hierarchies,
         // rest sweeps) need nothing of each other: side by side, the sequential parts of each
         // (the thinning, the hierarchy builds) overlap. Their wall time is split between the
         // two in proportion to the seconds each took, as the shapes' solves and pass are.
         let joined_start = Instant::now();
-        let ((virtual_edges, edge_own), (collisions, guard_own)) = rayon::join(
+        let ((virtual_edges, edge_own), (contact, guard_own)) = rayon::join(
             || {
                 timed(|| match &params.virtual_edges {
                     Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
                     _ => Vec::new(),
                 })
             },
-            || timed(|| params.collisions.map(|c| CollisionGuard::new(&source, &target, target_neutral, triangles, c))),
+            || timed(|| params.contact.map(|c| ContactGuard::new(&source, &target, target_neutral, triangles, c))),
         );
         let joined = joined_start.elapsed().as_secs_f64();
         let edge_share = if edge_own + guard_own > 0.0 { edge_own / (edge_own + guard_own) } else { 1.0 };
-        let (virtual_edge_seconds, collision_setup_seconds) = (joined * edge_share, joined * (1.0 - edge_share));
+        let (virtual_edge_seconds, contact_setup_seconds) = (joined * edge_share, joined * (1.0 - edge_share));
         // A_t = E_target E_source^{-1}, the rest-to-rest deformation gradient (S&P Eq. 1).
         let rest_maps: Vec<Mat3> = triangles
             .par_iter()
@@ -175,10 +175,10 @@ impl DeformationTransfer {
             piece_scale,
             template_to_target,
             static_fraction: params.static_fraction,
-            collisions,
-            setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds - collision_setup_seconds,
+            contact,
+            setup_seconds: start.elapsed().as_secs_f64() - virtual_edge_seconds - contact_setup_seconds,
             virtual_edge_seconds,
-            collision_setup_seconds,
+            contact_setup_seconds,
         })
     }
 
@@ -186,9 +186,9 @@ impl DeformationTransfer {
         self.target_neutral.len()
     }
 
-    /// The target neutral's own penetration, when the collision pass swept it.
+    /// The target neutral's own penetration, when the contact solve swept it.
     pub(super) fn rest_penetration(&self) -> Option<crate::geometry::penetration::Penetration> {
-        self.collisions.as_ref().map(|guard| guard.rest_penetration)
+        self.contact.as_ref().map(|guard| guard.rest_penetration)
     }
 
     /// The virtual edges `(i, j)` used by the solve (empty for plain transfer).
@@ -198,26 +198,8 @@ impl DeformationTransfer {
 
     /// Transfers every shape: `source_deltas` is K x N (shape-major), `names` has K entries.
     pub fn transfer(&self, source_deltas: &[[f32; 3]], names: &[String], progress: &dyn Progress) -> ShapesmithResult<TransferResult> {
-        self.transfer_judged(source_deltas, names, None, progress)
-    }
-
-    /// [`Self::transfer`], told each template shape's curve (`template_curve`, K entries, from
-    /// the template's own penetration, in the template's units): the collision pass then leaves
-    /// a shape alone without sweeping the template's shape when the result meets the criterion.
-    pub fn transfer_judged(
-        &self,
-        source_deltas: &[[f32; 3]],
-        names: &[String],
-        template_curve: Option<&[TemplateCurve]>,
-        progress: &dyn Progress,
-    ) -> ShapesmithResult<TransferResult> {
         let start = Instant::now();
         self.validate_deltas(source_deltas, names)?;
-        if let Some(given) = template_curve {
-            if given.len() != names.len() {
-                return Err(invalid!("the template's penetration has {} shapes but {} shape names were given", given.len(), names.len()));
-            }
-        }
         let n = self.n_vertices();
         let done = AtomicUsize::new(0);
         // The largest systems first, one shape a task: on two cores a large shape started last
@@ -236,7 +218,7 @@ impl DeformationTransfer {
                 let solved = if self.is_inert(delta) {
                     SolvedShape::inert(n)
                 } else {
-                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), Some(template_curve.map(|a| a[k])))?
+                    self.solve_shape_traced(delta, |t| self.triangle_gradient(t, delta), true)?
                 };
                 let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress.checkpoint(finished as f64 / names.len() as f64)?;
@@ -250,17 +232,17 @@ impl DeformationTransfer {
         let shapes: Vec<SolvedShape> = shapes.into_iter().flatten().collect();
         let wall = start.elapsed().as_secs_f64();
         // Shapes run side by side, so the wall time is split between the plain solves and the
-        // collision pass in proportion to the thread-seconds each took.
+        // contact solves in proportion to the thread-seconds each took.
         let solve_time: f64 = shapes.iter().map(|s| s.solve_seconds).sum();
-        let collision_time: f64 = shapes.iter().map(|s| s.collision_seconds).sum();
-        let collision_share = if collision_time > 0.0 { collision_time / (solve_time + collision_time) } else { 0.0 };
+        let contact_time: f64 = shapes.iter().map(|s| s.contact_seconds).sum();
+        let contact_share = if contact_time > 0.0 { contact_time / (solve_time + contact_time) } else { 0.0 };
         Ok(TransferResult {
             deltas: shapes.iter().flat_map(|s| self.to_target_frame(&s.deltas)).collect(),
             inert: self.inert_names(source_deltas, names),
-            seconds: wall * (1.0 - collision_share),
-            collisions: self.collisions.is_some().then(|| shapes.iter().map(|s| s.collisions.unwrap_or_default()).collect()),
-            before_collisions: shapes.iter().map(|s| s.before_collisions.as_ref().map(|d| self.to_target_frame(d))).collect(),
-            collision_seconds: wall * collision_share + self.collision_setup_seconds,
+            seconds: wall * (1.0 - contact_share),
+            contact: self.contact.is_some().then(|| shapes.iter().map(|s| s.contact.unwrap_or_default()).collect()),
+            before_contact: shapes.iter().map(|s| s.before_contact.as_ref().map(|d| self.to_target_frame(d))).collect(),
+            contact_seconds: wall * contact_share + self.contact_setup_seconds,
         })
     }
 
@@ -319,10 +301,10 @@ impl DeformationTransfer {
     /// shape `delta` fixed at zero and floating pieces placed by their carried-over motion.
     /// `gradient` is asked only for triangles with a moving corner: the others touch only
     /// eliminated rows.
-    /// Personalisation calls this without the collision pass: its shapes follow the training
+    /// Personalisation calls this without the contact solve: its shapes follow the training
     /// expressions, which are the character's truth (a scan's pressed lips stay pressed).
     pub(super) fn solve_shape(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_traced(delta, gradient, None)?.deltas)
+        Ok(self.solve_shape_traced(delta, gradient, false)?.deltas)
     }
 
     /// [`Self::solve_shape`] with the virtual-edge springs aiming at `edge_changes` (one
@@ -334,7 +316,7 @@ impl DeformationTransfer {
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: &[Vec3],
     ) -> ShapesmithResult<Vec<Vec3>> {
-        Ok(self.solve_shape_aiming(delta, gradient, Some(edge_changes), None)?.deltas)
+        Ok(self.solve_shape_aiming(delta, gradient, Some(edge_changes), false)?.deltas)
     }
 
     /// `f_k - f_0` of every virtual edge for the source shape `delta` ([`Self::edge_change`]).
@@ -349,26 +331,10 @@ impl DeformationTransfer {
             .collect()
     }
 
-    /// The virtual-edge springs of the source shape `delta` as the shape's system has them:
-    /// `(i, j, w_ve, w_ve (f_k - f_0))` ([`Self::edge_change`]).
-    pub(super) fn springs(&self, delta: &[[f32; 3]]) -> Vec<(usize, usize, f64, Vec3)> {
-        self.virtual_edges
-            .iter()
-            .zip(self.edge_changes(delta))
-            .map(|(&(i, j), change)| (i as usize, j as usize, self.edge_weight, scale(change, self.edge_weight)))
-            .collect()
-    }
-
-    /// [`Self::solve_shape`], followed by the collision pass when `collisions` is given and the
-    /// pass is configured (with the template shape's curve, when known), with the deltas before
-    /// the pass and what it did.
-    pub(super) fn solve_shape_traced(
-        &self,
-        delta: &[[f32; 3]],
-        gradient: impl Fn(usize) -> Mat3,
-        collisions: Option<Option<TemplateCurve>>,
-    ) -> ShapesmithResult<SolvedShape> {
-        self.solve_shape_aiming(delta, gradient, None, collisions)
+    /// [`Self::solve_shape`], followed by the contact solve when `contact` is asked for and
+    /// configured, with the deltas before it and what it did.
+    pub(super) fn solve_shape_traced(&self, delta: &[[f32; 3]], gradient: impl Fn(usize) -> Mat3, contact: bool) -> ShapesmithResult<SolvedShape> {
+        self.solve_shape_aiming(delta, gradient, None, contact)
     }
 
     /// [`Self::solve_shape_traced`], the springs aiming at `edge_changes` when given.
@@ -377,7 +343,7 @@ impl DeformationTransfer {
         delta: &[[f32; 3]],
         gradient: impl Fn(usize) -> Mat3,
         edge_changes: Option<&[Vec3]>,
-        collisions: Option<Option<TemplateCurve>>,
+        contact: bool,
     ) -> ShapesmithResult<SolvedShape> {
         let start = Instant::now();
         let n = self.n_vertices();
@@ -412,20 +378,17 @@ impl DeformationTransfer {
             self.place_floating_pieces(delta, &pinned, &mut out);
         }
         let solve_seconds = start.elapsed().as_secs_f64();
-        let (Some(guard), Some(template_curve)) = (self.collisions.as_ref(), collisions) else {
-            return Ok(SolvedShape { deltas: out, before_collisions: None, collisions: None, solve_seconds, collision_seconds: 0.0 });
+        let Some(guard) = self.contact.as_ref().filter(|_| contact) else {
+            return Ok(SolvedShape { deltas: out, before_contact: None, contact: None, solve_seconds, contact_seconds: 0.0 });
         };
         let plain = out.clone();
-        let rest = AddedCurve::crossing(&guard.rest_penetration);
-        let allowed = template_curve.map(|t| t.scaled(self.template_to_target).allowed(&rest));
-        let shape = ShapeSystem { delta, moving: &moving, pinned: &pinned, rhs: &rhs, allowed };
-        let outcome = self.collision_pass(guard, &shape, &factor, &mut out)?;
+        let outcome = self.contact_solve(guard, delta, &moving, &mut out)?;
         Ok(SolvedShape {
-            before_collisions: outcome.applied.then_some(plain),
+            before_contact: outcome.applied.then_some(plain),
             deltas: out,
-            collisions: Some(outcome),
+            contact: Some(outcome),
             solve_seconds,
-            collision_seconds: start.elapsed().as_secs_f64() - solve_seconds,
+            contact_seconds: start.elapsed().as_secs_f64() - solve_seconds,
         })
     }
 
@@ -525,7 +488,7 @@ impl DeformationTransfer {
 
 impl SolvedShape {
     fn inert(n: usize) -> Self {
-        Self { deltas: vec![[0.0; 3]; n], before_collisions: None, collisions: None, solve_seconds: 0.0, collision_seconds: 0.0 }
+        Self { deltas: vec![[0.0; 3]; n], before_contact: None, contact: None, solve_seconds: 0.0, contact_seconds: 0.0 }
     }
 }
 
@@ -536,21 +499,11 @@ fn validate_params(params: &TransferParams) -> ShapesmithResult<()> {
     if !(0.0..1.0).contains(&params.static_fraction) {
         return Err(invalid!("static_fraction must lie in [0, 1), got {}", params.static_fraction));
     }
-    if let Some(c) = &params.collisions {
-        if !(c.margin.is_finite() && (0.0..=MAX_MARGIN).contains(&c.margin)) {
-            return Err(invalid!("the collision margin must lie in [0, {MAX_MARGIN}] (a fraction of the local edge length), got {}", c.margin));
-        }
-        if !(c.min_margin.is_finite() && (0.0..=MAX_MIN_MARGIN).contains(&c.min_margin)) {
+    if let Some(c) = &params.contact {
+        if !(c.distance.is_finite() && c.distance > 0.0 && c.distance <= MAX_CONTACT_DISTANCE) {
             return Err(invalid!(
-                "the collision pass's least margin must lie in [0, {MAX_MIN_MARGIN}] (a fraction of the bounding-box diagonal), got {}",
-                c.min_margin
-            ));
-        }
-        if !(c.stiffness.is_finite() && c.stiffness > 0.0) || c.max_iterations > 20 {
-            return Err(invalid!(
-                "collision stiffness must be positive and iterations at most 20, got {} and {}",
-                c.stiffness,
-                c.max_iterations
+                "the contact distance must lie in (0, {MAX_CONTACT_DISTANCE}] (a fraction of the local edge length), got {}",
+                c.distance
             ));
         }
     }
@@ -595,12 +548,9 @@ fn piece_scales(source: &[Vec3], target: &[Vec3], piece: &[u32], n_pieces: usize
 /// allowed (docs/design_transfer.md, "The template's curve read in the target's units").
 pub const OTHER_UNITS: f64 = 1.5;
 
-/// The largest collision margin accepted, in local edge lengths: beyond it the kept distance
-/// would exceed the lips' own thickness on most heads.
-pub const MAX_MARGIN: f64 = 2.0;
-
-/// The largest least margin accepted, in bounding-box diagonals (1% of a head is 3-4 mm).
-pub const MAX_MIN_MARGIN: f64 = 0.02;
+/// The largest contact distance accepted, in local edge lengths: beyond it surfaces would be
+/// held apart by more than the lips' own thickness on most heads.
+pub const MAX_CONTACT_DISTANCE: f64 = 2.0;
 
 /// Every per-triangle result, or the error of the first triangle that has none.
 fn first_degenerate<T>(per_triangle: Vec<Option<T>>, error: impl Fn(usize) -> ShapesmithError) -> ShapesmithResult<Vec<T>> {

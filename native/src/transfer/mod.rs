@@ -43,21 +43,15 @@
 //!   barely moves keeps the target's rest vector; self-transfer is exact (`A = I`, `f_0 = e_0`).
 //! - **`w_ve = 3`**: the springs hold the template's final gap, so they need more pull than 1
 //!   against the gradient term (the two-layer lip test in `tests.rs`).
-//! - **Collision-aware pass** ([`CollisionParams`], `collisions/`; method, section 3, beyond paper 004),
-//!   on by default: a shape adding more intersection curve than the template's own, per part
-//!   ([`AddedCurve::excess`]), has the vertices that went through held on their rest side and
-//!   is re-solved locally; the round with least excess is kept, and a shape no worse (or that
-//!   no round improves) comes out bit for bit as without the pass.
-//! - **Margin** `max(0.25 x local mean edge length, 0.001 x bbox diagonal)`: the method's quarter
-//!   edge, with a floor against very short edges.
+//! - **Contact as one solve** ([`ContactParams`], `contact.rs`; method, section 3, beyond paper
+//!   004), when asked for: a shape adding a crossing beyond its neutral's and the template
+//!   shape's own contacts is solved again with the IPC barrier around the added crossings;
+//!   every other shape comes out bit for bit as without it.
 //! - **Personalisation** follows EBFR in the gradient domain as a Gaussian MAP fit per
 //!   triangle (equations and deviations in `personalise.rs`).
 //!
-//! Not met: the whole call on a 25k-vertex head takes about 1.3-1.5 s against the method's 0.5 s,
-//! most of it the collision pass's sweeps (docs/design_transfer.md, "Speed").
-
 mod alignment;
-mod collisions;
+mod contact;
 mod deformation;
 mod gradients;
 mod personalise;
@@ -65,8 +59,9 @@ mod report;
 mod system;
 mod virtual_edges;
 
-pub use collisions::{AddedCurve, CollisionOutcome, CollisionParams, TemplateCurve};
-pub use deformation::{DeformationTransfer, MAX_MARGIN};
+pub use crate::geometry::penetration::{AddedCurve, TemplateCurve};
+pub use contact::{ContactOutcome, ContactParams};
+pub use deformation::{DeformationTransfer, MAX_CONTACT_DISTANCE};
 pub use crate::geometry::penetration::{measure_penetration, Penetration, PenetrationBaseline};
 pub use personalise::{PersonaliseParams, Personalisation};
 pub use report::{
@@ -88,9 +83,9 @@ pub struct TransferParams {
     pub static_fraction: f64,
     /// Solve in the source's orientation (Kabsch) so that a rotated target gets rotated shapes.
     pub align_rotation: bool,
-    /// The collision-aware pass after each shape's solve (on by default); `None` leaves the
-    /// solve as it is.
-    pub collisions: Option<CollisionParams>,
+    /// The contact solve after each shape's solve; `None` (the default) leaves the solve as it
+    /// is: on the bench heads the solve costs hundreds of times the transfer (docs/design_transfer.md).
+    pub contact: Option<ContactParams>,
 }
 
 impl Default for TransferParams {
@@ -98,9 +93,9 @@ impl Default for TransferParams {
         Self {
             virtual_edges: Some(VirtualEdgeParams::default()),
             edge_weight: 3.0,
-            static_fraction: 1e-4,
+            static_fraction: 1e-5,
             align_rotation: true,
-            collisions: Some(CollisionParams::default()),
+            contact: None,
         }
     }
 }
@@ -112,20 +107,20 @@ pub struct TransferResult {
     pub deltas: Vec<[f32; 3]>,
     /// Shapes that do not move in the source (their deltas are zero).
     pub inert: Vec<String>,
-    /// Wall-clock seconds of the per-shape solves (the collision pass's share excluded).
+    /// Wall-clock seconds of the per-shape solves (the contact solves' share excluded).
     pub seconds: f64,
-    /// Per shape, what the collision pass did; `None` when the pass is off.
-    pub collisions: Option<Vec<CollisionOutcome>>,
-    /// Per shape, K entries: the deltas (N rows) before the collision pass, for the shapes it
+    /// Per shape, what the contact solve did; `None` when contact is off.
+    pub contact: Option<Vec<ContactOutcome>>,
+    /// Per shape, K entries: the deltas (N rows) before the contact solve, for the shapes it
     /// changed.
     #[serde(skip)]
-    pub before_collisions: Vec<Option<Vec<[f32; 3]>>>,
-    /// Wall-clock seconds of the collision pass (its share of the shapes' solves, plus the
-    /// sweep of the target neutral).
-    pub collision_seconds: f64,
+    pub before_contact: Vec<Option<Vec<[f32; 3]>>>,
+    /// Wall-clock seconds of the contact solves (their share of the shapes' solves, plus the
+    /// setup on the two neutrals).
+    pub contact_seconds: f64,
 }
 
 #[cfg(test)]
-mod collision_tests;
+mod contact_tests;
 #[cfg(test)]
 mod tests;

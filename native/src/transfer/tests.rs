@@ -93,9 +93,9 @@ fn head_shapes(pts: &[[f32; 3]], pieces: &Pieces) -> (Vec<[f32; 3]>, Vec<String>
     (deltas, names)
 }
 
-/// Plain deformation transfer: no virtual edges, no collision pass.
+/// Plain deformation transfer: no virtual edges, no contact solve.
 pub(super) fn plain() -> TransferParams {
-    TransferParams { virtual_edges: None, collisions: None, ..Default::default() }
+    TransferParams { virtual_edges: None, contact: None, ..Default::default() }
 }
 
 pub(super) fn max_error(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {

@@ -73,12 +73,13 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
 
     // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
     // Each split of the range keeps one scratch, ball and list for all its vertices.
-    let mut uncertain: Vec<(f64, u32, u32)> = (0..n)
+    let mut uncertain: Vec<(f64, u32, u32)> = spatial_order(&points)
         .into_par_iter()
         .with_min_len(512) // each split allocates its own O(N) scratch
         .fold(
             || (SurfaceSearch::new(n), Vec::new(), Vec::new()),
             |(mut search, mut ball, mut open), i| {
+                let i = i as usize;
                 ball.clear();
                 ball.extend(trees.within(labels[i], points[i], radius).filter(|&(j, d)| j != i && d < radius));
                 search.not_proven_close(&graph, i, &ball, params.tau_r, &mut open);
@@ -222,6 +223,30 @@ impl ClosePaths {
         }
         None
     }
+}
+
+/// The vertices along a Z-order curve over the bounding box, so that the balls searched one
+/// after the other overlap and their vertices stay in cache (the production bench's 77k
+/// target, one thread: 1.58 -> 1.37 CPU-seconds; subdivided meshes number their vertices by
+/// level, not by place).
+fn spatial_order(points: &[[f64; 3]]) -> Vec<u32> {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let cells = f64::from(1u32 << 10);
+    let code = |p: &[f64; 3]| {
+        (0..3).fold(0u32, |code, a| {
+            let cell = ((p[a] - lo[a]) / (hi[a] - lo[a]).max(f64::MIN_POSITIVE) * cells).clamp(0.0, cells - 1.0) as u32;
+            (0..10).fold(code, |code, bit| code | ((cell >> bit) & 1) << (3 * bit + a))
+        })
+    };
+    let mut order: Vec<(u32, u32)> = points.iter().enumerate().map(|(v, p)| (code(p), v as u32)).collect();
+    order.sort_unstable();
+    order.into_iter().map(|(_, v)| v).collect()
 }
 
 fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -574,7 +599,7 @@ pub(crate) mod tests {
     }
 
     /// The paper's definition, computed the slow way: full Dijkstra from every vertex, every
-    /// close pair with `g > tau_r d` kept, then the same thinning, shortest first.
+    /// close pair of one piece with `g > tau_r d` kept, then the same thinning, shortest first.
     fn by_definition(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: &VirtualEdgeParams) -> Vec<(u32, u32)> {
         let n = neutral.len();
         let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
@@ -593,7 +618,8 @@ pub(crate) mod tests {
             }
             for j in i + 1..n {
                 let d = distance(&points[i], &points[j]);
-                if d < radius && g[j] > params.tau_r * d {
+                // Another piece (no path at all) is no candidate.
+                if d < radius && g[j].is_finite() && g[j] > params.tau_r * d {
                     far.push((d, i as u32, j as u32));
                 }
             }
@@ -661,6 +687,45 @@ pub(crate) mod tests {
             let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
             let expected = by_definition(&pts, &tris, &params);
             assert!(expected.iter().any(|&(i, _)| i < offset) && expected.iter().any(|&(i, _)| i >= offset), "tau_d {tau_d}: both pieces need edges");
+            assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
+        }
+    }
+
+    #[test]
+    fn crossing_lips_among_many_pieces_give_the_edges_of_the_definition() {
+        // A folded strip whose upper layer dips through the lower one mid-way (lips crossing
+        // at rest), a second strip across it and a small one threaded through both (pieces
+        // crossing the skin, as lashes and gums do), jittered: close pairs on both sides of
+        // the crossing, far pairs between the layers, and other pieces within every ball.
+        let (lips, lips_tris) = folded_strip(12, 0.04);
+        let mut pts: Vec<[f32; 3]> = lips
+            .iter()
+            .map(|&[x, y, z]| {
+                let dip = if z > 0.02 && y.abs() < 0.45 { 0.08 * (1.0 - (x - 0.55).abs() / 0.3).max(0.0) } else { 0.0 };
+                [x, y, z - dip]
+            })
+            .collect();
+        let mut tris = lips_tris;
+        for (section, gap, place) in [(8, 0.05, [0.3f32, -0.2, -0.05]), (5, 0.02, [0.5, 0.1, 0.0])] {
+            let (piece, piece_tris) = folded_strip(section, gap);
+            let offset = pts.len() as u32;
+            pts.extend(piece.iter().map(|p| [place[0] + p[1] * 0.6, place[1] + p[0], place[2] + p[2]]));
+            tris.extend(piece_tris.iter().map(|t| t.map(|v| v + offset)));
+        }
+        let mut state = 424242u64;
+        for p in pts.iter_mut() {
+            for coordinate in p.iter_mut() {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                *coordinate += ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.01;
+            }
+        }
+        let (labels, pieces) = connected_components(pts.len(), &tris);
+        assert_eq!(pieces, 3);
+        for (tau_d, tau_r) in [(0.03, 4.0), (0.06, 4.0), (0.1, 3.0), (0.2, 1.5)] {
+            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
+            let expected = by_definition(&pts, &tris, &params);
+            let with_edges = (0..3).filter(|&piece| expected.iter().any(|&(i, _)| labels[i as usize] == piece)).count();
+            assert!(with_edges >= 2, "tau_d {tau_d}: edges on {with_edges} pieces");
             assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
         }
     }

@@ -23,13 +23,7 @@ const MAX_ADVANCES: usize = 100_000;
 /// (point-triangle), or `x[0]x[1]` and `x[2]x[3]` the edges (edge-edge). The pair must be
 /// apart at `x`.
 pub fn additive_ccd(kind: PairKind, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], t_max: f64) -> f64 {
-    let mean: [f64; 3] = std::array::from_fn(|a| dx.iter().map(|p| p[a]).sum::<f64>() / 4.0);
-    let relative: [[f64; 3]; 4] = std::array::from_fn(|p| std::array::from_fn(|a| dx[p][a] - mean[a]));
-    let norm = |p: usize| dot(relative[p], relative[p]).sqrt();
-    let l_p = match kind {
-        PairKind::PointTriangle => norm(0) + norm(1).max(norm(2)).max(norm(3)),
-        PairKind::EdgeEdge { .. } => norm(0).max(norm(1)) + norm(2).max(norm(3)),
-    };
+    let (relative, l_p) = relative_motion(kind, dx);
     if l_p == 0.0 {
         return t_max;
     }
@@ -54,6 +48,20 @@ pub fn additive_ccd(kind: PairKind, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], t_max
         }
     }
     t
+}
+
+/// The pair's step `dx` with its mean removed, and `l_p`: no point of one primitive closes on
+/// the other faster than `l_p` along the whole step, so the pair's distance at `x + t dx` is
+/// at least its distance at `x` less `t l_p`.
+pub fn relative_motion(kind: PairKind, dx: &[[f64; 3]; 4]) -> ([[f64; 3]; 4], f64) {
+    let mean: [f64; 3] = std::array::from_fn(|a| dx.iter().map(|p| p[a]).sum::<f64>() / 4.0);
+    let relative: [[f64; 3]; 4] = std::array::from_fn(|p| std::array::from_fn(|a| dx[p][a] - mean[a]));
+    let norm = |p: usize| dot(relative[p], relative[p]).sqrt();
+    let l_p = match kind {
+        PairKind::PointTriangle => norm(0) + norm(1).max(norm(2)).max(norm(3)),
+        PairKind::EdgeEdge { .. } => norm(0).max(norm(1)) + norm(2).max(norm(3)),
+    };
+    (relative, l_p)
 }
 
 #[cfg(test)]

@@ -13,9 +13,11 @@
 
 use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_psd, PairKind};
 use super::broad::{Box3, BoxTree};
-use super::ccd::additive_ccd;
+use super::ccd::{additive_ccd, relative_motion};
 use super::dual::N;
 use super::exemptions::Exemptions;
+use rustc_hash::FxHashMap;
+
 use crate::error::ShapesmithResult;
 use crate::geometry::mat3::sub;
 use crate::sparse::{MatrixRows, SymmetricMatrix};
@@ -36,13 +38,22 @@ pub struct ContactMesh<'a> {
     pub exempt: &'a Exemptions,
 }
 
-/// One non-exempt pair: its kind and vertices (`[p, t0, t1, t2]` or `[a0, a1, b0, b1]`), and
-/// `s_hat = d_hat^2`.
+/// The pairs met so far in one solve, by kind (edge-edge or not) and vertices: each pair's
+/// [`ContactMesh::pair`] (`None` when exempt).
+pub type KnownPairs = FxHashMap<(bool, [u32; 4]), Option<Pair>>;
+
+/// One non-exempt pair: its kind and vertices (`[p, t0, t1, t2]` or `[a0, a1, b0, b1]`),
+/// `s_hat = d_hat^2` (or less, below) and the barrier's weight.
 #[derive(Clone, Copy, Debug)]
 pub struct Pair {
     pub kind: PairKind,
     pub vertices: [u32; 4],
     pub s_hat: f64,
+    /// `(d_hat^2 / s_hat)^2`: `b` grows as `s_hat^2`, so a pair whose range is cut below
+    /// `d_hat` is weighted back to push as hard near contact as any other; unweighted, lips
+    /// resting a thousandth of `d_hat` apart would be held by a barrier `1e-12` as strong,
+    /// squeezed to where positions written in single precision cross.
+    pub weight: f64,
 }
 
 impl Pair {
@@ -76,15 +87,27 @@ impl ContactMesh<'_> {
         if closest == 0.0 {
             return None;
         }
-        Some(Pair { kind, vertices, s_hat: s_hat.min(0.25 * closest) })
+        let cut = s_hat.min(0.25 * closest);
+        Some(Pair { kind, vertices, s_hat: cut, weight: (s_hat / cut).powi(2) })
     }
 
     /// The non-exempt pairs with a vertex in `region` whose boxes, swept from `x` to
     /// `x + step` and grown by `d_hat`, meet: every pair that can come within `d_hat` or touch
-    /// along the step.
-    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool]) -> Vec<Pair> {
+    /// along the step. A pair's exemption, range and weight depend on its vertices alone:
+    /// `known` keeps them across the calls of one solve.
+    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], known: &mut KnownPairs) -> Vec<Pair> {
         let mut pairs = Vec::new();
-        self.broad_phase(x, step, in_region, |kind, vertices| pairs.extend(self.pair(kind, vertices)));
+        self.broad_phase(x, step, in_region, |kind, vertices| {
+            // Boxes meet far more often than primitives come close: a pair whose distance at
+            // `x`, less the most its step can close it, stays beyond `d_hat` is none.
+            let d_hat = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
+            let (_, closing) = relative_motion(kind, &vertices.map(|v| step[v as usize]));
+            if pair_squared(kind, &vertices.map(|v| x[v as usize])).sqrt() - closing >= d_hat {
+                return;
+            }
+            let key = (matches!(kind, PairKind::EdgeEdge { .. }), vertices);
+            pairs.extend(*known.entry(key).or_insert_with(|| self.pair(kind, vertices)));
+        });
         pairs
     }
 
@@ -152,7 +175,7 @@ pub struct NewtonParams {
 
 impl Default for NewtonParams {
     fn default() -> Self {
-        Self { tolerance: 1e-3, max_iterations: 100 }
+        Self { tolerance: 1e-2, max_iterations: 100 }
     }
 }
 
@@ -210,14 +233,19 @@ pub fn solve(
         }
         e
     };
-    let energy = |x: &[[f64; 3]], pairs: &[Pair]| quadratic(x) + kappa * pairs.iter().map(|p| pair_energy(p.kind, &p.points(x), p.s_hat)).sum::<f64>();
+    let energy = |x: &[[f64; 3]], pairs: &[Pair]| quadratic(x) + kappa * pairs.iter().map(|p| p.weight * pair_energy(p.kind, &p.points(x), p.s_hat)).sum::<f64>();
     let zero = vec![[0.0; 3]; n];
     let mut order: Option<Vec<usize>> = None;
     let mut result = NewtonResult::default();
     let mut step = zero.clone();
+    let mut known = KnownPairs::default();
+    // The pairs that can be within `d_hat` of each other at `x`: at the start, those of `x`
+    // itself; after a step, those swept along it (they hold every pair that came close on the
+    // way, so one broad phase per iteration serves both the line search and the next
+    // derivatives).
+    let mut pairs = mesh.candidates(&x, &zero, &in_region, &mut known);
     for iteration in 0..params.max_iterations {
         result.iterations = iteration + 1;
-        let pairs = mesh.candidates(&x, &zero, &in_region);
         // Gradient and Hessian.
         let mut gradient = vec![0.0; 3 * region.len()];
         let mut entries: Vec<(usize, usize, f64)> = Vec::new();
@@ -256,11 +284,11 @@ pub fn solve(
             };
             for i in 0..N {
                 let Some(r) = dof(i) else { continue };
-                gradient[r] += kappa * d.g[i];
+                gradient[r] += kappa * pair.weight * d.g[i];
                 for j in 0..N {
                     if let Some(c) = dof(j) {
                         if r >= c && h[i][j] != 0.0 {
-                            entries.push((r, c, kappa * h[i][j]));
+                            entries.push((r, c, kappa * pair.weight * h[i][j]));
                         }
                     }
                 }
@@ -284,7 +312,7 @@ pub fn solve(
             break;
         }
         // The largest safe step along the direction, then Armijo backtracking.
-        let swept = mesh.candidates(&x, &step, &in_region);
+        let swept = mesh.candidates(&x, &step, &in_region, &mut known);
         let mut alpha = swept.iter().map(|p| additive_ccd(p.kind, &p.points(&x), &p.vertices.map(|v| step[v as usize]), 1.0)).fold(1.0, f64::min);
         let e0 = energy(&x, &swept);
         let slope: f64 = region.iter().enumerate().map(|(s, &v)| (0..3).map(|c| gradient[3 * s + c] * step[v][c]).sum::<f64>()).sum();
@@ -303,6 +331,7 @@ pub fn solve(
             next = trial(alpha);
         }
         x = next;
+        pairs = swept;
     }
     result.positions = x;
     Ok(result)

@@ -1,6 +1,6 @@
 """The transfer's collision pass on heads resembling production rigs, run with the bpy Python:
 
-    python scripts/bench_collision_pass.py [-- --json OUT.json] [--runs R]
+    python scripts/bench_contact.py [-- --json OUT.json] [--runs R]
 
 The heads are made by code from the cached sample as scripts/production_heads.py makes them:
 `many_<target>` (82 pieces crossing the skin at rest: helper pieces grown and moved to the
@@ -26,7 +26,7 @@ sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
 import production_heads  # noqa: E402
 
-WORSE = 1e-3  # of the target's bounding-box diagonal, as collision_counts and the panel judge
+WORSE = 1e-3  # of the target's bounding-box diagonal, as contact_counts and the panel judge
 
 
 def heads(rig, targets, rest_positions):
@@ -67,7 +67,7 @@ def bench_head(nat, names, arrays, runs):
     best = {"default": None, "virtual edges alone": None}
     reports = {}
     for _ in range(runs):
-        for label, settings in (("default", None), ("virtual edges alone", {"transfer": {"collisions": None}})):
+        for label, settings in (("default", None), ("virtual edges alone", {"transfer": {"contact": None}})):
             start = time.perf_counter()
             _, report = nat.transfer_shapes(source, deltas, target, triangles, names, settings, template_penetration=template)
             wall = time.perf_counter() - start
@@ -81,15 +81,15 @@ def bench_head(nat, names, arrays, runs):
         "default_seconds": best["default"],
         "virtual_edges_seconds": best["virtual edges alone"],
         "ratio": best["default"] / best["virtual edges alone"],
-        "pass_seconds": default["seconds"]["collisions"],
-        "worse_virtual_edges": worse(default, diagonal, "before_collisions_excess"),
+        "pass_seconds": default["seconds"]["contact"],
+        "worse_virtual_edges": worse(default, diagonal, "before_contact_excess"),
         "worse_with_pass": worse(default, diagonal, "excess"),
     }
 
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    parser = argparse.ArgumentParser(prog="bench_collision_pass.py --")
+    parser = argparse.ArgumentParser(prog="bench_contact.py --")
     cache = os.environ.get("SHAPESMITH_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "shapesmith"))
     parser.add_argument("--json", default=os.path.join(cache, "bench", "collision_pass.json"))
     parser.add_argument("--runs", type=int, default=3, help="runs of each variant, alternately (best taken)")

@@ -1,9 +1,9 @@
 //! Counts the shapes worse than the template by the criterion of method, section 3, plain, with virtual
-//! edges before the collision pass and after it, on the arrays
-//! `scripts/save_collision_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
+//! edges before the contact solve and after it, on the arrays
+//! `scripts/save_contact_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
 //! --save-arrays DIR`, or `scripts/production_heads.py DIR` from those):
 //!
-//!     cargo run --release --example collision_counts -- DIR/<head> [DIR/names.txt]
+//!     cargo run --release --example contact_counts -- DIR/<head> [DIR/names.txt]
 //!
 //! The criterion as the native report computes it (`excess`, read by the add-on): per
 //! part (inside one piece, between pieces), the curve the shape adds to the target's neutral
@@ -16,7 +16,7 @@
 //! ground truth makes them), it also prints the warp error, mean over shapes of the mean
 //! error on each shape's active vertices / diagonal, with virtual edges and with the pass.
 
-use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, AddedCurve, TransferShapesParams};
+use shapesmith_native::transfer::{measure_rig_penetration, ContactParams, transfer_shapes, AddedCurve, TransferShapesParams};
 use shapesmith_native::NoProgress;
 
 #[path = "common/arrays.rs"]
@@ -24,7 +24,7 @@ mod arrays;
 use arrays::{points, read};
 
 fn main() {
-    let dir = std::env::args().nth(1).expect("usage: collision_counts DIR [NAMES]");
+    let dir = std::env::args().nth(1).expect("usage: contact_counts DIR [NAMES]");
     let source = points(&format!("{dir}/source.f32"));
     let target = points(&format!("{dir}/target.f32"));
     let deltas = points(&format!("{dir}/deltas.f32"));
@@ -36,7 +36,8 @@ fn main() {
     };
     assert_eq!(names.len(), count, "one name per shape");
     let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
-    let params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
+    let mut params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
+    params.transfer.contact = Some(ContactParams::default());
     let started = std::time::Instant::now();
     let (_, report) =
         transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress).expect("transfer");
@@ -50,7 +51,7 @@ fn main() {
             // The report's own criterion (`AddedCurve::excess_parts`), as the add-on reads it.
             let AddedCurve { inside, between } = match label {
                 "plain" => row.plain_excess.expect("compare_plain"),
-                "virtual edges" => row.before_collisions_excess.unwrap_or(row.excess),
+                "virtual edges" => row.before_contact_excess.unwrap_or(row.excess),
                 _ => row.excess,
             };
             added += inside + between;
@@ -63,7 +64,7 @@ fn main() {
         }
         line.push(format!("{label} {worse} ({added:.3} m)"));
     }
-    println!("{}: {}; wall {wall:.2} s, pass {:.2} s", dir.rsplit('/').next().unwrap_or(&dir), line.join(", "), report.seconds.collisions);
+    println!("{}: {}; wall {wall:.2} s, pass {:.2} s", dir.rsplit('/').next().unwrap_or(&dir), line.join(", "), report.seconds.contact);
     let rest = |p: Option<shapesmith_native::transfer::Penetration>| p.map_or(0, |p| p.pairs);
     let pieces = shapesmith_native::geometry::topology::connected_components(source.len(), &triangles).1;
     println!(
@@ -78,7 +79,7 @@ fn main() {
     }
     let truth = points(&truth_path);
     let mut plain_params = params;
-    plain_params.transfer.collisions = None;
+    plain_params.transfer.contact = None;
     plain_params.measure_penetration = false;
     plain_params.compare_plain = false;
     let (without, _) =

@@ -1,6 +1,6 @@
-"""Writes the arrays `native/examples/collision_counts.rs` reads, run with the bpy Python:
+"""Writes the arrays `native/examples/contact_counts.rs` reads, run with the bpy Python:
 
-    python scripts/save_collision_arrays.py -- DIR
+    python scripts/save_contact_arrays.py -- DIR
 
 DIR/<head>/ for each Target_* head of the cached sample, for the 19k and 25k heads of
 scripts/bench_transfer.py (its subdivided Template / first target pairs), and DIR/warp/ for
@@ -10,7 +10,7 @@ moving vertices and two rings around them, no eyes, teeth or lashes; what a face
 is); DIR/names.txt holds the template's shape names, one
 a line. Then
 
-    cargo run --release --example collision_counts -- DIR/<head> DIR/names.txt
+    cargo run --release --example contact_counts -- DIR/<head> DIR/names.txt
 
 prints the shapes worse than the template plain, with virtual edges and
 with the collision pass, and on DIR/warp the warp error with and without the pass.
@@ -34,7 +34,7 @@ import makehuman  # noqa: E402
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     if len(argv) != 1:
-        raise SystemExit("usage: save_collision_arrays.py -- DIR")
+        raise SystemExit("usage: save_contact_arrays.py -- DIR")
     out = argv[0]
     shapesmith = batch.load_shapesmith()
     mesh_arrays = import_module(shapesmith.__name__ + ".blender.mesh_arrays")
