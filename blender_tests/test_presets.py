@@ -122,7 +122,7 @@ def test_the_tables_in_this_test_name_each_arkit_shape_once():
 def test_the_rig_menu_lists_the_shipped_presets_beside_the_users_and_keeps_them(shapesmith):
     settings = bpy.context.scene.shapesmith
     settings.name_map.clear()
-    assert bpy.ops.shapesmith.add_rig_preset(name="Studio Heads") == {"FINISHED"}
+    assert bpy.ops.shapesmith.add_rig_preset(name="Our Studio") == {"FINISHED"}
     calls = []
 
     class Layout:
@@ -139,13 +139,13 @@ def test_the_rig_menu_lists_the_shipped_presets_beside_the_users_and_keeps_them(
                               **members})
     bpy.types.Menu.draw_preset(drawn(), bpy.context)
     listed = [text for method, text in calls if method == "operator" and text]
-    assert set(SHIPPED) | {"Studio Heads"} <= set(listed), listed
+    assert set(SHIPPED) | {"Our Studio"} <= set(listed), listed
 
     shipped = bpy.utils.preset_find("Character Creator", "shapesmith/rig", display_name=True)
     assert bpy.ops.shapesmith.add_rig_preset(name="Character Creator", remove_name=True) == {"CANCELLED"}
     assert os.path.isfile(shipped)
-    assert bpy.ops.shapesmith.add_rig_preset(name="Studio Heads", remove_name=True) == {"FINISHED"}
-    assert "Studio Heads" not in module(shapesmith, "ui.presets").preset_names("rig")
+    assert bpy.ops.shapesmith.add_rig_preset(name="Our Studio", remove_name=True) == {"FINISHED"}
+    assert "Our Studio" not in module(shapesmith, "ui.presets").preset_names("rig")
 
 
 @pytest.mark.parametrize("menu_name", list(SHIPPED))
@@ -192,7 +192,7 @@ def test_batch_name_map_takes_a_shipped_or_saved_presets_name(sample, shapesmith
     settings.name_map.clear()
     row = settings.name_map.add()
     row.theirs, row.standard = "myJaw", "jawOpen"
-    assert bpy.ops.shapesmith.add_rig_preset(name="Studio Heads") == {"FINISHED"}
+    assert bpy.ops.shapesmith.add_rig_preset(name="Our Studio") == {"FINISHED"}
     settings.name_map.clear()
     take = str(tmp_path / "take.csv")
     write_capture(take, list(renamed))
@@ -210,8 +210,8 @@ def test_batch_name_map_takes_a_shipped_or_saved_presets_name(sample, shapesmith
     bpy.ops.wm.open_mainfile(filepath=out)  # the saved copy keeps the table, as picking the preset does
     assert module(shapesmith, "blender.names").scene_name_map(bpy.context.scene)["Mouth_Funnel_Up_L"] == "mouthFunnel_L"
     assert used() == {"eyeLookInLeft": ["Eye_L_Look_R"]}
-    assert used("--name-map", "Studio Heads") == {"eyeLookInLeft": ["Eye_L_Look_R"], "jawOpen": ["myJaw"]}
+    assert used("--name-map", "Our Studio") == {"eyeLookInLeft": ["Eye_L_Look_R"], "jawOpen": ["myJaw"]}
     bad = run_batch("import-capture", "--input", blend, "--object", "Template", "--capture", take, "--output", out,
                     "--name-map", "Genesis 12")
     assert bad.returncode == 2 and "name map not found" in bad.stderr and "Character Creator" in bad.stderr, bad.stderr
-    assert bpy.ops.shapesmith.add_rig_preset(name="Studio Heads", remove_name=True) == {"FINISHED"}
+    assert bpy.ops.shapesmith.add_rig_preset(name="Our Studio", remove_name=True) == {"FINISHED"}
