@@ -30,7 +30,7 @@ def pytest_unconfigure(config):
     (exit code 139 with every test passed). Emptying the caches lets `bpy` go in its turn."""
     import typing
 
-    for clear in typing._cleanups:
+    for clear in getattr(typing, "_cleanups", ()):  # private; absent, nothing to clear
         clear()
 
 
