@@ -63,6 +63,11 @@ impl Pair {
 }
 
 impl ContactMesh<'_> {
+    /// A pair's `d_hat`: the least of its four vertices'.
+    fn pair_d_hat(&self, vertices: [u32; 4]) -> f64 {
+        vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min)
+    }
+
     fn pair(&self, kind: PairKind, vertices: [u32; 4]) -> Option<Pair> {
         let (a, b): (&[u32], &[u32]) = match kind {
             PairKind::PointTriangle => (&vertices[..1], &vertices[1..]),
@@ -71,7 +76,7 @@ impl ContactMesh<'_> {
         if a.iter().any(|v| b.contains(v)) || self.exempt.primitives(a, b) {
             return None;
         }
-        let d_hat = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
+        let d_hat = self.pair_d_hat(vertices);
         let s_hat = d_hat * d_hat;
         let rest: [[f64; 3]; 4] = vertices.map(|v| self.rest[v as usize]);
         let kind = match kind {
@@ -100,7 +105,7 @@ impl ContactMesh<'_> {
         self.broad_phase(x, step, in_region, |kind, vertices| {
             // Boxes meet far more often than primitives come close: a pair whose distance at
             // `x`, less the most its step can close it, stays beyond `d_hat` is none.
-            let d_hat = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
+            let d_hat = self.pair_d_hat(vertices);
             let (_, closing) = relative_motion(kind, &vertices.map(|v| step[v as usize]));
             if pair_squared(kind, &vertices.map(|v| x[v as usize])).sqrt() - closing >= d_hat {
                 return;
