@@ -286,11 +286,11 @@ fn a_keys_contacts_are_the_far_pairs_of_its_pose_apart_at_rest() {
     let (labels, _) = connected_components(n, &tris);
     let adjacency = Adjacency::from_triangles(n, &tris);
     let diagonal = bbox_diagonal(&pts);
-    for (tau_d, tau_r) in [(0.01, 4.0), (0.03, 4.0), (0.03, 2.0)] {
+    for (tau_d, tau_r) in [(0.03, 4.0), (0.04, 4.0), (0.05, 4.0), (0.04, 2.0)] {
         let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
         let radius = tau_d * diagonal;
         let expected = by_definition_among(&posed, &tris, &params, radius, |i, j| (moving[i] || moving[j]) && distance(&rest[i], &rest[j]) >= radius);
-        assert!(expected.len() > 5, "tau_d {tau_d}: {} edges", expected.len());
+        assert!(expected.len() >= 4, "tau_d {tau_d}: {} edges", expected.len());
         assert_eq!(find_contact_edges(&rest, &key, &moving, &adjacency, &labels, diagonal, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
         // None at rest: the key made them.
         assert!(find_virtual_edges(&pts, &tris, &params).is_empty());
