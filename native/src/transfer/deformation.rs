@@ -378,7 +378,7 @@ impl DeformationTransfer {
             position[v] = kept;
             kept += 1;
         }
-        let contacts = self.key_contact_edges(delta, &moving);
+        let contacts = self.key_contact_edges(delta);
         let mut rhs = self.right_hand_side(delta, &moving, gradient, edge_changes);
         let mut springs = Vec::with_capacity(contacts.len());
         for &(i, j) in &contacts {
@@ -410,16 +410,16 @@ impl DeformationTransfer {
     }
 
     /// The virtual edges the template's key `delta` adds ([`find_contact_edges`] on the
-    /// template, `moving` its moving vertices), less the rest's own: springs this shape's
+    /// template), less the rest's own: springs this shape's
     /// solve adds to the matrix, each aiming as a rest virtual edge does ([`Self::edge_change`]).
     /// Where the key brings a pair into contact it moves the pair a lot, so `rho -> 0` and
     /// the pair ends where the template's ends, mapped into the target: lids the template
     /// closes meet on a target whose eyes are larger, which copying the lids' turns alone
     /// leaves open. A pair apart at rest on the template can still be a rest virtual edge of
     /// the target (its own opening narrower): one spring each.
-    pub(super) fn key_contact_edges(&self, delta: &[[f32; 3]], moving: &[bool]) -> Vec<(u32, u32)> {
+    pub(super) fn key_contact_edges(&self, delta: &[[f32; 3]]) -> Vec<(u32, u32)> {
         let Some((params, adjacency)) = &self.key_contacts else { return Vec::new() };
-        let mut edges = find_contact_edges(&self.source_neutral, delta, moving, adjacency, &self.piece, self.source_diagonal, params);
+        let mut edges = find_contact_edges(&self.source_neutral, delta, adjacency, &self.piece, self.source_diagonal, params);
         if !edges.is_empty() {
             let rest: std::collections::HashSet<(u32, u32)> = self.virtual_edges.iter().copied().collect();
             edges.retain(|e| !rest.contains(e));
