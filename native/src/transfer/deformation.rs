@@ -37,9 +37,10 @@ pub struct DeformationTransfer {
     /// Per vertex: the mean target-rest / source-rest gradient over its one-ring (the `A_ij`
     /// of a key's contact edges are means of two of these).
     vertex_rest_maps: Vec<Mat3>,
-    /// The search for each key's contacts ([`find_contact_edges`]) on the template, with its
-    /// edge graph; `None` without virtual edges.
-    key_contacts: Option<(VirtualEdgeParams, Adjacency)>,
+    /// The search for each key's contacts ([`find_contact_edges`]) on the template: its
+    /// parameters, the template's edge graph and the vertices resting in contact; `None`
+    /// without virtual edges.
+    key_contacts: Option<(VirtualEdgeParams, Adjacency, Vec<bool>)>,
     edge_weight: f64,
     /// Original target orientation = `rotation` x working frame.
     rotation: Mat3,
@@ -137,11 +138,13 @@ impl DeformationTransfer {
         // (the thinning, the hierarchy builds) overlap. Their wall time is split between the
         // two in proportion to the seconds each took, as the shapes' solves and pass are.
         let joined_start = Instant::now();
-        let ((virtual_edges, edge_own), (contact, guard_own)) = rayon::join(
+        let (((virtual_edges, template_edges), edge_own), (contact, guard_own)) = rayon::join(
             || {
                 timed(|| match &params.virtual_edges {
-                    Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
-                    _ => Vec::new(),
+                    Some(ve) if params.edge_weight > 0.0 => {
+                        rayon::join(|| find_virtual_edges(target_neutral, triangles, ve), || find_virtual_edges(source_neutral, triangles, ve))
+                    }
+                    _ => Default::default(),
                 })
             },
             || timed(|| params.contact.map(|c| ContactGuard::new(&source, &target, target_neutral, triangles, c))),
@@ -158,7 +161,20 @@ impl DeformationTransfer {
         let vertex_rest_maps = vertex_means(n, triangles, &rest_maps);
         let edge_rest_maps = virtual_edges.iter().map(|&(i, j)| pair_rest_map(&vertex_rest_maps, i, j)).collect();
         let key_contacts = match params.virtual_edges {
-            Some(ve) if params.edge_weight > 0.0 => Some((ve, Adjacency::from_triangles(n, triangles))),
+            Some(ve) if params.edge_weight > 0.0 => {
+                let adjacency = Adjacency::from_triangles(n, triangles);
+                // Resting in contact: the template's rest virtual edges' ends and their rings.
+                let mut resting = vec![false; n];
+                for &(i, j) in &template_edges {
+                    for end in [i, j] {
+                        resting[end as usize] = true;
+                        for &v in adjacency.neighbours(end as usize) {
+                            resting[v as usize] = true;
+                        }
+                    }
+                }
+                Some((ve, adjacency, resting))
+            }
             _ => None,
         };
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
@@ -418,8 +434,8 @@ impl DeformationTransfer {
     /// leaves open. A pair apart at rest on the template can still be a rest virtual edge of
     /// the target (its own opening narrower): one spring each.
     pub(super) fn key_contact_edges(&self, delta: &[[f32; 3]]) -> Vec<(u32, u32)> {
-        let Some((params, adjacency)) = &self.key_contacts else { return Vec::new() };
-        let mut edges = find_contact_edges(&self.source_neutral, delta, adjacency, &self.piece, self.source_diagonal, params);
+        let Some((params, adjacency, resting)) = &self.key_contacts else { return Vec::new() };
+        let mut edges = find_contact_edges(&self.source_neutral, delta, adjacency, resting, &self.piece, self.source_diagonal, params);
         if !edges.is_empty() {
             let rest: std::collections::HashSet<(u32, u32)> = self.virtual_edges.iter().copied().collect();
             edges.retain(|e| !rest.contains(e));

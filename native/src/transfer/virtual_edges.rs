@@ -93,13 +93,15 @@ pub(super) fn find_contact_edges(
     neutral: &[[f64; 3]],
     delta: &[[f32; 3]],
     adjacency: &Adjacency,
+    resting: &[bool],
     labels: &[u32],
     diagonal: f64,
     params: &VirtualEdgeParams,
 ) -> Vec<(u32, u32)> {
     let radius = params.tau_d * diagonal;
     let reach = 0.25 * radius;
-    let source: Vec<bool> = delta.iter().map(|d| d.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() > reach * reach).collect();
+    let source: Vec<bool> =
+        delta.iter().zip(resting).map(|(d, &rests)| !rests && d.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() > reach * reach).collect();
     let sources: Vec<usize> = (0..neutral.len()).filter(|&v| source[v]).collect();
     if sources.is_empty() || radius <= 0.0 {
         return Vec::new();
@@ -122,10 +124,15 @@ pub(super) fn find_contact_edges(
     let search = FarPairs { points: &posed, labels, trees: &trees, graph: &graph, radius, params };
     let source_points: Vec<[f64; 3]> = sources.iter().map(|&v| posed[v]).collect();
     let order: Vec<u32> = spatial_order(&source_points).into_iter().map(|k| sources[k as usize] as u32).collect();
-    // Each pair once (from its lower end when both are sources), apart at rest, halved.
+    // Each pair once (from its lower end when both are sources), apart at rest, halved, and
+    // touching: within the rest mesh's edge length around its ends.
+    let edge = |v: usize| {
+        let ring = adjacency.neighbours(v);
+        ring.iter().map(|&u| distance(&neutral[v], &neutral[u as usize])).sum::<f64>() / ring.len().max(1) as f64
+    };
     let brought_together = |i: usize, j: usize| {
-        let rest = distance(&neutral[i], &neutral[j]);
-        (j > i || !source[j]) && rest >= radius && 2.0 * distance(&posed[i], &posed[j]) <= rest
+        let (rest, posed) = (distance(&neutral[i], &neutral[j]), distance(&posed[i], &posed[j]));
+        (j > i || !source[j]) && !resting[j] && rest >= radius && 2.0 * posed <= rest && 2.0 * posed <= edge(i) + edge(j)
     };
     search.thinned(order, brought_together, false)
 }

@@ -295,7 +295,7 @@ fn a_keys_contacts_are_the_far_pairs_of_its_pose_apart_at_rest() {
         };
         let expected = by_definition_among(&posed, &tris, &params, radius, brought_together);
         assert!(expected.len() >= 4, "tau_d {tau_d}: {} edges", expected.len());
-        assert_eq!(find_contact_edges(&rest, &key, &adjacency, &labels, diagonal, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
+        assert_eq!(find_contact_edges(&rest, &key, &adjacency, &vec![false; n], &labels, diagonal, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
         // None at rest: the key made them.
         assert!(find_virtual_edges(&pts, &tris, &params).is_empty());
     }
