@@ -27,8 +27,8 @@
 //! the same 401 edges); the breadth-first pass is now about two thirds of it.
 //!
 //! A key's contacts ([`find_contact_edges`]) are the same definition on the template posed by
-//! the key, among pairs apart at rest: the lids a blink closes, which the rest's search cannot
-//! see on an eye open wider than `tau_d`. Searched from the vertices the key moves by `tau_d / 4` only.
+//! the key, among pairs apart at rest that it brings to touch: the lids a blink closes, which
+//! the rest's search cannot see on an eye open wider than `tau_d`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -83,11 +83,14 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
 /// key `delta` brings within `tau_d` (a fraction of the template's bbox diagonal) from beyond
 /// it at rest, to at most half their rest distance, kept when far along the surface in the
 /// key's pose (`g_ij > tau_r d_ij`, both measured on the posed template), thinned as at rest:
-/// the upper and lower lid margins of a blink, the lips of mouthClose. Halving leaves out
-/// pairs that merely slide past `tau_d`: their spring would hold nearly the rest vector
-/// (`rho > 1/4`), which the gradients give them anyway. It also bounds the search: such a
-/// pair's ends move apart by more than `tau_d / 2`, so one end moves by more than `tau_d /
-/// 4`, and only those vertices are searched from (19k head: 33 -> ms per key).
+/// the upper and lower lid margins of a blink. Touching: within the rest mesh's edge length
+/// around the pair's ends. Halving leaves out pairs that merely slide past `tau_d`: their
+/// spring would hold nearly the rest vector (`rho > 1/4`), which the gradients give them
+/// anyway. It also bounds the search: such a pair's ends move apart by more than `tau_d / 2`,
+/// so one end moves by more than `tau_d / 4`, and only those vertices are searched from (19k
+/// head: 33 -> 9 ms per key). Vertices `resting` in contact (lips touching at rest) take no
+/// contact: such surfaces slide along each other in jaw or roll keys, and a spring there
+/// pins one vertex to another where the target's lips need not match vertex for vertex.
 /// `adjacency`, `labels` (connected pieces) and `diagonal` are the template's, computed once.
 pub(super) fn find_contact_edges(
     neutral: &[[f64; 3]],

@@ -289,13 +289,20 @@ fn a_keys_contacts_are_the_far_pairs_of_its_pose_apart_at_rest() {
     for (tau_d, tau_r) in [(0.03, 4.0), (0.04, 4.0), (0.05, 4.0), (0.04, 2.0)] {
         let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
         let radius = tau_d * diagonal;
+        let edge = |v: usize| {
+            let ring = adjacency.neighbours(v);
+            ring.iter().map(|&u| distance(&rest[v], &rest[u as usize])).sum::<f64>() / ring.len() as f64
+        };
         let brought_together = |i: usize, j: usize| {
-            let at_rest = distance(&rest[i], &rest[j]);
-            at_rest >= radius && 2.0 * distance(&posed64[i], &posed64[j]) <= at_rest
+            let (at_rest, posed) = (distance(&rest[i], &rest[j]), distance(&posed64[i], &posed64[j]));
+            at_rest >= radius && 2.0 * posed <= at_rest && 2.0 * posed <= edge(i) + edge(j)
         };
         let expected = by_definition_among(&posed, &tris, &params, radius, brought_together);
         assert!(expected.len() >= 4, "tau_d {tau_d}: {} edges", expected.len());
         assert_eq!(find_contact_edges(&rest, &key, &adjacency, &vec![false; n], &labels, diagonal, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
+        // Surfaces resting in contact take none: here every pair has an end on the upper layer.
+        let upper: Vec<bool> = pts.iter().map(|p| p[2] > 0.05).collect();
+        assert!(find_contact_edges(&rest, &key, &adjacency, &upper, &labels, diagonal, &params).is_empty());
         // None at rest: the key made them.
         assert!(find_virtual_edges(&pts, &tris, &params).is_empty());
     }
