@@ -86,7 +86,7 @@ def test_a_blink_that_does_not_move_leaves_the_eyes_open_and_says_so(sample, sha
     assert any(line.startswith("eyeBlinkLeft: eyes close: no, gap 100%") for line in lines), lines
 
 
-@pytest.mark.xfail(strict=True, reason="the carried blink stops 19-26% of the open eye short on the stylised characters "
+@pytest.mark.xfail(strict=True, reason="the carry's collision pass reopens the blink 28-30% of the open eye on the stylised characters "
                    "(the truth closes it, gap 0%) and the halved copy's jawOpen opens 1.27x the template's (truth 1.06x): "
                    "docs/wrap.md, 'Where riggers look first'")
 def test_the_wrap_onto_a_stylised_character_closes_the_eyes_and_opens_the_mouth(sample, shapesmith):

@@ -141,6 +141,43 @@ impl SymmetricMatrix {
         self.factor_restricted_plus_diagonal(position, n_kept, order, &[])
     }
 
+    /// [`Self::factor_restricted`] of the submatrix plus the springs `(a, b, w)`, each adding
+    /// `w (e_a - e_b)(e_a - e_b)^T` over all unknowns and then restricted (an eliminated end
+    /// leaves the kept end's diagonal `w` alone). Unlike [`Self::factor_subset_plus`] the
+    /// springs may join unknowns the matrix does not couple: the pattern grows by them, in
+    /// the same order restricted. With no spring this is [`Self::factor_restricted`] to the bit.
+    pub fn factor_restricted_plus_springs(
+        &self,
+        position: &[u32],
+        n_kept: usize,
+        order: &[usize],
+        springs: &[(usize, usize, f64)],
+    ) -> ShapesmithResult<Cholesky> {
+        let kept = (0..self.n).filter(|&c| position[c] != u32::MAX);
+        let mut submatrix = self.restricted(position, n_kept, kept);
+        if !springs.is_empty() {
+            let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(submatrix.values.len() + 3 * springs.len());
+            for c in 0..n_kept {
+                for k in submatrix.col_ptr[c]..submatrix.col_ptr[c + 1] {
+                    entries.push((submatrix.row_idx[k], c, submatrix.values[k]));
+                }
+            }
+            for &(a, b, w) in springs {
+                let (pa, pb) = (position[a], position[b]);
+                for p in [pa, pb].into_iter().filter(|&p| p != u32::MAX) {
+                    entries.push((p as usize, p as usize, w));
+                }
+                if pa != u32::MAX && pb != u32::MAX {
+                    entries.push((pa as usize, pb as usize, -w));
+                }
+            }
+            let grown = Self::from_triplets(n_kept, entries);
+            submatrix = Submatrix { col_ptr: grown.col_ptr, row_idx: grown.row_idx, values: grown.values };
+        }
+        let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
+        factor_plus_diagonal(position, submatrix, forward, &[])
+    }
+
     /// [`Self::factor_restricted`] of the submatrix plus `diag(extra)`, `extra` holding
     /// `(unknown, value)` pairs of kept unknowns (soft point constraints on them).
     pub fn factor_restricted_plus_diagonal(

@@ -12,11 +12,11 @@ use super::gradients::{
     HatGradients, Vec3, IDENTITY, ZERO,
 };
 use super::system::NormalMatrix;
-use super::virtual_edges::find_virtual_edges;
-use super::{TransferParams, TransferResult};
+use super::virtual_edges::{find_contact_edges, find_virtual_edges};
+use super::{TransferParams, TransferResult, VirtualEdgeParams};
 
 use crate::error::{ShapesmithError, ShapesmithResult};
-use crate::geometry::topology::connected_components;
+use crate::geometry::topology::{connected_components, Adjacency};
 use crate::invalid;
 use crate::progress::Progress;
 use crate::rig::{bbox_diagonal, validate_points, validate_triangles, INERT_FRACTION};
@@ -34,6 +34,13 @@ pub struct DeformationTransfer {
     virtual_edges: Vec<(u32, u32)>,
     /// Per virtual edge: `A_ij`, the mean target-rest / source-rest gradient at its ends.
     edge_rest_maps: Vec<Mat3>,
+    /// Per vertex: the mean target-rest / source-rest gradient over its one-ring (the `A_ij`
+    /// of a key's contact edges are means of two of these).
+    vertex_rest_maps: Vec<Mat3>,
+    /// The search for each key's contacts ([`find_contact_edges`]) on the template: its
+    /// parameters, the template's edge graph and the vertices resting in contact; `None`
+    /// without virtual edges.
+    key_contacts: Option<(VirtualEdgeParams, Adjacency, Vec<bool>)>,
     edge_weight: f64,
     /// Original target orientation = `rotation` x working frame.
     rotation: Mat3,
@@ -131,11 +138,13 @@ impl DeformationTransfer {
         // (the thinning, the hierarchy builds) overlap. Their wall time is split between the
         // two in proportion to the seconds each took, as the shapes' solves and pass are.
         let joined_start = Instant::now();
-        let ((virtual_edges, edge_own), (contact, guard_own)) = rayon::join(
+        let (((virtual_edges, template_edges), edge_own), (contact, guard_own)) = rayon::join(
             || {
                 timed(|| match &params.virtual_edges {
-                    Some(ve) if params.edge_weight > 0.0 => find_virtual_edges(target_neutral, triangles, ve),
-                    _ => Vec::new(),
+                    Some(ve) if params.edge_weight > 0.0 => {
+                        rayon::join(|| find_virtual_edges(target_neutral, triangles, ve), || find_virtual_edges(source_neutral, triangles, ve))
+                    }
+                    _ => Default::default(),
                 })
             },
             || timed(|| params.contact.map(|c| ContactGuard::new(&source, &target, target_neutral, triangles, c))),
@@ -150,12 +159,24 @@ impl DeformationTransfer {
             .map(|(tri, rest_inverse)| mat_mul(&edge_frame(corners(&target, None, tri)), rest_inverse))
             .collect();
         let vertex_rest_maps = vertex_means(n, triangles, &rest_maps);
-        let edge_rest_maps = virtual_edges
-            .iter()
-            .map(|&(i, j)| {
-                mat_add_scaled(&vertex_rest_maps[i as usize], &vertex_rest_maps[j as usize], 1.0).map(|r| r.map(|x| 0.5 * x))
-            })
-            .collect();
+        let edge_rest_maps = virtual_edges.iter().map(|&(i, j)| pair_rest_map(&vertex_rest_maps, i, j)).collect();
+        let key_contacts = match params.virtual_edges {
+            Some(ve) if params.edge_weight > 0.0 => {
+                let adjacency = Adjacency::from_triangles(n, triangles);
+                // Resting in contact: the template's rest virtual edges' ends and their rings.
+                let mut resting = vec![false; n];
+                for &(i, j) in &template_edges {
+                    for end in [i, j] {
+                        resting[end as usize] = true;
+                        for &v in adjacency.neighbours(end as usize) {
+                            resting[v as usize] = true;
+                        }
+                    }
+                }
+                Some((ve, adjacency, resting))
+            }
+            _ => None,
+        };
         let matrix = NormalMatrix::assemble(n, triangles, &target_operators, &virtual_edges, params.edge_weight)?;
         Ok(Self {
             triangles: triangles.to_vec(),
@@ -167,6 +188,8 @@ impl DeformationTransfer {
             matrix,
             virtual_edges,
             edge_rest_maps,
+            vertex_rest_maps,
+            key_contacts,
             edge_weight: params.edge_weight,
             rotation,
             source_centre,
@@ -371,8 +394,18 @@ impl DeformationTransfer {
             position[v] = kept;
             kept += 1;
         }
-        let rhs = self.right_hand_side(delta, &moving, gradient, edge_changes);
-        let factor = self.matrix.factor_restricted(&position, kept as usize)?;
+        let contacts = self.key_contact_edges(delta);
+        let mut rhs = self.right_hand_side(delta, &moving, gradient, edge_changes);
+        let mut springs = Vec::with_capacity(contacts.len());
+        for &(i, j) in &contacts {
+            let (i, j) = (i as usize, j as usize);
+            let change = self.edge_change(i, j, &pair_rest_map(&self.vertex_rest_maps, i as u32, j as u32), sub(to_f64(&delta[i]), to_f64(&delta[j])));
+            let target = scale(change, self.edge_weight);
+            rhs[i] = add(rhs[i], target);
+            rhs[j] = sub(rhs[j], target);
+            springs.push((i, j, self.edge_weight));
+        }
+        let factor = self.matrix.factor_restricted_plus_springs(&position, kept as usize, &springs)?;
         let mut out = factor.solve(&rhs);
         if pinned.iter().any(|&p| p) {
             self.place_floating_pieces(delta, &pinned, &mut out);
@@ -390,6 +423,24 @@ impl DeformationTransfer {
             solve_seconds,
             contact_seconds: start.elapsed().as_secs_f64() - solve_seconds,
         })
+    }
+
+    /// The virtual edges the template's key `delta` adds ([`find_contact_edges`] on the
+    /// template), less the rest's own: springs this shape's
+    /// solve adds to the matrix, each aiming as a rest virtual edge does ([`Self::edge_change`]).
+    /// Where the key brings a pair into contact it moves the pair a lot, so `rho -> 0` and
+    /// the pair ends where the template's ends, mapped into the target: lids the template
+    /// closes meet on a target whose eyes are larger, which copying the lids' turns alone
+    /// leaves open. A pair apart at rest on the template can still be a rest virtual edge of
+    /// the target (its own opening narrower): one spring each.
+    pub(super) fn key_contact_edges(&self, delta: &[[f32; 3]]) -> Vec<(u32, u32)> {
+        let Some((params, adjacency, resting)) = &self.key_contacts else { return Vec::new() };
+        let mut edges = find_contact_edges(&self.source_neutral, delta, adjacency, resting, &self.piece, self.source_diagonal, params);
+        if !edges.is_empty() {
+            let rest: std::collections::HashSet<(u32, u32)> = self.virtual_edges.iter().copied().collect();
+            edges.retain(|e| !rest.contains(e));
+        }
+        edges
     }
 
     /// `b_i = sum_(t ni i) area_t (S_t - I) grad_phi_i` (the normal equations of the gradient
@@ -585,6 +636,11 @@ impl std::fmt::Debug for DeformationTransfer {
     }
 }
 
+
+/// `A_ij`: the mean of the two ends' one-ring rest-to-rest maps.
+fn pair_rest_map(vertex_rest_maps: &[Mat3], i: u32, j: u32) -> Mat3 {
+    mat_add_scaled(&vertex_rest_maps[i as usize], &vertex_rest_maps[j as usize], 1.0).map(|r| r.map(|x| 0.5 * x))
+}
 
 /// Mean of a per-triangle matrix over each vertex's one-ring (zero for a vertex in no triangle).
 fn vertex_means(n: usize, triangles: &[[u32; 3]], per_triangle: &[Mat3]) -> Vec<Mat3> {

@@ -41,6 +41,10 @@
 //!   i and j, `rho = (1 - min(1, |e_k - e_0| / |e_0|))^2` (`DeformationTransfer::edge_change`).
 //!   A pair that moves a lot ends where the source pair ends, mapped into the target; one that
 //!   barely moves keeps the target's rest vector; self-transfer is exact (`A = I`, `f_0 = e_0`).
+//! - **A key's contacts are virtual edges of its own solve** (`find_contact_edges`): the
+//!   pairs the template's key brings to touch from beyond `tau_d` (the lids of a blink) join
+//!   that key's matrix and aim by the same `f_k`, so `rho -> 0` and they meet on a target
+//!   whose eyes are larger; every other key's solve is as before, to the bit.
 //! - **`w_ve = 3`**: the springs hold the template's final gap, so they need more pull than 1
 //!   against the gradient term (the two-layer lip test in `tests.rs`).
 //! - **Contact as one solve** ([`ContactParams`], `contact.rs`; method, section 3, beyond paper

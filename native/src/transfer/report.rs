@@ -467,8 +467,8 @@ mod tests {
         let plain = TransferParams { virtual_edges: None, ..Default::default() };
         assert!(check_report(&source, &target, &tris, &deltas, plain) >= 1, "the pass should re-solve the rise");
         // Thick lips that virtual edges alone leave crossed, one piece.
-        let (source, tris) = lips(0.1);
-        let closing = lip_closing(&source, 0.1, 0.045);
+        let (source, tris) = lips(0.08);
+        let closing = lip_closing(&source, 0.08, 0.036);
         let target: Vec<[f32; 3]> = lips(0.04).0.iter().map(moved).collect();
         let springs = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.05, ..Default::default() }), edge_weight: 1.0, ..Default::default() };
         assert_eq!(check_report(&source, &target, &tris, &closing, springs), 1, "the pass should re-solve the lips");

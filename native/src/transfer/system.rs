@@ -71,14 +71,16 @@ impl NormalMatrix {
     /// with zeros at eliminated vertices.
     #[cfg(test)]
     pub fn solve_restricted(&self, position: &[u32], n_kept: usize, rhs: &[[f64; 3]]) -> ShapesmithResult<Vec<[f64; 3]>> {
-        Ok(self.factor_restricted(position, n_kept)?.solve(rhs))
+        Ok(self.factor_restricted_plus_springs(position, n_kept, &[])?.solve(rhs))
     }
 
     /// Factorises `A_FF`, the principal submatrix on the kept vertices (`position[v] !=
     /// u32::MAX`, numbered `position[v]`, increasing), in the whole matrix's AMD order
-    /// restricted.
-    pub fn factor_restricted(&self, position: &[u32], n_kept: usize) -> ShapesmithResult<RestrictedFactor> {
-        let factor = if n_kept == 0 { None } else { Some(self.matrix.factor_restricted(position, n_kept, &self.order)?) };
+    /// restricted, plus the springs `w (e_i - e_j)(e_i - e_j)^T` (`(i, j, w)`) one shape adds:
+    /// its key's contacts ([`crate::sparse`] grows the pattern by them). With none, the
+    /// factor of `A_FF` as before, to the bit.
+    pub fn factor_restricted_plus_springs(&self, position: &[u32], n_kept: usize, springs: &[(usize, usize, f64)]) -> ShapesmithResult<RestrictedFactor> {
+        let factor = if n_kept == 0 { None } else { Some(self.matrix.factor_restricted_plus_springs(position, n_kept, &self.order, springs)?) };
         Ok(RestrictedFactor { position: position.to_vec(), n_kept, factor })
     }
 

@@ -285,6 +285,49 @@ fn virtual_edges_keep_thick_lips_from_crossing() {
     assert_eq!(pose(&guarded), Penetration::default());
 }
 
+/// The folded strip's two layers as lids: at the cross-section nearest the middle, the gap
+/// between the middles of the lower and the upper row once posed by `delta`.
+fn middle_gap(pts: &[[f32; 3]], delta: &[[f32; 3]]) -> f32 {
+    let (rows, section) = (22, 7); // 11 lower then 11 upper profile points; x = 0.7 of 1.5
+    let (lower, upper) = (section * rows + 5, section * rows + 16);
+    (pts[upper][2] + delta[upper][2]) - (pts[lower][2] + delta[lower][2])
+}
+
+#[test]
+fn a_key_that_closes_the_lids_closes_a_larger_opening() {
+    // The template's blink brings its lids together (0.1 apart at rest); the target's eye is
+    // 1.6x as open. Its lid triangles turn as the template's do, which on the larger opening
+    // leaves a gap, unless the pairs the key brings into contact are held to meet.
+    let (source, tris) = lips(0.1);
+    let blink = lip_closing(&source, 0.1, 0.05);
+    let (target, _) = lips(0.16);
+    let names = vec!["eyeBlink".to_string()];
+    assert!(middle_gap(&source, &blink) < 0.02 * 0.1, "the template's blink closes: {}", middle_gap(&source, &blink));
+    let gap = |params: &TransferParams| {
+        let dt = DeformationTransfer::new(&source, &target, &tris, params).unwrap();
+        assert!(dt.virtual_edges().is_empty(), "no pair is close at the target's rest");
+        middle_gap(&target, &dt.transfer(&blink, &names, &NoProgress).unwrap().deltas) / 0.16
+    };
+    let plain_gap = gap(&plain());
+    assert!(plain_gap > 0.2, "copied turns alone leave the larger eye open: {plain_gap}");
+    // The strip's edges are 0.1, 5% of its diagonal (a head's are about 0.5%): the default
+    // tau_d would be a quarter of an edge here, so the pairs are searched as on a head, within
+    // about half an edge.
+    let searched = TransferParams { virtual_edges: Some(VirtualEdgeParams { tau_d: 0.03, ..Default::default() }), ..Default::default() };
+    let closed = gap(&searched);
+    assert!(closed.abs() <= 0.05, "the key's contacts close the eye: gap {closed} of the opening (plain {plain_gap})");
+    // The contacts are the key's: the template onto itself stays exact.
+    let dt = DeformationTransfer::new(&source, &source, &tris, &searched).unwrap();
+    let contacts = dt.key_contact_edges(&blink);
+    assert!(contacts.len() >= 5, "{} contacts", contacts.len());
+    for &(i, j) in &contacts {
+        // Across the opening: one end on each lid.
+        assert!((source[i as usize][2] - source[j as usize][2]).abs() > 0.05, "{:?} {:?}", source[i as usize], source[j as usize]);
+    }
+    let itself = dt.transfer(&blink, &names, &NoProgress).unwrap().deltas;
+    assert!(max_error(&itself, &blink) < 1e-6, "{}", max_error(&itself, &blink));
+}
+
 /// A smooth non-uniform warp: scale (1, 1.25, 0.85) plus a bend.
 fn warp(p: &[f32; 3]) -> [f32; 3] {
     [p[0], 1.25 * p[1] + 0.2 * p[0] * p[0], 0.85 * p[2] + 0.1 * p[1] * p[1]]

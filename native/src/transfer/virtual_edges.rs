@@ -25,6 +25,10 @@
 //! leaves a search's answer as it was (see `reaches_within`): the same edges. On the 25k head
 //! the whole search went from 0.33 to 0.26 CPU-seconds on one thread (`find_virtual_edges`,
 //! the same 401 edges); the breadth-first pass is now about two thirds of it.
+//!
+//! A key's contacts ([`find_contact_edges`]) are the same definition on the template posed by
+//! the key, among pairs apart at rest that it brings to touch: the lids a blink closes, which
+//! the rest's search cannot see on an eye open wider than `tau_d`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -68,89 +72,174 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
     }
     let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
     let (labels, n_pieces) = connected_components(n, triangles);
-    let trees = PieceTrees::new(neutral, &labels, n_pieces);
-    let graph = EdgeGraph::new(&points, triangles);
+    let trees = PieceTrees::new(neutral, &labels, n_pieces, 0..n);
+    let adjacency = Adjacency::from_triangles(n, triangles);
+    let graph = EdgeGraph::new(&points, &adjacency);
+    let search = FarPairs { points: &points, labels: &labels, trees: &trees, graph: &graph, radius, params };
+    search.thinned(spatial_order(&points), |i, j| j > i, true)
+}
 
-    // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
-    // Each split of the range keeps one scratch, ball and list for all its vertices.
-    let mut uncertain: Vec<(f64, u32, u32)> = spatial_order(&points)
-        .into_par_iter()
-        .with_min_len(512) // each split allocates its own O(N) scratch
-        .fold(
-            || (SurfaceSearch::new(n), Vec::new(), Vec::new()),
-            |(mut search, mut ball, mut open), i| {
-                let i = i as usize;
-                ball.clear();
-                ball.extend(trees.within(labels[i], points[i], radius).filter(|&(j, d)| j != i && d < radius));
-                search.not_proven_close(&graph, i, &ball, params.tau_r, &mut open);
-                (search, ball, open)
-            },
-        )
-        .flat_map_iter(|(_, _, open)| open)
-        .collect();
-    uncertain.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-    let bounds = if uncertain.is_empty() { None } else { Some(LandmarkBounds::new(&graph, &points, &labels)) };
-    let bounds = Distances { points: &points, landmarks: bounds.as_ref() };
-
-    let mut used = vec![0usize; n];
-    let mut blocked = vec![false; n];
-    let free = |used: &[usize], blocked: &[bool], i: u32, j: u32| {
-        let (a, b) = (i as usize, j as usize);
-        !blocked[a] && !blocked[b] && used[a] < params.max_per_vertex && used[b] < params.max_per_vertex
+/// The virtual edges a key adds (the key's contacts): pairs of one piece that the template's
+/// key `delta` brings within `tau_d` (a fraction of the template's bbox diagonal) from beyond
+/// it at rest, to at most half their rest distance, kept when far along the surface in the
+/// key's pose (`g_ij > tau_r d_ij`, both measured on the posed template), thinned as at rest:
+/// the upper and lower lid margins of a blink. Touching: within the rest mesh's edge length
+/// around the pair's ends. Halving leaves out pairs that merely slide past `tau_d`: their
+/// spring would hold nearly the rest vector (`rho > 1/4`), which the gradients give them
+/// anyway. It also bounds the search: such a pair's ends move apart by more than `tau_d / 2`,
+/// so one end moves by more than `tau_d / 4`, and only those vertices are searched from (19k
+/// head: 33 -> 9 ms per key). Vertices `resting` in contact (lips touching at rest) take no
+/// contact: such surfaces slide along each other in jaw or roll keys, and a spring there
+/// pins one vertex to another where the target's lips need not match vertex for vertex.
+/// `adjacency`, `labels` (connected pieces) and `diagonal` are the template's, computed once.
+pub(super) fn find_contact_edges(
+    neutral: &[[f64; 3]],
+    delta: &[[f32; 3]],
+    adjacency: &Adjacency,
+    resting: &[bool],
+    labels: &[u32],
+    diagonal: f64,
+    params: &VirtualEdgeParams,
+) -> Vec<(u32, u32)> {
+    let radius = params.tau_d * diagonal;
+    let reach = 0.25 * radius;
+    let source: Vec<bool> =
+        delta.iter().zip(resting).map(|(d, &rests)| !rests && d.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() > reach * reach).collect();
+    let sources: Vec<usize> = (0..neutral.len()).filter(|&v| source[v]).collect();
+    if sources.is_empty() || radius <= 0.0 {
+        return Vec::new();
+    }
+    // Posed in single precision, as the rest search measures a neutral as given.
+    let posed32: Vec<[f32; 3]> = neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + f64::from(d[a])) as f32)).collect();
+    let posed: Vec<[f64; 3]> = posed32.iter().map(|p| p.map(f64::from)).collect();
+    // Partners lie within `radius` of a source's posed place: the tree holds only those.
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for &v in &sources {
+        for a in 0..3 {
+            lo[a] = lo[a].min(posed[v][a] - radius);
+            hi[a] = hi[a].max(posed[v][a] + radius);
+        }
+    }
+    let near = (0..neutral.len()).filter(|&v| (0..3).all(|a| posed[v][a] >= lo[a] && posed[v][a] <= hi[a]));
+    let n_pieces = labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
+    let trees = PieceTrees::new(&posed32, labels, n_pieces, near);
+    let graph = EdgeGraph::new(&posed, adjacency);
+    let search = FarPairs { points: &posed, labels, trees: &trees, graph: &graph, radius, params };
+    let source_points: Vec<[f64; 3]> = sources.iter().map(|&v| posed[v]).collect();
+    let order: Vec<u32> = spatial_order(&source_points).into_iter().map(|k| sources[k as usize] as u32).collect();
+    // Each pair once (from its lower end when both are sources), apart at rest, halved, and
+    // touching: within the rest mesh's edge length around its ends.
+    let edge = |v: usize| {
+        let ring = adjacency.neighbours(v);
+        ring.iter().map(|&u| distance(&neutral[v], &neutral[u as usize])).sum::<f64>() / ring.len().max(1) as f64
     };
-    let mut edges = Vec::new();
-    let mut next = 0;
-    // Scratch handed from batch to batch: a fresh one per split of every batch cleared
-    // 0.6 MB each time on the 25k head, 0.20 G of the search's 2.9 G instructions.
-    let spare = std::sync::Mutex::new(Vec::new());
-    let mut proofs = ClosePaths::new(n);
-    while next < uncertain.len() {
-        // The next pairs the thinning would take if they are far; checked in parallel, then
-        // taken in order (a pair blocked by an earlier one of the batch is skipped).
-        let batch: Vec<usize> =
-            (next..uncertain.len()).filter(|&k| free(&used, &blocked, uncertain[k].1, uncertain[k].2)).take(FAR_CHECK_BATCH).collect();
-        let Some(&last) = batch.last() else { break };
-        // Per pair of the batch, the length of a path within its deadline (`None`: far).
-        let close: Vec<Option<f64>> = batch
-            .par_iter()
-            .with_min_len(16)
+    let brought_together = |i: usize, j: usize| {
+        let (rest, posed) = (distance(&neutral[i], &neutral[j]), distance(&posed[i], &posed[j]));
+        (j > i || !source[j]) && !resting[j] && rest >= radius && 2.0 * posed <= rest && 2.0 * posed <= edge(i) + edge(j)
+    };
+    search.thinned(order, brought_together, false)
+}
+
+/// One far-pair search: close pairs (`d_ij < radius`, one piece) that are far along the
+/// surface (`g_ij > tau_r d_ij`), thinned.
+struct FarPairs<'a> {
+    points: &'a [[f64; 3]],
+    labels: &'a [u32],
+    trees: &'a PieceTrees,
+    graph: &'a EdgeGraph<'a>,
+    radius: f64,
+    params: &'a VirtualEdgeParams,
+}
+
+impl FarPairs<'_> {
+    /// The virtual edges `(i, j)`, `i < j`, among the pairs `(i, j)` with `i` in `sources`
+    /// and `candidate(i, j)`, shortest first: at most `max_per_vertex` per vertex, and once a
+    /// pair is taken the one-ring neighbours of both ends take no further edge. `landmarks`:
+    /// prune the farness checks with [`LandmarkBounds`] (worth its six whole-mesh Dijkstras
+    /// when the sources are the whole mesh).
+    fn thinned(&self, sources: Vec<u32>, candidate: impl Fn(usize, usize) -> bool + Sync, landmarks: bool) -> Vec<(u32, u32)> {
+        let (n, params, graph) = (self.points.len(), self.params, self.graph);
+        // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
+        // Each split of the range keeps one scratch, ball and list for all its vertices.
+        let mut uncertain: Vec<(f64, u32, u32)> = sources
+            .into_par_iter()
+            .with_min_len(512) // each split allocates its own O(N) scratch
             .fold(
-                || (spare.lock().map(|mut s| s.pop()).ok().flatten().unwrap_or_else(|| SurfaceSearch::new(n)), Vec::new()),
-                |(mut search, mut far), &k| {
-                    let (d, i, j) = uncertain[k];
-                    let (i, j, deadline) = (i as usize, j as usize, params.tau_r * d);
-                    far.push(proofs.path_beside(&graph, i, j, deadline).or_else(|| search.path_within(&graph, &bounds, i, j, deadline)));
-                    (search, far)
+                || (SurfaceSearch::new(n), Vec::new(), Vec::new()),
+                |(mut search, mut ball, mut open), i| {
+                    let i = i as usize;
+                    ball.clear();
+                    ball.extend(self.trees.within(self.labels[i], self.points[i], self.radius).filter(|&(j, d)| j != i && d < self.radius));
+                    search.not_proven_close(graph, i, &ball, params.tau_r, |j| candidate(i, j), &mut open);
+                    (search, ball, open)
                 },
             )
-            .flat_map_iter(|(search, far)| {
-                if let Ok(mut spare) = spare.lock() {
-                    spare.push(search);
-                }
-                far
-            })
+            .flat_map_iter(|(_, _, open)| open)
             .collect();
-        for (&k, &path) in batch.iter().zip(&close) {
-            let (_, i, j) = uncertain[k];
-            if let Some(length) = path {
-                proofs.add(i, j, length);
-                continue;
-            }
-            if !free(&used, &blocked, i, j) {
-                continue;
-            }
-            used[i as usize] += 1;
-            used[j as usize] += 1;
-            edges.push((i, j));
-            for end in [i, j] {
-                for &nb in graph.adjacency.neighbours(end as usize) {
-                    blocked[nb as usize] = true;
+        uncertain.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let bounds = if uncertain.is_empty() || !landmarks { None } else { Some(LandmarkBounds::new(graph, self.points, self.labels)) };
+        let bounds = Distances { points: self.points, landmarks: bounds.as_ref() };
+
+        let mut used = vec![0usize; n];
+        let mut blocked = vec![false; n];
+        let free = |used: &[usize], blocked: &[bool], i: u32, j: u32| {
+            let (a, b) = (i as usize, j as usize);
+            !blocked[a] && !blocked[b] && used[a] < params.max_per_vertex && used[b] < params.max_per_vertex
+        };
+        let mut edges = Vec::new();
+        let mut next = 0;
+        // Scratch handed from batch to batch: a fresh one per split of every batch cleared
+        // 0.6 MB each time on the 25k head, 0.20 G of the search's 2.9 G instructions.
+        let spare = std::sync::Mutex::new(Vec::new());
+        let mut proofs = ClosePaths::new(n);
+        while next < uncertain.len() {
+            // The next pairs the thinning would take if they are far; checked in parallel, then
+            // taken in order (a pair blocked by an earlier one of the batch is skipped).
+            let batch: Vec<usize> =
+                (next..uncertain.len()).filter(|&k| free(&used, &blocked, uncertain[k].1, uncertain[k].2)).take(FAR_CHECK_BATCH).collect();
+            let Some(&last) = batch.last() else { break };
+            // Per pair of the batch, the length of a path within its deadline (`None`: far).
+            let close: Vec<Option<f64>> = batch
+                .par_iter()
+                .with_min_len(16)
+                .fold(
+                    || (spare.lock().map(|mut s| s.pop()).ok().flatten().unwrap_or_else(|| SurfaceSearch::new(n)), Vec::new()),
+                    |(mut search, mut far), &k| {
+                        let (d, i, j) = uncertain[k];
+                        let (i, j, deadline) = (i as usize, j as usize, params.tau_r * d);
+                        far.push(proofs.path_beside(graph, i, j, deadline).or_else(|| search.path_within(graph, &bounds, i, j, deadline)));
+                        (search, far)
+                    },
+                )
+                .flat_map_iter(|(search, far)| {
+                    if let Ok(mut spare) = spare.lock() {
+                        spare.push(search);
+                    }
+                    far
+                })
+                .collect();
+            for (&k, &path) in batch.iter().zip(&close) {
+                let (_, i, j) = uncertain[k];
+                if let Some(length) = path {
+                    proofs.add(i, j, length);
+                    continue;
+                }
+                if !free(&used, &blocked, i, j) {
+                    continue;
+                }
+                used[i as usize] += 1;
+                used[j as usize] += 1;
+                edges.push((i, j));
+                for end in [i, j] {
+                    for &nb in graph.adjacency.neighbours(end as usize) {
+                        blocked[nb as usize] = true;
+                    }
                 }
             }
+            next = last + 1;
         }
-        next = last + 1;
+        edges
     }
-    edges
 }
 
 /// One k-d tree per connected piece, so that a vertex's ball is gathered from its own piece
@@ -164,10 +253,11 @@ struct PieceTrees {
 }
 
 impl PieceTrees {
-    fn new(points: &[[f32; 3]], labels: &[u32], n_pieces: usize) -> Self {
+    /// Trees over the vertices `vertices` only (increasing).
+    fn new(points: &[[f32; 3]], labels: &[u32], n_pieces: usize, vertices: impl Iterator<Item = usize>) -> Self {
         let mut members = vec![Vec::new(); n_pieces];
-        for (v, &label) in labels.iter().enumerate() {
-            members[label as usize].push(v);
+        for v in vertices {
+            members[labels[v] as usize].push(v);
         }
         let trees = members.iter().map(|piece| PointTree::new(&piece.iter().map(|&v| points[v]).collect::<Vec<_>>())).collect();
         Self { trees, members }
@@ -350,14 +440,13 @@ const GREEDY_WEIGHT: f64 = 3.0;
 const FAR_CHECK_BATCH: usize = 128;
 
 /// The mesh's edge graph with each edge's length beside its target (compressed rows).
-struct EdgeGraph {
-    adjacency: Adjacency,
+struct EdgeGraph<'a> {
+    adjacency: &'a Adjacency,
     lengths: Vec<f64>,
 }
 
-impl EdgeGraph {
-    fn new(points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Self {
-        let adjacency = Adjacency::from_triangles(points.len(), triangles);
+impl<'a> EdgeGraph<'a> {
+    fn new(points: &[[f64; 3]], adjacency: &'a Adjacency) -> Self {
         let lengths = (0..points.len())
             .flat_map(|v| adjacency.neighbours(v).iter().map(move |&u| distance(&points[u as usize], &points[v])))
             .collect();
@@ -400,18 +489,30 @@ impl SurfaceSearch {
         }
     }
 
-    /// Appends to `open` the pairs `(d_ij, source, j)`, `j > source`, of the Euclidean `ball`
-    /// around `source` that a breadth-first pass inside the ball does not reach within
-    /// `ratio x d_ij`. Each vertex keeps the shortest of the paths that reached it; any path's
-    /// length bounds `g_ij` from above, so every pair left out is close. On smooth skin that
-    /// is all of them.
-    fn not_proven_close(&mut self, graph: &EdgeGraph, source: usize, ball: &[(usize, f64)], ratio: f64, open: &mut Vec<(f64, u32, u32)>) {
-        let pending = ball.iter().filter(|&&(j, _)| j > source).count();
+    /// Appends to `open` the pairs `(d_ij, min, max)` of `source` and the `j` of its Euclidean
+    /// `ball` with `candidate(j)` that a breadth-first pass inside the ball does not reach
+    /// within `ratio x d_ij`. Each vertex keeps the shortest of the paths that reached it; any
+    /// path's length bounds `g_ij` from above, so every pair left out is close. On smooth skin
+    /// that is all of them.
+    fn not_proven_close(
+        &mut self,
+        graph: &EdgeGraph,
+        source: usize,
+        ball: &[(usize, f64)],
+        ratio: f64,
+        candidate: impl Fn(usize) -> bool,
+        open: &mut Vec<(f64, u32, u32)>,
+    ) {
+        let pending = ball.iter().filter(|&&(j, _)| candidate(j)).count();
         if pending == 0 {
             return;
         }
-        self.breadth_first(graph, source, ball, pending, |u| u > source);
-        open.extend(ball.iter().filter(|&&(j, d)| j > source && self.distance[j] > ratio * d).map(|&(j, d)| (d, source as u32, j as u32)));
+        self.breadth_first(graph, source, ball, pending, &candidate);
+        open.extend(
+            ball.iter()
+                .filter(|&&(j, d)| candidate(j) && self.distance[j] > ratio * d)
+                .map(|&(j, d)| (d, source.min(j) as u32, source.max(j) as u32)),
+        );
         self.reset_distances();
     }
 
@@ -534,249 +635,5 @@ impl SurfaceSearch {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
-    use super::*;
-
-    /// A flattened tube along x: its cross-section is a thin closed loop, a lower row at
-    /// z = 0 and an upper row at z = `gap` (y from -0.5 to 0.5), joined at y = +-0.5. Opposite
-    /// rows are close in space but far along the surface, like two lips joined at the
-    /// corners. `len` cross-sections 0.1 apart; returns positions and triangles.
-    pub fn folded_strip(len: usize, gap: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let steps = 10;
-        let mut profile: Vec<[f32; 2]> = (0..=steps).map(|s| [-0.5 + s as f32 / steps as f32, 0.0]).collect();
-        profile.extend((0..=steps).rev().map(|s| [-0.5 + s as f32 / steps as f32, gap]));
-        let rows = profile.len();
-        let mut pts = Vec::new();
-        for i in 0..len {
-            for q in &profile {
-                pts.push([i as f32 * 0.1, q[0], q[1]]);
-            }
-        }
-        let mut tris = Vec::new();
-        for i in 0..len - 1 {
-            for r in 0..rows {
-                let a = (i * rows + r) as u32;
-                let b = (i * rows + (r + 1) % rows) as u32;
-                let c = a + rows as u32;
-                let d = b + rows as u32;
-                tris.push([a, b, d]);
-                tris.push([a, d, c]);
-            }
-        }
-        (pts, tris)
-    }
-
-    #[test]
-    fn pairs_across_a_thin_gap_only() {
-        let (pts, tris) = folded_strip(12, 0.02);
-        let params = VirtualEdgeParams { tau_d: 0.1, ..Default::default() };
-        let edges = find_virtual_edges(&pts, &tris, &params);
-        assert!(!edges.is_empty());
-        let diag = bbox_diagonal(&pts) as f32;
-        for &(i, j) in &edges {
-            let (p, q) = (pts[i as usize], pts[j as usize]);
-            let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-            assert!(i < j && d < 0.1 * diag);
-            // One end on each layer, away from the walls.
-            assert!((p[2] - q[2]).abs() > 0.015, "{p:?} {q:?}");
-        }
-        let mut count = vec![0; pts.len()];
-        for &(i, j) in &edges {
-            count[i as usize] += 1;
-            count[j as usize] += 1;
-        }
-        assert!(count.iter().all(|&c| c <= 3));
-        // Thinning: no taken end is a one-ring neighbour of an end taken earlier.
-        let adjacency = Adjacency::from_triangles(pts.len(), &tris);
-        for (k, &(i, j)) in edges.iter().enumerate() {
-            for &(a, b) in &edges[..k] {
-                for end in [a, b] {
-                    let ring = adjacency.neighbours(end as usize);
-                    assert!(!ring.contains(&i) && !ring.contains(&j));
-                }
-            }
-        }
-    }
-
-    /// The paper's definition, computed the slow way: full Dijkstra from every vertex, every
-    /// close pair of one piece with `g > tau_r d` kept, then the same thinning, shortest first.
-    fn by_definition(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: &VirtualEdgeParams) -> Vec<(u32, u32)> {
-        let n = neutral.len();
-        let points: Vec<[f64; 3]> = neutral.iter().map(|p| p.map(f64::from)).collect();
-        let radius = params.tau_d * bbox_diagonal(neutral);
-        let adjacency = Adjacency::from_triangles(n, triangles);
-        let mut far = Vec::new();
-        for i in 0..n {
-            let mut g = vec![f64::INFINITY; n];
-            let mut done = vec![false; n];
-            g[i] = 0.0;
-            while let Some(v) = (0..n).filter(|&v| !done[v] && g[v].is_finite()).min_by(|&a, &b| g[a].total_cmp(&g[b])) {
-                done[v] = true;
-                for &u in adjacency.neighbours(v) {
-                    g[u as usize] = g[u as usize].min(g[v] + distance(&points[v], &points[u as usize]));
-                }
-            }
-            for j in i + 1..n {
-                let d = distance(&points[i], &points[j]);
-                // Another piece (no path at all) is no candidate.
-                if d < radius && g[j].is_finite() && g[j] > params.tau_r * d {
-                    far.push((d, i as u32, j as u32));
-                }
-            }
-        }
-        far.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let (mut used, mut blocked, mut edges) = (vec![0; n], vec![false; n], Vec::new());
-        for (_, i, j) in far {
-            let (a, b) = (i as usize, j as usize);
-            if blocked[a] || blocked[b] || used[a] >= params.max_per_vertex || used[b] >= params.max_per_vertex {
-                continue;
-            }
-            used[a] += 1;
-            used[b] += 1;
-            edges.push((i, j));
-            for end in [a, b] {
-                for &nb in adjacency.neighbours(end) {
-                    blocked[nb as usize] = true;
-                }
-            }
-        }
-        edges
-    }
-
-    #[test]
-    fn lazy_search_gives_the_edges_of_the_definition() {
-        // A jittered strip (uneven edges, so breadth-first paths are not shortest) and, with
-        // the wider thresholds, close pairs around the folds whose short paths leave the
-        // Euclidean ball: both of the lazy search's shortcuts are exercised.
-        let (mut pts, tris) = folded_strip(12, 0.04);
-        let mut state = 12345u64;
-        for p in pts.iter_mut() {
-            for coordinate in &mut p[..2] {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                *coordinate += ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.06;
-            }
-        }
-        for (tau_d, tau_r) in [(0.05, 4.0), (0.1, 4.0), (0.2, 2.0), (0.3, 1.5)] {
-            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
-            let expected = by_definition(&pts, &tris, &params);
-            assert!(!expected.is_empty(), "tau_d {tau_d}, tau_r {tau_r}: no edges to compare");
-            assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
-        }
-    }
-
-    #[test]
-    fn landmark_bounds_keep_the_edges_of_the_definition_on_several_pieces() {
-        // Two jittered strips of other shapes, far enough apart that no pair joins them: each
-        // piece searches with its own landmarks (one multi-source Dijkstra per slot serves
-        // both), and the pruned searches must still find exactly the definition's edges.
-        let (first, first_tris) = folded_strip(10, 0.05);
-        let (second, second_tris) = folded_strip(7, 0.03);
-        let offset = first.len() as u32;
-        let mut pts: Vec<[f32; 3]> = first.clone();
-        pts.extend(second.iter().map(|p| [p[1] + 3.0, p[0] * 1.3, p[2] - 0.2]));
-        let mut tris = first_tris;
-        tris.extend(second_tris.iter().map(|t| t.map(|v| v + offset)));
-        let mut state = 987654321u64;
-        for p in pts.iter_mut() {
-            for coordinate in p.iter_mut() {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                *coordinate += ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.01;
-            }
-        }
-        for (tau_d, tau_r) in [(0.02, 4.0), (0.04, 3.0), (0.08, 1.5)] {
-            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
-            let expected = by_definition(&pts, &tris, &params);
-            assert!(expected.iter().any(|&(i, _)| i < offset) && expected.iter().any(|&(i, _)| i >= offset), "tau_d {tau_d}: both pieces need edges");
-            assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
-        }
-    }
-
-    #[test]
-    fn crossing_lips_among_many_pieces_give_the_edges_of_the_definition() {
-        // A folded strip whose upper layer dips through the lower one mid-way (lips crossing
-        // at rest), a second strip across it and a small one threaded through both (pieces
-        // crossing the skin, as lashes and gums do), jittered: close pairs on both sides of
-        // the crossing, far pairs between the layers, and other pieces within every ball.
-        let (lips, lips_tris) = folded_strip(12, 0.04);
-        let mut pts: Vec<[f32; 3]> = lips
-            .iter()
-            .map(|&[x, y, z]| {
-                let dip = if z > 0.02 && y.abs() < 0.45 { 0.08 * (1.0 - (x - 0.55).abs() / 0.3).max(0.0) } else { 0.0 };
-                [x, y, z - dip]
-            })
-            .collect();
-        let mut tris = lips_tris;
-        for (section, gap, place) in [(8, 0.05, [0.3f32, -0.2, -0.05]), (5, 0.02, [0.5, 0.1, 0.0])] {
-            let (piece, piece_tris) = folded_strip(section, gap);
-            let offset = pts.len() as u32;
-            pts.extend(piece.iter().map(|p| [place[0] + p[1] * 0.6, place[1] + p[0], place[2] + p[2]]));
-            tris.extend(piece_tris.iter().map(|t| t.map(|v| v + offset)));
-        }
-        let mut state = 424242u64;
-        for p in pts.iter_mut() {
-            for coordinate in p.iter_mut() {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                *coordinate += ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.01;
-            }
-        }
-        let (labels, pieces) = connected_components(pts.len(), &tris);
-        assert_eq!(pieces, 3);
-        for (tau_d, tau_r) in [(0.03, 4.0), (0.06, 4.0), (0.1, 3.0), (0.2, 1.5)] {
-            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
-            let expected = by_definition(&pts, &tris, &params);
-            let with_edges = (0..3).filter(|&piece| expected.iter().any(|&(i, _)| labels[i as usize] == piece)).count();
-            assert!(with_edges >= 2, "tau_d {tau_d}: edges on {with_edges} pieces");
-            assert_eq!(find_virtual_edges(&pts, &tris, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
-        }
-    }
-
-    #[test]
-    fn landmark_bound_is_a_lower_bound_on_every_pair() {
-        let (pts, tris) = folded_strip(8, 0.04);
-        let points: Vec<[f64; 3]> = pts.iter().map(|p| p.map(f64::from)).collect();
-        let graph = EdgeGraph::new(&points, &tris);
-        let (labels, _) = connected_components(pts.len(), &tris);
-        let bounds = LandmarkBounds::new(&graph, &points, &labels);
-        let adjacency = Adjacency::from_triangles(pts.len(), &tris);
-        let mut tight = 0;
-        for i in 0..pts.len() {
-            // Dijkstra by scanning, as `by_definition` does.
-            let mut g = vec![f64::INFINITY; pts.len()];
-            let mut done = vec![false; pts.len()];
-            g[i] = 0.0;
-            while let Some(v) = (0..pts.len()).filter(|&v| !done[v] && g[v].is_finite()).min_by(|&a, &b| g[a].total_cmp(&g[b])) {
-                done[v] = true;
-                for &u in adjacency.neighbours(v) {
-                    g[u as usize] = g[u as usize].min(g[v] + distance(&points[v], &points[u as usize]));
-                }
-            }
-            for j in 0..pts.len() {
-                let bound = bounds.between(i, j);
-                assert!(bound <= g[j] * (1.0 + 1e-12), "{i} {j}: bound {bound} above the distance {}", g[j]);
-                tight += usize::from(bound > distance(&points[i], &points[j]) * 1.5);
-            }
-        }
-        // Across the fold the bound is far above the straight distance: that is its use.
-        assert!(tight > pts.len(), "only {tight} pairs with a bound above 1.5x the straight distance");
-    }
-
-    #[test]
-    fn flat_sheet_and_separate_pieces_have_none() {
-        let (pts, tris) = folded_strip(6, 0.02);
-        // A second copy shifted just beside the first: close, but another piece.
-        let offset = pts.len() as u32;
-        let mut all = pts.clone();
-        all.extend(pts.iter().map(|p| [p[0], p[1], p[2] + 0.03]));
-        let mut all_tris = tris.clone();
-        all_tris.extend(tris.iter().map(|t| t.map(|v| v + offset)));
-        let wide = VirtualEdgeParams { tau_d: 0.1, ..Default::default() };
-        let within_first: Vec<_> = find_virtual_edges(&pts, &tris, &wide);
-        let both = find_virtual_edges(&all, &all_tris, &wide);
-        assert!(both.iter().all(|&(i, j)| (i < offset) == (j < offset)));
-        assert!(!within_first.is_empty());
-        // A thick slab: only same-layer neighbours are close, and they are close along the
-        // surface too.
-        let (open, open_tris) = folded_strip(6, 0.5);
-        assert!(find_virtual_edges(&open, &open_tris, &wide).is_empty());
-    }
-}
+#[path = "virtual_edges_tests.rs"]
+pub(crate) mod tests;
