@@ -153,8 +153,7 @@ impl SymmetricMatrix {
         order: &[usize],
         springs: &[(usize, usize, f64)],
     ) -> ShapesmithResult<Cholesky> {
-        let kept = (0..self.n).filter(|&c| position[c] != u32::MAX);
-        let mut submatrix = self.restricted(position, n_kept, kept);
+        let (mut submatrix, forward) = self.restricted_in_order(position, n_kept, order);
         if !springs.is_empty() {
             let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(submatrix.values.len() + 3 * springs.len());
             for c in 0..n_kept {
@@ -174,7 +173,6 @@ impl SymmetricMatrix {
             let grown = Self::from_triplets(n_kept, entries);
             submatrix = Submatrix { col_ptr: grown.col_ptr, row_idx: grown.row_idx, values: grown.values };
         }
-        let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
         factor_plus_diagonal(position, submatrix, forward, &[])
     }
 
@@ -187,10 +185,16 @@ impl SymmetricMatrix {
         order: &[usize],
         extra: &[(usize, f64)],
     ) -> ShapesmithResult<Cholesky> {
-        let kept = (0..self.n).filter(|&c| position[c] != u32::MAX);
-        let submatrix = self.restricted(position, n_kept, kept);
-        let forward: Vec<usize> = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
+        let (submatrix, forward) = self.restricted_in_order(position, n_kept, order);
         factor_plus_diagonal(position, submatrix, forward, extra)
+    }
+
+    /// The principal submatrix on the unknowns with `position[v] != u32::MAX` (renumbered)
+    /// and `order` restricted to them, in their new numbers.
+    fn restricted_in_order(&self, position: &[u32], n_kept: usize, order: &[usize]) -> (Submatrix, Vec<usize>) {
+        let kept = (0..self.n).filter(|&c| position[c] != u32::MAX);
+        let forward = order.iter().map(|&v| position[v]).filter(|&p| p != u32::MAX).map(|p| p as usize).collect();
+        (self.restricted(position, n_kept, kept), forward)
     }
 
     /// [`Self::factor_restricted_plus_diagonal`] for a few unknowns, in time proportional to
