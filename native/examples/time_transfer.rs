@@ -1,7 +1,7 @@
 //! Times `transfer_shapes` (virtual edges, contact solve, penetration report) outside
 //! Blender, on the arrays `scripts/bench_transfer.py -- --save-arrays DIR` writes:
 //!
-//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS] [--no-contact] [--no-report]
+//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS] [--contact | --no-contact] [--no-report]
 //!
 //! Prints the best of RUNS (default 3) runs' native seconds split as the bench reports them
 //! (setup, virtual edges, solves, contact solve, report), the seconds of the template's own
@@ -9,13 +9,14 @@
 //! intersection length and pairs, shapes the contact solve changed, summed excess over the template,
 //! summed absolute deltas, local re-solves, and a hash of every written delta's bits) so that
 //! two builds run one after the other can be compared for both speed and sameness.
-//! `--no-contact` turns the contact solve off (virtual edges alone) and `--no-report` the
+//! `--contact` turns the contact solve on ("Keep Surfaces Apart", off by default), `--no-contact`
+//! off (virtual edges alone) and `--no-report` the
 //! penetration report, so that what each adds to the call is measured in one place (without
 //! the report, the checksum's report fields are zero: only `|deltas|` and `bits` compare).
 
 use std::time::Instant;
 
-use shapesmith_native::transfer::{measure_rig_penetration, transfer_shapes, StageSeconds, TransferShapesParams};
+use shapesmith_native::transfer::{measure_rig_penetration, ContactParams, transfer_shapes, StageSeconds, TransferShapesParams};
 use shapesmith_native::NoProgress;
 
 #[path = "common/arrays.rs"]
@@ -23,11 +24,11 @@ mod arrays;
 use arrays::{points, read};
 
 fn main() {
-    let usage = "usage: time_transfer DIR [RUNS] [--no-contact] [--no-report]";
+    let usage = "usage: time_transfer DIR [RUNS] [--contact | --no-contact] [--no-report]";
     let (flags, positional): (Vec<String>, Vec<String>) = std::env::args().skip(1).partition(|a| a.starts_with("--"));
     let dir = positional.first().expect(usage).clone();
     let runs: usize = positional.get(1).map_or(3, |r| r.parse().expect("RUNS is a count"));
-    if let Some(unknown) = flags.iter().find(|f| !matches!(f.as_str(), "--no-contact" | "--no-report")) {
+    if let Some(unknown) = flags.iter().find(|f| !matches!(f.as_str(), "--contact" | "--no-contact" | "--no-report")) {
         panic!("unknown flag {unknown}; {usage}");
     }
     let source = points(&format!("{dir}/source.f32"));
@@ -39,6 +40,9 @@ fn main() {
     let template = measure_rig_penetration(&source, &deltas, &triangles).expect("template penetration");
     let template_seconds = started.elapsed().as_secs_f64();
     let mut params = TransferShapesParams { measure_penetration: !flags.iter().any(|f| f == "--no-report"), ..Default::default() };
+    if flags.iter().any(|f| f == "--contact") {
+        params.transfer.contact = Some(ContactParams::default());
+    }
     if flags.iter().any(|f| f == "--no-contact") {
         params.transfer.contact = None;
     }

@@ -13,7 +13,7 @@
 
 use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_psd, PairKind};
 use super::broad::{Box3, BoxTree};
-use super::ccd::{additive_ccd, relative_motion};
+use super::ccd::{additive_ccd, relative_motion, CONSERVATIVE_RESCALING};
 use super::dual::N;
 use super::exemptions::Exemptions;
 use rustc_hash::FxHashMap;
@@ -54,6 +54,16 @@ pub struct Pair {
     /// resting a thousandth of `d_hat` apart would be held by a barrier `1e-12` as strong,
     /// squeezed to where positions written in single precision cross.
     pub weight: f64,
+}
+
+/// A pair met by a broad phase along a step: its distance at the step's start and the most
+/// the whole step closes it, so that at a fraction `t` of the step it is at least
+/// `distance - t closing` apart.
+#[derive(Clone, Copy, Debug)]
+pub struct Candidate {
+    pub pair: Pair,
+    pub distance: f64,
+    pub closing: f64,
 }
 
 impl Pair {
@@ -98,20 +108,24 @@ impl ContactMesh<'_> {
 
     /// The non-exempt pairs with a vertex in `region` whose boxes, swept from `x` to
     /// `x + step` and grown by `d_hat`, meet: every pair that can come within `d_hat` or touch
-    /// along the step. A pair's exemption, range and weight depend on its vertices alone:
-    /// `known` keeps them across the calls of one solve.
-    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], known: &mut KnownPairs) -> Vec<Pair> {
+    /// along the step, each with its distance at `x` and the most the step closes it
+    /// ([`relative_motion`]). A pair's exemption, range and weight depend on its vertices
+    /// alone: `known` keeps them across the calls of one solve.
+    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], known: &mut KnownPairs) -> Vec<Candidate> {
         let mut pairs = Vec::new();
         self.broad_phase(x, step, in_region, |kind, vertices| {
             // Boxes meet far more often than primitives come close: a pair whose distance at
             // `x`, less the most its step can close it, stays beyond `d_hat` is none.
             let d_hat = self.pair_d_hat(vertices);
             let (_, closing) = relative_motion(kind, &vertices.map(|v| step[v as usize]));
-            if pair_squared(kind, &vertices.map(|v| x[v as usize])).sqrt() - closing >= d_hat {
+            let distance = pair_squared(kind, &vertices.map(|v| x[v as usize])).sqrt();
+            if distance - closing >= d_hat {
                 return;
             }
             let key = (matches!(kind, PairKind::EdgeEdge { .. }), vertices);
-            pairs.extend(*known.entry(key).or_insert_with(|| self.pair(kind, vertices)));
+            if let Some(pair) = *known.entry(key).or_insert_with(|| self.pair(kind, vertices)) {
+                pairs.push(Candidate { pair, distance, closing });
+            }
         });
         pairs
     }
@@ -173,7 +187,9 @@ impl ContactMesh<'_> {
 /// Settings of [`solve`].
 #[derive(Clone, Copy, Debug)]
 pub struct NewtonParams {
-    /// Stop when no vertex's Newton step exceeds this fraction of the region's mean `d_hat`.
+    /// Stop when the Newton step, in the norm of the Newton matrix, is no longer than moving
+    /// every vertex of the region by this fraction of its `d_hat`, in the norm of the
+    /// energy's diagonal (the Newton decrement, [`solve`]).
     pub tolerance: f64,
     pub max_iterations: usize,
 }
@@ -248,7 +264,14 @@ pub fn solve(
     // itself; after a step, those swept along it (they hold every pair that came close on the
     // way, so one broad phase per iteration serves both the line search and the next
     // derivatives).
-    let mut pairs = mesh.candidates(&x, &zero, &in_region, &mut known);
+    let mut pairs: Vec<Pair> = mesh.candidates(&x, &zero, &in_region, &mut known).into_iter().map(|c| c.pair).collect();
+    // The stop (Boyd and Vandenberghe 9.5.1, the Newton decrement `lambda^2 = -g . p`, the
+    // step's length in the Newton matrix's norm), against the same length of a step moving
+    // each vertex by `tolerance d_hat` under the energy's diagonal. A step along which the
+    // energy is nearly flat (contacts sliding past each other) is long in distance and
+    // short in this norm: the infinity norm of the step kept a shape's lips sliding at a
+    // tenth of `d_hat` per step for fifty steps that lowered the energy by 0.1%.
+    let decrement_floor: f64 = region.iter().map(|&v| diagonal(v) * (params.tolerance * mesh.d_hat[v]).powi(2)).sum();
     for iteration in 0..params.max_iterations {
         result.iterations = iteration + 1;
         // Gradient and Hessian.
@@ -307,20 +330,41 @@ pub fn solve(
         let factor = matrix.factor(order.as_deref().unwrap_or(&[]))?;
         let rhs: Vec<[f64; 3]> = gradient.iter().map(|&g| [-g, 0.0, 0.0]).collect();
         let direction = factor.solve_points(&rhs);
-        let mut longest = 0.0f64;
         for (s, &v) in region.iter().enumerate() {
             step[v] = std::array::from_fn(|c| direction[3 * s + c][0]);
-            longest = longest.max(step[v].iter().map(|c| c.abs()).fold(0.0, f64::max));
         }
-        if longest <= params.tolerance * mean_d_hat {
+        let slope: f64 = region.iter().enumerate().map(|(s, &v)| (0..3).map(|c| gradient[3 * s + c] * step[v][c]).sum::<f64>()).sum();
+        if -slope <= decrement_floor {
             result.converged = true;
             break;
         }
-        // The largest safe step along the direction, then Armijo backtracking.
-        let swept = mesh.candidates(&x, &step, &in_region, &mut known);
-        let mut alpha = swept.iter().map(|p| additive_ccd(p.kind, &p.points(&x), &p.vertices.map(|v| step[v as usize]), 1.0)).fold(1.0, f64::min);
+        // The pairs already near bound the step first (the first steps from the neutral are
+        // tens of `d_hat` long and cut to a few percent by a pair in contact): the broad phase
+        // then sweeps only the part of the step that can be taken, whose boxes are that much
+        // smaller. Every pair that can come close along the part is still found.
+        let reach = pairs.iter().map(|p| additive_ccd(p.kind, &p.points(&x), &p.vertices.map(|v| step[v as usize]), 1.0)).fold(1.0, f64::min);
+        for &v in region {
+            step[v] = step[v].map(|c| reach * c);
+        }
+        let slope = reach * slope;
+        // The largest safe step along the direction: the additive CCD's first advance is
+        // `eta d / l_p` ([`additive_ccd`]), so a pair whose bound is already beyond the step
+        // found so far cannot shorten it, and the pairs are taken in the order of that bound.
+        let mut swept = mesh.candidates(&x, &step, &in_region, &mut known);
+        let bound = |c: &Candidate| if c.closing > 0.0 { CONSERVATIVE_RESCALING * c.distance / c.closing } else { f64::INFINITY };
+        swept.sort_unstable_by(|a, b| bound(a).total_cmp(&bound(b)));
+        let mut alpha = 1.0f64;
+        for c in &swept {
+            if bound(c) >= alpha {
+                break;
+            }
+            let p = &c.pair;
+            alpha = alpha.min(additive_ccd(p.kind, &p.points(&x), &p.vertices.map(|v| step[v as usize]), alpha));
+        }
+        // Then Armijo backtracking over `[0, alpha]`, on the pairs that can come within their
+        // range there (the others add nothing to the energy along it).
+        let swept: Vec<Pair> = swept.iter().filter(|c| c.distance - alpha * c.closing < c.pair.s_hat.sqrt()).map(|c| c.pair).collect();
         let e0 = energy(&x, &swept);
-        let slope: f64 = region.iter().enumerate().map(|(s, &v)| (0..3).map(|c| gradient[3 * s + c] * step[v][c]).sum::<f64>()).sum();
         let trial = |alpha: f64| {
             let mut y = x.clone();
             for &v in region {
