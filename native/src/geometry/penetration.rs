@@ -12,7 +12,7 @@
 use rayon::prelude::*;
 
 use super::mat3::{add, cross, dot, length, scale, sub, Vec3};
-use super::bvh::{Aabb, TriangleBvh};
+use super::bvh::{Aabb, RefitLinks, TriangleBvh};
 use super::topology::connected_components;
 
 /// Self-intersection of a surface.
@@ -168,8 +168,10 @@ pub struct PenetrationBaseline<'a> {
     triangles: &'a [[u32; 3]],
     /// `(a, b, length)` with `a < b`, in order of `a`.
     rest: Vec<(u32, u32, f64)>,
-    /// Built on the rest pose, refitted to each shape.
+    /// Built on the rest pose; a copy is refitted to each shape where it moves.
     bvh: TriangleBvh,
+    /// Where each triangle and node of `bvh` sits, for [`TriangleBvh::refit_listed`].
+    links: RefitLinks,
     /// The connected piece of each triangle.
     piece: Vec<u32>,
 }
@@ -179,7 +181,8 @@ impl<'a> PenetrationBaseline<'a> {
         let points: Vec<Vec3> = neutral.iter().map(|p| p.map(f64::from)).collect();
         let bvh = TriangleBvh::build(&points, triangles);
         let rest = crossings(&points, triangles, &bvh, None);
-        Self { neutral, triangles, rest, bvh, piece: triangle_pieces(neutral.len(), triangles) }
+        let links = bvh.refit_links();
+        Self { neutral, triangles, rest, bvh, links, piece: triangle_pieces(neutral.len(), triangles) }
     }
 
     /// The rest mesh's own penetration.
@@ -194,7 +197,13 @@ impl<'a> PenetrationBaseline<'a> {
             self.neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
         let moved: Vec<bool> =
             self.triangles.iter().map(|t| t.iter().any(|&v| delta[v as usize] != [0.0; 3])).collect();
-        let swept = crossings(&points, self.triangles, &self.bvh.refitted(&points, self.triangles), Some(&moved));
+        // Only the moved triangles' boxes and their ancestors' bounds are recomputed: an unmoved
+        // triangle's box is its rest box, so the tree is `refitted(points)`'s to the bit (the
+        // 25k head's template shapes move 8-64% of its 49,732 triangles, 23% on average).
+        let listed: Vec<u32> = (0..moved.len() as u32).filter(|&t| moved[t as usize]).collect();
+        let mut bvh = self.bvh.clone();
+        bvh.refit_listed(&self.links, &points, self.triangles, &listed);
+        let swept = crossings(&points, self.triangles, &bvh, Some(&moved));
         shape_penetration(&swept, &self.rest, &moved, &self.piece)
     }
 }

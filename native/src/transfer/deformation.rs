@@ -12,8 +12,9 @@ use super::gradients::{
     HatGradients, Vec3, IDENTITY, ZERO,
 };
 use super::system::NormalMatrix;
-use super::virtual_edges::{find_contact_edges, find_virtual_edges};
-use super::{TransferParams, TransferResult, VirtualEdgeParams};
+use super::key_contacts::{resting_in_contact, KeyContactSearch};
+use super::virtual_edges::find_virtual_edges;
+use super::{TransferParams, TransferResult};
 
 use crate::error::{ShapesmithError, ShapesmithResult};
 use crate::geometry::topology::{connected_components, Adjacency};
@@ -37,10 +38,8 @@ pub struct DeformationTransfer {
     /// Per vertex: the mean target-rest / source-rest gradient over its one-ring (the `A_ij`
     /// of a key's contact edges are means of two of these).
     vertex_rest_maps: Vec<Mat3>,
-    /// The search for each key's contacts ([`find_contact_edges`]) on the template: its
-    /// parameters, the template's edge graph and the vertices resting in contact; `None`
-    /// without virtual edges.
-    key_contacts: Option<(VirtualEdgeParams, Adjacency, Vec<bool>)>,
+    /// The search for each key's contacts on the template; `None` without virtual edges.
+    key_contacts: Option<KeyContactSearch>,
     edge_weight: f64,
     /// Original target orientation = `rotation` x working frame.
     rotation: Mat3,
@@ -163,17 +162,8 @@ impl DeformationTransfer {
         let key_contacts = match params.virtual_edges {
             Some(ve) if params.edge_weight > 0.0 => {
                 let adjacency = Adjacency::from_triangles(n, triangles);
-                // Resting in contact: the template's rest virtual edges' ends and their rings.
-                let mut resting = vec![false; n];
-                for &(i, j) in &template_edges {
-                    for end in [i, j] {
-                        resting[end as usize] = true;
-                        for &v in adjacency.neighbours(end as usize) {
-                            resting[v as usize] = true;
-                        }
-                    }
-                }
-                Some((ve, adjacency, resting))
+                let resting = resting_in_contact(&adjacency, &template_edges);
+                Some(KeyContactSearch::new(&source, adjacency, resting, &piece, bbox_diagonal(source_neutral), ve))
             }
             _ => None,
         };
@@ -425,7 +415,7 @@ impl DeformationTransfer {
         })
     }
 
-    /// The virtual edges the template's key `delta` adds ([`find_contact_edges`] on the
+    /// The virtual edges the template's key `delta` adds ([`KeyContactSearch::edges`] on the
     /// template), less the rest's own: springs this shape's
     /// solve adds to the matrix, each aiming as a rest virtual edge does ([`Self::edge_change`]).
     /// Where the key brings a pair into contact it moves the pair a lot, so `rho -> 0` and
@@ -434,8 +424,8 @@ impl DeformationTransfer {
     /// leaves open. A pair apart at rest on the template can still be a rest virtual edge of
     /// the target (its own opening narrower): one spring each.
     pub(super) fn key_contact_edges(&self, delta: &[[f32; 3]]) -> Vec<(u32, u32)> {
-        let Some((params, adjacency, resting)) = &self.key_contacts else { return Vec::new() };
-        let mut edges = find_contact_edges(&self.source_neutral, delta, adjacency, resting, &self.piece, self.source_diagonal, params);
+        let Some(search) = &self.key_contacts else { return Vec::new() };
+        let mut edges = search.edges(&self.source_neutral, delta);
         if !edges.is_empty() {
             let rest: std::collections::HashSet<(u32, u32)> = self.virtual_edges.iter().copied().collect();
             edges.retain(|e| !rest.contains(e));

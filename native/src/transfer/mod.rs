@@ -41,7 +41,7 @@
 //!   i and j, `rho = (1 - min(1, |e_k - e_0| / |e_0|))^2` (`DeformationTransfer::edge_change`).
 //!   A pair that moves a lot ends where the source pair ends, mapped into the target; one that
 //!   barely moves keeps the target's rest vector; self-transfer is exact (`A = I`, `f_0 = e_0`).
-//! - **A key's contacts are virtual edges of its own solve** (`find_contact_edges`): the
+//! - **A key's contacts are virtual edges of its own solve** (`key_contacts.rs`): the
 //!   pairs the template's key brings to touch from beyond `tau_d` (the lids of a blink) join
 //!   that key's matrix and aim by the same `f_k`, so `rho -> 0` and they meet on a target
 //!   whose eyes are larger; every other key's solve is as before, to the bit.
@@ -58,6 +58,7 @@ mod alignment;
 mod contact;
 mod deformation;
 mod gradients;
+mod key_contacts;
 mod personalise;
 mod report;
 mod system;

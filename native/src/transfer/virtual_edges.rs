@@ -26,9 +26,8 @@
 //! the whole search went from 0.33 to 0.26 CPU-seconds on one thread (`find_virtual_edges`,
 //! the same 401 edges); the breadth-first pass is now about two thirds of it.
 //!
-//! A key's contacts ([`find_contact_edges`]) are the same definition on the template posed by
-//! the key, among pairs apart at rest that it brings to touch: the lids a blink closes, which
-//! the rest's search cannot see on an eye open wider than `tau_d`.
+//! A key's contacts (`key_contacts.rs`) are the same definition on the template posed by the
+//! key, among pairs apart at rest that it brings to touch.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -75,90 +74,39 @@ pub fn find_virtual_edges(neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: 
     let trees = PieceTrees::new(neutral, &labels, n_pieces, 0..n);
     let adjacency = Adjacency::from_triangles(n, triangles);
     let graph = EdgeGraph::new(&points, &adjacency);
-    let search = FarPairs { points: &points, labels: &labels, trees: &trees, graph: &graph, radius, params };
-    search.thinned(spatial_order(&points), |i, j| j > i, true)
-}
-
-/// The virtual edges a key adds (the key's contacts): pairs of one piece that the template's
-/// key `delta` brings within `tau_d` (a fraction of the template's bbox diagonal) from beyond
-/// it at rest, to at most half their rest distance, kept when far along the surface in the
-/// key's pose (`g_ij > tau_r d_ij`, both measured on the posed template), thinned as at rest:
-/// the upper and lower lid margins of a blink. Touching: within the rest mesh's edge length
-/// around the pair's ends. Halving leaves out pairs that merely slide past `tau_d`: their
-/// spring would hold nearly the rest vector (`rho > 1/4`), which the gradients give them
-/// anyway. It also bounds the search: such a pair's ends move apart by more than `tau_d / 2`,
-/// so one end moves by more than `tau_d / 4`, and only those vertices are searched from (19k
-/// head: 33 -> 9 ms per key). Vertices `resting` in contact (lips touching at rest) take no
-/// contact: such surfaces slide along each other in jaw or roll keys, and a spring there
-/// pins one vertex to another where the target's lips need not match vertex for vertex.
-/// `adjacency`, `labels` (connected pieces) and `diagonal` are the template's, computed once.
-pub(super) fn find_contact_edges(
-    neutral: &[[f64; 3]],
-    delta: &[[f32; 3]],
-    adjacency: &Adjacency,
-    resting: &[bool],
-    labels: &[u32],
-    diagonal: f64,
-    params: &VirtualEdgeParams,
-) -> Vec<(u32, u32)> {
-    let radius = params.tau_d * diagonal;
-    let reach = 0.25 * radius;
-    let source: Vec<bool> =
-        delta.iter().zip(resting).map(|(d, &rests)| !rests && d.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() > reach * reach).collect();
-    let sources: Vec<usize> = (0..neutral.len()).filter(|&v| source[v]).collect();
-    if sources.is_empty() || radius <= 0.0 {
-        return Vec::new();
-    }
-    // Posed in single precision, as the rest search measures a neutral as given.
-    let posed32: Vec<[f32; 3]> = neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + f64::from(d[a])) as f32)).collect();
-    let posed: Vec<[f64; 3]> = posed32.iter().map(|p| p.map(f64::from)).collect();
-    // Partners lie within `radius` of a source's posed place: the tree holds only those.
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for &v in &sources {
-        for a in 0..3 {
-            lo[a] = lo[a].min(posed[v][a] - radius);
-            hi[a] = hi[a].max(posed[v][a] + radius);
-        }
-    }
-    let near = (0..neutral.len()).filter(|&v| (0..3).all(|a| posed[v][a] >= lo[a] && posed[v][a] <= hi[a]));
-    let n_pieces = labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
-    let trees = PieceTrees::new(&posed32, labels, n_pieces, near);
-    let graph = EdgeGraph::new(&posed, adjacency);
-    let search = FarPairs { points: &posed, labels, trees: &trees, graph: &graph, radius, params };
-    let source_points: Vec<[f64; 3]> = sources.iter().map(|&v| posed[v]).collect();
-    let order: Vec<u32> = spatial_order(&source_points).into_iter().map(|k| sources[k as usize] as u32).collect();
-    // Each pair once (from its lower end when both are sources), apart at rest, halved, and
-    // touching: within the rest mesh's edge length around its ends.
-    let edge = |v: usize| {
-        let ring = adjacency.neighbours(v);
-        ring.iter().map(|&u| distance(&neutral[v], &neutral[u as usize])).sum::<f64>() / ring.len().max(1) as f64
+    let search = FarPairs { points: &points, labels: &labels, graph: &graph, params };
+    let ball = |i: usize, ball: &mut Vec<(usize, f64)>| {
+        ball.extend(trees.within(labels[i], points[i], radius).filter(|&(j, d)| j != i && d < radius));
     };
-    let brought_together = |i: usize, j: usize| {
-        let (rest, posed) = (distance(&neutral[i], &neutral[j]), distance(&posed[i], &posed[j]));
-        (j > i || !source[j]) && !resting[j] && rest >= radius && 2.0 * posed <= rest && 2.0 * posed <= edge(i) + edge(j)
-    };
-    search.thinned(order, brought_together, false)
+    search.thinned(spatial_order(&points), ball, |i, j| j > i, true)
 }
 
-/// One far-pair search: close pairs (`d_ij < radius`, one piece) that are far along the
-/// surface (`g_ij > tau_r d_ij`), thinned.
-struct FarPairs<'a> {
-    points: &'a [[f64; 3]],
-    labels: &'a [u32],
-    trees: &'a PieceTrees,
-    graph: &'a EdgeGraph<'a>,
-    radius: f64,
-    params: &'a VirtualEdgeParams,
+/// One far-pair search: close pairs (one piece) that are far along the surface
+/// (`g_ij > tau_r d_ij`), thinned. Its answer does not depend on the region each source's
+/// breadth-first pass covers (its `ball`): that pass only proves pairs close by paths it
+/// finds, and every pair it leaves open is decided by an exact bounded search.
+pub(super) struct FarPairs<'a, L: EdgeLengths> {
+    pub points: &'a [[f64; 3]],
+    pub labels: &'a [u32],
+    pub graph: &'a EdgeGraph<'a, L>,
+    pub params: &'a VirtualEdgeParams,
 }
 
-impl FarPairs<'_> {
-    /// The virtual edges `(i, j)`, `i < j`, among the pairs `(i, j)` with `i` in `sources`
-    /// and `candidate(i, j)`, shortest first: at most `max_per_vertex` per vertex, and once a
-    /// pair is taken the one-ring neighbours of both ends take no further edge. `landmarks`:
-    /// prune the farness checks with [`LandmarkBounds`] (worth its six whole-mesh Dijkstras
-    /// when the sources are the whole mesh).
-    fn thinned(&self, sources: Vec<u32>, candidate: impl Fn(usize, usize) -> bool + Sync, landmarks: bool) -> Vec<(u32, u32)> {
-        let (n, params, graph) = (self.points.len(), self.params, self.graph);
+impl<L: EdgeLengths> FarPairs<'_, L> {
+    /// The virtual edges `(i, j)`, `i < j`, among the pairs `(i, j)` with `i` in `sources`,
+    /// `(j, d_ij)` among those `ball(i, ..)` appends, and `candidate(i, j)`, shortest first:
+    /// at most `max_per_vertex` per vertex, and once a pair is taken the one-ring neighbours
+    /// of both ends take no further edge. `landmarks`: prune the farness checks with
+    /// [`LandmarkBounds`] (worth its six whole-mesh Dijkstras when the sources are the whole
+    /// mesh).
+    pub(super) fn thinned(
+        &self,
+        sources: Vec<u32>,
+        ball: impl Fn(usize, &mut Vec<(usize, f64)>) + Sync,
+        candidate: impl Fn(usize, usize) -> bool + Sync,
+        landmarks: bool,
+    ) -> Vec<(u32, u32)> {
+        let (n, params, graph, gather) = (self.points.len(), self.params, self.graph, ball);
         // Pairs (d_ij, i, j), i < j, that no short path proves close, shortest first.
         // Each split of the range keeps one scratch, ball and list for all its vertices.
         let mut uncertain: Vec<(f64, u32, u32)> = sources
@@ -169,7 +117,7 @@ impl FarPairs<'_> {
                 |(mut search, mut ball, mut open), i| {
                     let i = i as usize;
                     ball.clear();
-                    ball.extend(self.trees.within(self.labels[i], self.points[i], self.radius).filter(|&(j, d)| j != i && d < self.radius));
+                    gather(i, &mut ball);
                     search.not_proven_close(graph, i, &ball, params.tau_r, |j| candidate(i, j), &mut open);
                     (search, ball, open)
                 },
@@ -246,7 +194,7 @@ impl FarPairs<'_> {
 /// alone: on a head whose pieces crowd the skin (lashes copied over the lids, eyeballs and
 /// gums crossing it) a tree over every vertex returned the other pieces' vertices too, only
 /// for them to be dropped.
-struct PieceTrees {
+pub(super) struct PieceTrees {
     trees: Vec<PointTree>,
     /// Per piece, its vertices' indices in the mesh, in the order of its tree's items.
     members: Vec<Vec<usize>>,
@@ -254,7 +202,7 @@ struct PieceTrees {
 
 impl PieceTrees {
     /// Trees over the vertices `vertices` only (increasing).
-    fn new(points: &[[f32; 3]], labels: &[u32], n_pieces: usize, vertices: impl Iterator<Item = usize>) -> Self {
+    pub(super) fn new(points: &[[f32; 3]], labels: &[u32], n_pieces: usize, vertices: impl Iterator<Item = usize>) -> Self {
         let mut members = vec![Vec::new(); n_pieces];
         for v in vertices {
             members[labels[v] as usize].push(v);
@@ -265,7 +213,7 @@ impl PieceTrees {
 
     /// The vertices of piece `label` within `radius` of `query` (inclusive), with their
     /// distances.
-    fn within(&self, label: u32, query: [f64; 3], radius: f64) -> impl Iterator<Item = (usize, f64)> + '_ {
+    pub(super) fn within(&self, label: u32, query: [f64; 3], radius: f64) -> impl Iterator<Item = (usize, f64)> + '_ {
         let piece = &self.members[label as usize];
         self.trees[label as usize].within(query, radius).into_iter().map(move |(k, d)| (piece[k], d))
     }
@@ -293,10 +241,9 @@ impl ClosePaths {
 
     /// The length of a path from `a` to `b` through a proven pair, when one is within
     /// `deadline`.
-    fn path_beside(&self, graph: &EdgeGraph, a: usize, b: usize, deadline: f64) -> Option<f64> {
+    fn path_beside<L: EdgeLengths>(&self, graph: &EdgeGraph<L>, a: usize, b: usize, deadline: f64) -> Option<f64> {
         let steps = |v: usize| {
-            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
-            std::iter::once((v as u32, 0.0)).chain(graph.adjacency.targets[row.clone()].iter().copied().zip(graph.lengths[row].iter().copied()))
+            std::iter::once((v as u32, 0.0)).chain(graph.steps(v))
         };
         for (i, to_i) in steps(a) {
             for &(j, length) in &self.partners[i as usize] {
@@ -319,7 +266,7 @@ impl ClosePaths {
 /// after the other overlap and their vertices stay in cache (the production bench's 77k
 /// target, one thread: 1.58 -> 1.37 CPU-seconds; subdivided meshes number their vertices by
 /// level, not by place).
-fn spatial_order(points: &[[f64; 3]]) -> Vec<u32> {
+pub(super) fn spatial_order(points: &[[f64; 3]]) -> Vec<u32> {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points {
         for a in 0..3 {
@@ -339,7 +286,7 @@ fn spatial_order(points: &[[f64; 3]]) -> Vec<u32> {
     order.into_iter().map(|(_, v)| v).collect()
 }
 
-fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+pub(super) fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     length(sub(*a, *b))
 }
 
@@ -355,7 +302,7 @@ impl LandmarkBounds {
     /// One multi-source Dijkstra per landmark slot, all pieces at once: slot `s` starts from
     /// the `s`-th landmark of every piece, and a vertex can be reached only from its own
     /// piece's.
-    fn new(graph: &EdgeGraph, points: &[[f64; 3]], pieces: &[u32]) -> Self {
+    fn new<L: EdgeLengths>(graph: &EdgeGraph<L>, points: &[[f64; 3]], pieces: &[u32]) -> Self {
         let n = points.len();
         let n_pieces = pieces.iter().map(|&p| p as usize + 1).max().unwrap_or(0);
         // Slot 2a: least coordinate a; slot 2a + 1: greatest (the lowest index on ties).
@@ -386,8 +333,7 @@ impl LandmarkBounds {
                     if f64::from_bits(bits) > distance[v] {
                         continue;
                     }
-                    let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
-                    for (&u, &step) in graph.adjacency.targets[row.clone()].iter().zip(&graph.lengths[row]) {
+                    for (u, step) in graph.steps(v) {
                         let next = distance[v] + step;
                         if next < distance[u as usize] {
                             distance[u as usize] = next;
@@ -439,18 +385,63 @@ const GREEDY_WEIGHT: f64 = 3.0;
 /// enough that pairs blocked by an earlier one of the same batch are rarely checked.
 const FAR_CHECK_BATCH: usize = 128;
 
-/// The mesh's edge graph with each edge's length beside its target (compressed rows).
-struct EdgeGraph<'a> {
+/// The mesh's edge graph with each edge's length, [`Stored`] beside its target (compressed
+/// rows) where every vertex is searched from, else [`Measured`] when stepped over, where few
+/// are (a key's contacts: storing them cost a pass over every edge per key, a third of the 25k
+/// head's search). The same lengths either way, `|p_u - p_v|` in one order; a type, not a
+/// branch per step, which cost the rest's search 9% more instructions.
+pub(super) struct EdgeGraph<'a, L: EdgeLengths> {
     adjacency: &'a Adjacency,
-    lengths: Vec<f64>,
+    lengths: L,
 }
 
-impl<'a> EdgeGraph<'a> {
-    fn new(points: &[[f64; 3]], adjacency: &'a Adjacency) -> Self {
+impl<'a> EdgeGraph<'a, Stored> {
+    pub(super) fn new(points: &[[f64; 3]], adjacency: &'a Adjacency) -> Self {
         let lengths = (0..points.len())
             .flat_map(|v| adjacency.neighbours(v).iter().map(move |&u| distance(&points[u as usize], &points[v])))
             .collect();
-        Self { adjacency, lengths }
+        Self { adjacency, lengths: Stored(lengths) }
+    }
+}
+
+impl<'a> EdgeGraph<'a, Measured<'a>> {
+    pub(super) fn measured(points: &'a [[f64; 3]], adjacency: &'a Adjacency) -> Self {
+        Self { adjacency, lengths: Measured(points) }
+    }
+}
+
+impl<L: EdgeLengths> EdgeGraph<'_, L> {
+    /// The neighbours of `v` as `(u, |p_u - p_v|)`.
+    #[inline(always)]
+    fn steps(&self, v: usize) -> impl Iterator<Item = (u32, f64)> + '_ {
+        self.lengths.row(v, self.adjacency.offsets[v]..self.adjacency.offsets[v + 1], &self.adjacency.targets)
+    }
+}
+
+/// How an [`EdgeGraph`] knows its edges' lengths.
+pub(super) trait EdgeLengths: Sync {
+    /// The row `v` of the compressed rows `targets[row]` as `(u, |p_u - p_v|)`.
+    fn row<'b>(&'b self, v: usize, row: std::ops::Range<usize>, targets: &'b [u32]) -> impl Iterator<Item = (u32, f64)> + 'b;
+}
+
+/// Every edge's length, per row entry.
+pub(super) struct Stored(Vec<f64>);
+
+/// Lengths measured between these points.
+pub(super) struct Measured<'a>(&'a [[f64; 3]]);
+
+impl EdgeLengths for Stored {
+    #[inline(always)]
+    fn row<'b>(&'b self, _: usize, row: std::ops::Range<usize>, targets: &'b [u32]) -> impl Iterator<Item = (u32, f64)> + 'b {
+        targets[row.clone()].iter().copied().zip(self.0[row].iter().copied())
+    }
+}
+
+impl EdgeLengths for Measured<'_> {
+    #[inline(always)]
+    fn row<'b>(&'b self, v: usize, row: std::ops::Range<usize>, targets: &'b [u32]) -> impl Iterator<Item = (u32, f64)> + 'b {
+        let from = self.0[v];
+        targets[row].iter().map(move |&u| (u, distance(&self.0[u as usize], &from)))
     }
 }
 
@@ -494,9 +485,9 @@ impl SurfaceSearch {
     /// within `ratio x d_ij`. Each vertex keeps the shortest of the paths that reached it; any
     /// path's length bounds `g_ij` from above, so every pair left out is close. On smooth skin
     /// that is all of them.
-    fn not_proven_close(
+    fn not_proven_close<L: EdgeLengths>(
         &mut self,
-        graph: &EdgeGraph,
+        graph: &EdgeGraph<L>,
         source: usize,
         ball: &[(usize, f64)],
         ratio: f64,
@@ -519,7 +510,7 @@ impl SurfaceSearch {
     /// A breadth-first pass from `source` over the vertices of `region`, until `targets`
     /// vertices for which `is_target` holds are reached; leaves the path lengths found in
     /// `distance` (reset by the caller).
-    fn breadth_first(&mut self, graph: &EdgeGraph, source: usize, region: &[(usize, f64)], targets: usize, is_target: impl Fn(usize) -> bool) {
+    fn breadth_first<L: EdgeLengths>(&mut self, graph: &EdgeGraph<L>, source: usize, region: &[(usize, f64)], targets: usize, is_target: impl Fn(usize) -> bool) {
         let mut pending = targets;
         let stamp = source as u32 + 1;
         for &(j, _) in region {
@@ -533,8 +524,7 @@ impl SurfaceSearch {
         while head < self.queue.len() && pending > 0 {
             let v = self.queue[head] as usize;
             head += 1;
-            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
-            for (&u, &step) in graph.adjacency.targets[row.clone()].iter().zip(&graph.lengths[row]) {
+            for (u, step) in graph.steps(v) {
                 let u = u as usize;
                 if self.in_ball[u] != stamp {
                     continue;
@@ -559,7 +549,7 @@ impl SurfaceSearch {
     /// exact search follows it (it would explore the same region again and find the same;
     /// few greedy searches fail on a close pair, so this saves little: the searches' 0.91 ->
     /// 0.89 G instructions on the 25k head, one thread, the same edges).
-    fn path_within(&mut self, graph: &EdgeGraph, bounds: &Distances, source: usize, target: usize, deadline: f64) -> Option<f64> {
+    fn path_within<L: EdgeLengths>(&mut self, graph: &EdgeGraph<L>, bounds: &Distances, source: usize, target: usize, deadline: f64) -> Option<f64> {
         self.reaches_within(graph, bounds, source, target, deadline, GREEDY_WEIGHT)
     }
 
@@ -574,9 +564,9 @@ impl SurfaceSearch {
     /// (`g + h` along it never exceeds its length, `h` being a lower bound), so its
     /// next-to-last vertex would have reached `target`. A larger weight runs straight at the
     /// target (most pairs are close); a tighter bound prunes more.
-    fn reaches_within(
+    fn reaches_within<L: EdgeLengths>(
         &mut self,
-        graph: &EdgeGraph,
+        graph: &EdgeGraph<L>,
         bounds: &Distances,
         source: usize,
         target: usize,
@@ -598,8 +588,7 @@ impl SurfaceSearch {
             if self.queued_estimate[v] != bits {
                 continue; // superseded by a shorter path
             }
-            let row = graph.adjacency.offsets[v]..graph.adjacency.offsets[v + 1];
-            for (&u, &step) in graph.adjacency.targets[row.clone()].iter().zip(&graph.lengths[row]) {
+            for (u, step) in graph.steps(v) {
                 let u = u as usize;
                 let next = g + step;
                 if u == target && next <= deadline {

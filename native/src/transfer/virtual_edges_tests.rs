@@ -2,6 +2,7 @@
 //! slow way, and the pairs a key brings into contact.
 
 use super::*;
+use crate::transfer::key_contacts::KeyContactSearch;
 
 /// A flattened tube along x: its cross-section is a thin closed loop, a lower row at
 /// z = 0 and an upper row at z = `gap` (y from -0.5 to 0.5), joined at y = +-0.5. Opposite
@@ -261,49 +262,57 @@ fn flat_sheet_and_separate_pieces_have_none() {
 fn a_keys_contacts_are_the_far_pairs_of_its_pose_apart_at_rest() {
     // Layers 0.1 apart at rest, closed unevenly by the key (most at the middle, a little
     // jitter): the pairs it brings within tau_d, to at most half their rest distance, far
-    // along the posed surface, that were not within tau_d at rest; thinned as at rest.
-    let (pts, tris) = folded_strip(12, 0.1);
-    let mut state = 777u64;
-    let key: Vec<[f32; 3]> = pts
-        .iter()
-        .map(|p| {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            let jitter = 1.0 + ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.1;
-            let along = (std::f32::consts::PI * p[0] / 1.1).sin().max(0.0).powi(2);
-            let across = (std::f32::consts::PI * (p[1] + 0.5)).sin().max(0.0).powi(2);
-            let bump = 0.047 * along * across * jitter;
-            if p[2] > 0.05 {
-                [0.0, 0.0, -bump]
-            } else {
-                [0.0, 0.0, bump]
-            }
-        })
-        .collect();
-    let n = pts.len();
-    let rest: Vec<[f64; 3]> = pts.iter().map(|p| p.map(f64::from)).collect();
-    let posed: Vec<[f32; 3]> = rest.iter().zip(&key).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + f64::from(d[a])) as f32)).collect();
-    let posed64: Vec<[f64; 3]> = posed.iter().map(|p| p.map(f64::from)).collect();
-    let (labels, _) = connected_components(n, &tris);
-    let adjacency = Adjacency::from_triangles(n, &tris);
-    let diagonal = bbox_diagonal(&pts);
-    for (tau_d, tau_r) in [(0.03, 4.0), (0.04, 4.0), (0.05, 4.0), (0.04, 2.0)] {
-        let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
-        let radius = tau_d * diagonal;
-        let edge = |v: usize| {
-            let ring = adjacency.neighbours(v);
-            ring.iter().map(|&u| distance(&rest[v], &rest[u as usize])).sum::<f64>() / ring.len() as f64
+    // along the posed surface, that were not within tau_d at rest; thinned as at rest. Once
+    // with even cross-sections, once graded (edges along the strip from 0.01 to 0.2, so the
+    // search's classes of edge length differ along it).
+    let (even, tris) = folded_strip(12, 0.1);
+    let graded: Vec<[f32; 3]> = even.iter().map(|p| [p[0] * p[0] / 1.1 + 0.01 * p[0], p[1], p[2]]).collect();
+    for pts in [even, graded] {
+        let mut state = 777u64;
+        let key: Vec<[f32; 3]> = pts
+            .iter()
+            .map(|p| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let jitter = 1.0 + ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 0.1;
+                let along = (std::f32::consts::PI * p[0] / 1.1).sin().max(0.0).powi(2);
+                let across = (std::f32::consts::PI * (p[1] + 0.5)).sin().max(0.0).powi(2);
+                let bump = 0.047 * along * across * jitter;
+                if p[2] > 0.05 {
+                    [0.0, 0.0, -bump]
+                } else {
+                    [0.0, 0.0, bump]
+                }
+            })
+            .collect();
+        let n = pts.len();
+        let rest: Vec<[f64; 3]> = pts.iter().map(|p| p.map(f64::from)).collect();
+        let posed: Vec<[f32; 3]> = rest.iter().zip(&key).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + f64::from(d[a])) as f32)).collect();
+        let posed64: Vec<[f64; 3]> = posed.iter().map(|p| p.map(f64::from)).collect();
+        let (labels, _) = connected_components(n, &tris);
+        let adjacency = Adjacency::from_triangles(n, &tris);
+        let diagonal = bbox_diagonal(&pts);
+        let search = |resting: Vec<bool>, params: VirtualEdgeParams| {
+            KeyContactSearch::new(&rest, Adjacency::from_triangles(n, &tris), resting, &labels, diagonal, params).edges(&rest, &key)
         };
-        let brought_together = |i: usize, j: usize| {
-            let (at_rest, posed) = (distance(&rest[i], &rest[j]), distance(&posed64[i], &posed64[j]));
-            at_rest >= radius && 2.0 * posed <= at_rest && 2.0 * posed <= edge(i) + edge(j)
-        };
-        let expected = by_definition_among(&posed, &tris, &params, radius, brought_together);
-        assert!(expected.len() >= 4, "tau_d {tau_d}: {} edges", expected.len());
-        assert_eq!(find_contact_edges(&rest, &key, &adjacency, &vec![false; n], &labels, diagonal, &params), expected, "tau_d {tau_d}, tau_r {tau_r}");
-        // Surfaces resting in contact take none: here every pair has an end on the upper layer.
-        let upper: Vec<bool> = pts.iter().map(|p| p[2] > 0.05).collect();
-        assert!(find_contact_edges(&rest, &key, &adjacency, &upper, &labels, diagonal, &params).is_empty());
-        // None at rest: the key made them.
-        assert!(find_virtual_edges(&pts, &tris, &params).is_empty());
+        for (tau_d, tau_r) in [(0.03, 4.0), (0.04, 4.0), (0.05, 4.0), (0.04, 2.0)] {
+            let params = VirtualEdgeParams { tau_d, tau_r, ..Default::default() };
+            let radius = tau_d * diagonal;
+            let edge = |v: usize| {
+                let ring = adjacency.neighbours(v);
+                ring.iter().map(|&u| distance(&rest[v], &rest[u as usize])).sum::<f64>() / ring.len() as f64
+            };
+            let brought_together = |i: usize, j: usize| {
+                let (at_rest, posed) = (distance(&rest[i], &rest[j]), distance(&posed64[i], &posed64[j]));
+                at_rest >= radius && 2.0 * posed <= at_rest && 2.0 * posed <= edge(i) + edge(j)
+            };
+            let expected = by_definition_among(&posed, &tris, &params, radius, brought_together);
+            assert!(expected.len() >= 4, "tau_d {tau_d}: {} edges", expected.len());
+            assert_eq!(search(vec![false; n], params), expected, "tau_d {tau_d}, tau_r {tau_r}");
+            // Surfaces resting in contact take none: here every pair has an end on the upper layer.
+            let upper: Vec<bool> = pts.iter().map(|p| p[2] > 0.05).collect();
+            assert!(search(upper, params).is_empty());
+            // None at rest: the key made them.
+            assert!(find_virtual_edges(&pts, &tris, &params).is_empty());
+        }
     }
 }
