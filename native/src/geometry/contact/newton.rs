@@ -11,7 +11,7 @@
 //! then keeps every non-exempt pair apart.
 
 
-use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_psd, PairKind};
+use super::barrier::{mollifier_threshold, pair_derivatives, pair_energy, pair_squared, project_pair_psd, PairKind};
 use super::broad::{Box3, BoxTree};
 use super::ccd::{additive_ccd, relative_motion, CONSERVATIVE_RESCALING};
 use super::dual::N;
@@ -305,7 +305,7 @@ pub fn solve(
                 continue;
             }
             close += 1;
-            let h = project_psd(&d.h);
+            let h = project_pair_psd(&d.h);
             let dof = |i: usize| {
                 let v = pair.vertices[i / 3] as usize;
                 in_region[v].then(|| 3 * slot[v] + i % 3)
