@@ -106,14 +106,14 @@ impl ContactMesh<'_> {
         Some(Pair { kind, vertices, s_hat: cut, weight: (s_hat / cut).powi(2) })
     }
 
-    /// The non-exempt pairs with a vertex in `region` whose boxes, swept from `x` to
+    /// The non-exempt pairs with a vertex in the region whose boxes, swept from `x` to
     /// `x + step` and grown by `d_hat`, meet: every pair that can come within `d_hat` or touch
     /// along the step, each with its distance at `x` and the most the step closes it
     /// ([`relative_motion`]). A pair's exemption, range and weight depend on its vertices
     /// alone: `known` keeps them across the calls of one solve.
-    pub fn candidates(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], known: &mut KnownPairs) -> Vec<Candidate> {
+    pub fn candidates(&self, broad: &SolveBroadPhase, x: &[[f64; 3]], step: &[[f64; 3]], known: &mut KnownPairs) -> Vec<Candidate> {
         let mut pairs = Vec::new();
-        self.broad_phase(x, step, in_region, |kind, vertices| {
+        broad.pairs(self, x, step, |kind, vertices| {
             // Boxes meet far more often than primitives come close: a pair whose distance at
             // `x`, less the most its step can close it, stays beyond `d_hat` is none.
             let d_hat = self.pair_d_hat(vertices);
@@ -130,54 +130,93 @@ impl ContactMesh<'_> {
         pairs
     }
 
-    /// Every point-triangle and edge-edge pair with a vertex in `in_region` whose boxes, swept
-    /// from `x` to `x + step` and grown by `d_hat`, meet, passed to `emit`.
-    fn broad_phase(&self, x: &[[f64; 3]], step: &[[f64; 3]], in_region: &[bool], mut emit: impl FnMut(PairKind, [u32; 4])) {
-        let moved = |v: u32| in_region[v as usize];
-        let end = |v: u32| {
-            let (p, d) = (x[v as usize], step[v as usize]);
-            [p[0] + d[0], p[1] + d[1], p[2] + d[2]]
+    /// A primitive's box swept from `x` to `x + step`, grown by its vertices' largest `d_hat`.
+    fn swept(&self, vertices: &[u32], x: &[[f64; 3]], step: &[[f64; 3]]) -> Box3 {
+        let grow = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(0.0, f64::max);
+        Box3::around(
+            vertices.iter().flat_map(|&v| {
+                let (p, d) = (x[v as usize], step[v as usize]);
+                [p, [p[0] + d[0], p[1] + d[1], p[2] + d[2]]]
+            }),
+            grow,
+        )
+    }
+}
+
+/// The broad phase of one solve. The primitives with no vertex in the region do not move in
+/// it: their trees are built once; a step sweeps only the region's points, the triangles and
+/// edges with a vertex there, and a tree over the moving ones (the tree rebuilt per step over
+/// every primitive near the region was a fifth of the solve's time).
+pub struct SolveBroadPhase {
+    points: Vec<u32>,
+    triangles: Vec<u32>,
+    edges: Vec<u32>,
+    fixed_points: (BoxTree, Vec<u32>),
+    fixed_triangles: (BoxTree, Vec<u32>),
+    fixed_edges: (BoxTree, Vec<u32>),
+}
+
+impl SolveBroadPhase {
+    /// The split of `mesh` by `in_region`, the fixed primitives' boxes at `x`.
+    pub fn new(mesh: &ContactMesh, x: &[[f64; 3]], in_region: &[bool]) -> Self {
+        let moves = |vs: &[u32]| vs.iter().any(|&v| in_region[v as usize]);
+        let edge = |e: u32| [mesh.edges[e as usize].0, mesh.edges[e as usize].1];
+        let zero = vec![[0.0; 3]; x.len()];
+        let split = |count: usize, vertices: &dyn Fn(u32) -> Vec<u32>| {
+            let (moving, fixed): (Vec<u32>, Vec<u32>) = (0..count as u32).partition(|&k| moves(&vertices(k)));
+            let tree = BoxTree::build(fixed.iter().map(|&k| mesh.swept(&vertices(k), x, &zero)).collect());
+            (moving, (tree, fixed))
         };
-        let swept = |vs: &[u32]| {
-            let grow = vs.iter().map(|&v| self.d_hat[v as usize]).fold(0.0, f64::max);
-            Box3::around(vs.iter().flat_map(|&v| [x[v as usize], end(v)]), grow)
-        };
-        let region_vertices: Vec<u32> = (0..x.len() as u32).filter(|&v| moved(v)).collect();
-        if region_vertices.is_empty() {
-            return;
-        }
-        let reach = swept(&region_vertices);
-        let near = |vs: &[u32]| swept(vs).overlaps(&reach);
-        // Point-triangle: points against a tree of nearby triangles.
-        let triangles: Vec<u32> = (0..self.triangles.len() as u32).filter(|&t| near(&self.triangles[t as usize])).collect();
-        let tree = BoxTree::build(triangles.iter().map(|&t| swept(&self.triangles[t as usize])).collect());
-        for v in 0..x.len() as u32 {
+        let (points, fixed_points) = split(x.len(), &|v| vec![v]);
+        let (triangles, fixed_triangles) = split(mesh.triangles.len(), &|t| mesh.triangles[t as usize].to_vec());
+        let (edges, fixed_edges) = split(mesh.edges.len(), &|e| edge(e).to_vec());
+        Self { points, triangles, edges, fixed_points, fixed_triangles, fixed_edges }
+    }
+
+    /// Every point-triangle and edge-edge pair with a vertex in the region whose boxes, swept
+    /// from `x` to `x + step` and grown by `d_hat`, meet, each once, passed to `emit`.
+    fn pairs(&self, mesh: &ContactMesh, x: &[[f64; 3]], step: &[[f64; 3]], mut emit: impl FnMut(PairKind, [u32; 4])) {
+        let swept = |vs: &[u32]| mesh.swept(vs, x, step);
+        let triangle = |t: u32| mesh.triangles[t as usize];
+        let edge = |e: u32| [mesh.edges[e as usize].0, mesh.edges[e as usize].1];
+        // Point-triangle: moving points against every triangle, moving triangles against the
+        // fixed points.
+        let triangle_boxes: Vec<Box3> = self.triangles.iter().map(|&t| swept(&triangle(t))).collect();
+        let moving_triangles = BoxTree::build(triangle_boxes.clone());
+        for &v in &self.points {
             let b = swept(&[v]);
-            if !b.overlaps(&reach) {
-                continue;
-            }
-            tree.for_each_overlap(&b, |k| {
-                let tri = self.triangles[triangles[k as usize] as usize];
-                if !tri.contains(&v) && (moved(v) || tri.iter().any(|&c| moved(c))) {
+            let mut take = |t: u32| {
+                let tri = triangle(t);
+                if !tri.contains(&v) {
                     emit(PairKind::PointTriangle, [v, tri[0], tri[1], tri[2]]);
                 }
+            };
+            self.fixed_triangles.0.for_each_overlap(&b, |k| take(self.fixed_triangles.1[k as usize]));
+            moving_triangles.for_each_overlap(&b, |k| take(self.triangles[k as usize]));
+        }
+        for (&t, b) in self.triangles.iter().zip(&triangle_boxes) {
+            let tri = triangle(t);
+            self.fixed_points.0.for_each_overlap(b, |k| {
+                let v = self.fixed_points.1[k as usize];
+                emit(PairKind::PointTriangle, [v, tri[0], tri[1], tri[2]]);
             });
         }
-        // Edge-edge: each unordered pair once.
-        let edges: Vec<u32> = (0..self.edges.len() as u32).filter(|&e| near(&[self.edges[e as usize].0, self.edges[e as usize].1])).collect();
-        let edge_box = |e: u32| swept(&[self.edges[e as usize].0, self.edges[e as usize].1]);
-        let tree = BoxTree::build(edges.iter().map(|&e| edge_box(e)).collect());
-        for (k, &e) in edges.iter().enumerate() {
-            let (a0, a1) = self.edges[e as usize];
-            let e_moves = moved(a0) || moved(a1);
-            tree.for_each_overlap(&edge_box(e), |j| {
-                let f = edges[j as usize];
-                let (b0, b1) = self.edges[f as usize];
-                let f_moves = moved(b0) || moved(b1);
-                // Both move: once, from the lower index; one moves: from the one that does.
-                let take = if e_moves && f_moves { (j as usize) > k } else { e_moves };
-                if take && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1 {
-                    emit(PairKind::EdgeEdge { mollifier: 0.0 }, [a0, a1, b0, b1]);
+        // Edge-edge: moving edges against the fixed ones, and against each other once.
+        let edge_boxes: Vec<Box3> = self.edges.iter().map(|&e| swept(&edge(e))).collect();
+        let moving_edges = BoxTree::build(edge_boxes.clone());
+        let apart = |[a0, a1]: [u32; 2], [b0, b1]: [u32; 2]| a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1;
+        for (k, (&e, b)) in self.edges.iter().zip(&edge_boxes).enumerate() {
+            let a = edge(e);
+            let mut take = |f: u32| {
+                let other = edge(f);
+                if apart(a, other) {
+                    emit(PairKind::EdgeEdge { mollifier: 0.0 }, [a[0], a[1], other[0], other[1]]);
+                }
+            };
+            self.fixed_edges.0.for_each_overlap(b, |j| take(self.fixed_edges.1[j as usize]));
+            moving_edges.for_each_overlap(b, |j| {
+                if j as usize > k {
+                    take(self.edges[j as usize]);
                 }
             });
         }
@@ -264,7 +303,8 @@ pub fn solve(
     // itself; after a step, those swept along it (they hold every pair that came close on the
     // way, so one broad phase per iteration serves both the line search and the next
     // derivatives).
-    let mut pairs: Vec<Pair> = mesh.candidates(&x, &zero, &in_region, &mut known).into_iter().map(|c| c.pair).collect();
+    let broad = SolveBroadPhase::new(mesh, &x, &in_region);
+    let mut pairs: Vec<Pair> = mesh.candidates(&broad, &x, &zero, &mut known).into_iter().map(|c| c.pair).collect();
     // The stop (Boyd and Vandenberghe 9.5.1, the Newton decrement `lambda^2 = -g . p`, the
     // step's length in the Newton matrix's norm), against the same length of a step moving
     // each vertex by `tolerance d_hat` under the energy's diagonal. A step along which the
@@ -350,7 +390,7 @@ pub fn solve(
         // The largest safe step along the direction: the additive CCD's first advance is
         // `eta d / l_p` ([`additive_ccd`]), so a pair whose bound is already beyond the step
         // found so far cannot shorten it, and the pairs are taken in the order of that bound.
-        let mut swept = mesh.candidates(&x, &step, &in_region, &mut known);
+        let mut swept = mesh.candidates(&broad, &x, &step, &mut known);
         let bound = |c: &Candidate| if c.closing > 0.0 { CONSERVATIVE_RESCALING * c.distance / c.closing } else { f64::INFINITY };
         swept.sort_unstable_by(|a, b| bound(a).total_cmp(&bound(b)));
         let mut alpha = 1.0f64;
