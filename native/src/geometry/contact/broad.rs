@@ -1,7 +1,7 @@
 //! The broad phase: a bounding-volume hierarchy over boxes (each primitive's box swept over
-//! the step and grown by `d_hat`), queried with other boxes. A pair whose boxes do not meet
-//! can neither come within `d_hat` nor touch during the step, so only the pairs it reports
-//! reach the distances and the CCD.
+//! the step and grown by half of `d_hat`), queried with other boxes. A pair whose boxes do
+//! not meet can neither come within `d_hat` nor touch during the step, so only the pairs it
+//! reports reach the distances and the CCD.
 
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug)]

@@ -8,7 +8,7 @@
 //! | barrier `b(d, d_hat) = -(d - d_hat)^2 ln(d / d_hat)` (on squared distances) | [`barrier::barrier`] |
 //! | edge-edge mollifier `m(x)`, `eps_x = 1e-3 |e_a|^2 |e_b|^2` at rest | [`barrier::mollifier`] |
 //! | projected Newton, per-pair Hessians projected to PSD | [`newton::solve`], [`barrier::project_pair_psd`] |
-//! | broad phase on swept boxes grown by `d_hat` | [`broad`], [`newton::SolveBroadPhase`] |
+//! | broad phase on swept boxes grown by `d_hat` (here half of it each) | [`broad`], [`newton::SolveBroadPhase`] |
 //! | additive CCD (Li, Kaufman, Jiang 2021), the line search's largest safe step | [`ccd::additive_ccd`] |
 //! | `kappa` (barrier stiffness) | the energy's mean diagonal over the region / `d_hat^2` |
 //!

@@ -107,10 +107,10 @@ impl ContactMesh<'_> {
     }
 
     /// The non-exempt pairs with a vertex in the region whose boxes, swept from `x` to
-    /// `x + step` and grown by `d_hat`, meet: every pair that can come within `d_hat` or touch
-    /// along the step, each with its distance at `x` and the most the step closes it
-    /// ([`relative_motion`]). A pair's exemption, range and weight depend on its vertices
-    /// alone: `known` keeps them across the calls of one solve.
+    /// `x + step` and grown ([`ContactMesh::swept`]), meet: every pair that can come within
+    /// `d_hat` or touch along the step, each with its distance at `x` and the most the step
+    /// closes it ([`relative_motion`]). A pair's exemption, range and weight depend on its
+    /// vertices alone: `known` keeps them across the calls of one solve.
     pub fn candidates(&self, broad: &SolveBroadPhase, x: &[[f64; 3]], step: &[[f64; 3]], known: &mut KnownPairs) -> Vec<Candidate> {
         let mut pairs = Vec::new();
         broad.pairs(self, x, step, |kind, vertices| {
@@ -130,9 +130,13 @@ impl ContactMesh<'_> {
         pairs
     }
 
-    /// A primitive's box swept from `x` to `x + step`, grown by its vertices' largest `d_hat`.
+    /// A primitive's box swept from `x` to `x + step`, grown by half its vertices' least
+    /// `d_hat`: two primitives that come within their pair's `d_hat` (the least of the four)
+    /// somewhere on the step come within half the sum of theirs, so their boxes meet. Grown by
+    /// the largest instead, the boxes met on pairs up to twice as far, and the candidates'
+    /// distances were the broad phase's largest cost.
     fn swept(&self, vertices: &[u32], x: &[[f64; 3]], step: &[[f64; 3]]) -> Box3 {
-        let grow = vertices.iter().map(|&v| self.d_hat[v as usize]).fold(0.0, f64::max);
+        let grow = 0.5 * vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
         Box3::around(
             vertices.iter().flat_map(|&v| {
                 let (p, d) = (x[v as usize], step[v as usize]);
@@ -174,7 +178,8 @@ impl SolveBroadPhase {
     }
 
     /// Every point-triangle and edge-edge pair with a vertex in the region whose boxes, swept
-    /// from `x` to `x + step` and grown by `d_hat`, meet, each once, passed to `emit`.
+    /// from `x` to `x + step` and grown ([`ContactMesh::swept`]), meet, each once, passed to
+    /// `emit`.
     fn pairs(&self, mesh: &ContactMesh, x: &[[f64; 3]], step: &[[f64; 3]], mut emit: impl FnMut(PairKind, [u32; 4])) {
         let swept = |vs: &[u32]| mesh.swept(vs, x, step);
         let triangle = |t: u32| mesh.triangles[t as usize];
