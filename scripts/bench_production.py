@@ -12,8 +12,11 @@ and a wrap character of other topology (Target_YoungWoman subdivided alike, deci
 
 Each size runs in a process of its own (so its peak memory is its own) through every tool
 as the panel and `scripts/batch.py` run them: Analyze, Pack (cold), Place Landmarks,
-Transfer (template -> target, the collision pass on, keys written) and Wrap (fit, transfer
-onto the wrapped template, carry, keys written). Per tool: wall seconds, the native calls'
+Transfer (template -> target with the default settings, keys written) and Wrap (fit,
+transfer onto the wrapped template, carry, keys written); beside them the C++ Eigen reference
+deformation transfer of `bench_reference_transfer.py` (pmp-library's: each shape's system
+factorised afresh, single-threaded) on the same template, target and keys, its own seconds
+(reading and writing excluded), and each tool's ratio to it against the goals. Per tool: wall seconds, the native calls'
 seconds, the process's peak resident memory during the tool and the native calls' own peak
 above the memory they started from (VmHWM, reset through /proc/self/clear_refs before each),
 and how often the progress advanced (native reports, keys read, keys written). Blender-side costs apart: reading every key
@@ -30,6 +33,7 @@ import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 
 import bpy
@@ -38,13 +42,18 @@ import numpy as np
 SCRIPTS = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, SCRIPTS)
 import batch  # noqa: E402
+import bench_reference_transfer  # noqa: E402
 import makehuman  # noqa: E402
+import production_heads  # noqa: E402
 from production_rig import TARGET, build_rig, cached_rig_path  # noqa: E402
 
 # Vertices at 1x, 4x and 16x (0, 1, 2 subdivisions) with the most keys; keys at the largest head.
 SIZES = ("0:150", "1:150", "2:150", "2:52", "2:100")
-TOOLS = ("analyze", "pack", "landmarks", "transfer", "wrap")
+TOOLS = ("analyze", "pack", "landmarks", "transfer", "reference", "wrap")
 GOALS = {"transfer": 10.0, "pack": 3.0, "landmarks": 20.0}  # seconds on 2 cores, 150 keys
+# Each tool's wall seconds over the reference transfer's at most this (Transfer: at least
+# twice as fast, Pack in half its time, Landmarks in its time, Wrap in twice it).
+REFERENCE_GOALS = {"transfer": 0.5, "pack": 0.5, "landmarks": 1.0, "wrap": 2.0}
 MEMORY_GOAL = 4 * 1024**3
 
 
@@ -228,6 +237,20 @@ def run_tools(shapesmith, path, tools):
         undo_push()  # the step before the transfer: what it holds is the file so far
         measured("transfer", transfer_keys)
         result["undo_step_bytes"] = undo_push()
+    if "reference" in tools:
+        binary = bench_reference_transfer.build_reference(os.path.join(makehuman.cache_dir(), "reference_transfer"))
+
+        def reference():
+            rig = mesh_arrays.read_rig(template)
+            head = {"source": rig.neutral, "target": mesh_arrays.rest_positions(target),
+                    "deltas": rig.deltas.reshape(-1, 3), "triangles": rig.triangles}
+            with tempfile.TemporaryDirectory(prefix="shapesmith-reference-") as folder:
+                production_heads.write_head(head, folder)
+                seconds, _ = bench_reference_transfer.run_reference(binary, folder, 1)
+            return {"reference_seconds": seconds["seconds"], "reference_cpu_seconds": seconds["cpu"],
+                    "stages": {"setup": seconds["setup"]}}
+
+        measured("reference", reference)
     if "wrap" in tools:
         def wrap_keys():
             template_points, character_points = wrap.stored_pairs(character, template)
@@ -326,6 +349,19 @@ def print_report(result):
             print(f"  {tool}: {seconds:.2f} s against {goal:.0f} s: {'met' if seconds < goal else 'NOT met'}")
     print(f"  peak memory: {largest['peak_bytes'] / 2**30:.2f} GiB against 4 GiB: "
           f"{'met' if largest['peak_bytes'] < MEMORY_GOAL else 'NOT met'}")
+    for run in runs:
+        reference = run["tools"].get("reference")
+        if reference is None:
+            continue
+        seconds = reference["reference_seconds"]
+        print(f"\n== Against the C++ reference transfer at {run['vertices']} vertices, {run['keys']} keys: "
+              f"{seconds:.2f} s ({reference['reference_cpu_seconds']:.2f} CPU, one thread; reading and writing excluded)")
+        for tool, goal in REFERENCE_GOALS.items():
+            if tool in run["tools"]:
+                row = run["tools"][tool]
+                ratio, native = row["seconds"] / seconds, row["native_seconds"] / seconds
+                print(f"  {tool}: {ratio:.2f}x the reference's time (native calls {native:.2f}x) against at most {goal:g}x: "
+                      f"{'met' if ratio <= goal else 'NOT met'}")
 
 
 def main():
