@@ -1,7 +1,7 @@
 //! Times `transfer_shapes` (virtual edges, contact solve, penetration report) outside
 //! Blender, on the arrays `scripts/bench_transfer.py -- --save-arrays DIR` writes:
 //!
-//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS] [--contact | --no-contact] [--no-report]
+//!     cargo run --release --example time_transfer -- DIR/<head> [RUNS] [--contact | --no-contact] [--no-report] [--template-inside]
 //!
 //! Prints the best of RUNS (default 3) runs' native seconds split as the bench reports them
 //! (setup, virtual edges, solves, contact solve, report), the seconds of the template's own
@@ -13,6 +13,8 @@
 //! off (virtual edges alone) and `--no-report` the
 //! penetration report, so that what each adds to the call is measured in one place (without
 //! the report, the checksum's report fields are zero: only `|deltas|` and `bits` compare).
+//! `--template-inside` leaves the template's numbers to the call, as the panel's transfer
+//! does (they are then part of its wall and its report stage).
 
 use std::time::Instant;
 
@@ -24,11 +26,11 @@ mod arrays;
 use arrays::{points, read};
 
 fn main() {
-    let usage = "usage: time_transfer DIR [RUNS] [--contact | --no-contact] [--no-report]";
+    let usage = "usage: time_transfer DIR [RUNS] [--contact | --no-contact] [--no-report] [--template-inside]";
     let (flags, positional): (Vec<String>, Vec<String>) = std::env::args().skip(1).partition(|a| a.starts_with("--"));
     let dir = positional.first().expect(usage).clone();
     let runs: usize = positional.get(1).map_or(3, |r| r.parse().expect("RUNS is a count"));
-    if let Some(unknown) = flags.iter().find(|f| !matches!(f.as_str(), "--contact" | "--no-contact" | "--no-report")) {
+    if let Some(unknown) = flags.iter().find(|f| !matches!(f.as_str(), "--contact" | "--no-contact" | "--no-report" | "--template-inside")) {
         panic!("unknown flag {unknown}; {usage}");
     }
     let source = points(&format!("{dir}/source.f32"));
@@ -50,7 +52,8 @@ fn main() {
     let mut checksum = (0.0, 0, 0, 0.0, 0.0, 0, 0u64);
     for _ in 0..runs {
         let started = Instant::now();
-        let (deltas, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
+        let given = (!flags.iter().any(|f| f == "--template-inside")).then_some(&template);
+        let (deltas, report) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, given, &params, &NoProgress)
             .expect("transfer");
         let wall = started.elapsed().as_secs_f64();
         let rows = &report.penetration;
