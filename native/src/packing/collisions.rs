@@ -33,6 +33,8 @@
 //! pairs of a face are such, and cost a few box queries. The total E, which the report
 //! gives beside it, is measured in full only for the pairs that collide.
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
 
 use super::regions::{MovingRegion, Pose, PosedTriangles, RestHierarchy};
@@ -85,17 +87,17 @@ impl Pieces {
 /// its box over the rest pose and the posed one (`swept`, `small_swept`, in the order of
 /// `posed` and `small`). Both hierarchies are cut from the whole mesh's; `posed` is the one
 /// [`RestHierarchy::alone`] keeps for both tests.
-struct Moved<'a> {
-    posed: &'a PosedTriangles,
+struct Moved {
+    posed: Arc<PosedTriangles>,
     swept: Vec<Aabb>,
     small: PosedTriangles,
     small_swept: Vec<Aabb>,
 }
 
-impl<'a> Moved<'a> {
+impl Moved {
     /// Each corner is posed once ([`RestHierarchy::alone`]), and the swept boxes and the small
     /// pieces' part take the posed corners from there.
-    fn new(shared: &'a RestHierarchy, pieces: &Pieces, k: usize) -> Self {
+    fn new(shared: &RestHierarchy, pieces: &Pieces, k: usize) -> Self {
         let (whole, posed) = (shared.rest(), shared.alone(k));
         let small = posed.part(|t| pieces.small(t));
         let swept = |set: &PosedTriangles| -> Vec<Aabb> {
@@ -105,14 +107,14 @@ impl<'a> Moved<'a> {
             };
             set.triangles.iter().zip(&set.corners).map(|(&t, c)| with_rest(t, c)).collect()
         };
-        Self { swept: swept(posed), small_swept: swept(&small), posed, small }
+        Self { swept: swept(&posed), small_swept: swept(&small), posed, small }
     }
 
     /// The triangles a triangle (outside the largest piece or not) can cross in another
     /// piece: all, or only those outside the largest piece.
     fn partners(&self, from_small: bool) -> &PosedTriangles {
         if from_small {
-            self.posed
+            &self.posed
         } else {
             &self.small
         }
@@ -132,7 +134,7 @@ struct Scene<'a> {
     rest: &'a PosedTriangles,
     /// The triangles outside the largest piece, at rest.
     rest_small: PosedTriangles,
-    moved: Vec<Option<Moved<'a>>>,
+    moved: Vec<Option<Moved>>,
     pieces: Pieces,
 }
 
@@ -272,7 +274,7 @@ impl Scene<'_> {
     fn alone_all(&self, k: usize) -> Crossings {
         let (region, mut found) = (&self.regions[k], Vec::new());
         let Some(moved) = &self.moved[k] else { return found };
-        let posed = moved.posed;
+        let posed = &moved.posed;
         for (i, &s) in posed.triangles.iter().enumerate() {
             let (corners, query) = (posed.corners[i], Aabb::of_points(&posed.corners[i]));
             self.rest.for_each_overlap(&query, |t| {

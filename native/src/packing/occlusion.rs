@@ -150,7 +150,7 @@ struct Alone {
 
 impl Scene<'_> {
     fn posed(&self, k: usize) -> &PosedTriangles {
-        self.posed[k].get_or_init(|| self.shared.alone(k).mapped(|p| self.frame.map(p)))
+        self.posed[k].get_or_init(|| self.shared.take_alone(k).mapped(|p| self.frame.map(p)))
     }
 
     fn view(&self, pose: &Pose, v: u32) -> Vec3 {

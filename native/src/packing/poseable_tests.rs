@@ -8,7 +8,7 @@ use rand_chacha::ChaCha8Rng;
 use super::collisions::find_collisions;
 use super::conflicts::ConflictReason;
 use super::occlusion::{find_occlusions, hides, DEPTH_EPSILON};
-use super::regions::{moving_regions, RestHierarchy, MOVING_FRACTION};
+use super::regions::{moving_regions, PosedTriangles, RestHierarchy, MOVING_FRACTION};
 use super::tests::{check_packing, Instance};
 use super::*;
 use crate::geometry::bvh::TriangleBvh;
@@ -316,6 +316,36 @@ fn pruned_tests_equal_testing_every_pair_and_packings_stay_optimal() {
     }
     assert!(collided > 10 && hid > 10 && packed_edges > 10, "too few to tell: {collided} collisions, {hid} occlusions, {packed_edges} edges");
     assert!(tested < pairs, "the pruning tested {tested} of {pairs}");
+}
+
+/// Each shape's moved triangles, posed by it alone, are the region's triangles at the shape's
+/// pose, whether the occlusion test takes them over from the collision test (which no longer
+/// holds them) or they are cut afresh (still held elsewhere, or never cut).
+#[test]
+fn moved_triangles_handed_over_are_those_posed_alone() {
+    let mut rng = ChaCha8Rng::seed_from_u64(37);
+    let inst = two_sheets(&mut rng, 5, true);
+    let rig = inst.rig();
+    let regions = moving_regions(&rig, &[true; 5]);
+    let shared = RestHierarchy::new(&rig, &regions);
+    for k in 0..5 {
+        let points = posed(&rig, &[k]);
+        let check = |set: &PosedTriangles| {
+            let mut listed = set.triangles.clone();
+            listed.sort_unstable();
+            assert!(!listed.is_empty() && listed == regions[k].triangles, "shape {k}");
+            for (&t, c) in set.triangles.iter().zip(&set.corners) {
+                assert_eq!(*c, rig.triangles[t as usize].map(|v| points[v as usize]), "shape {k}, triangle {t}");
+            }
+        };
+        let held = shared.alone(k);
+        check(&shared.take_alone(k));
+        check(held.as_ref());
+        drop(held);
+        drop(shared.alone(k));
+        check(&shared.take_alone(k));
+        check(&shared.take_alone(k));
+    }
 }
 
 #[test]

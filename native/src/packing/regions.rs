@@ -14,7 +14,7 @@
 //! moved by both (its rest corners would lie in both boxes), and nothing A moves can meet
 //! anything B moves in any of the four poses.
 
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use rayon::prelude::*;
 
@@ -153,15 +153,15 @@ impl<'a> Pose<'a> {
 ///
 /// It also keeps, for both tests, the whole mesh at rest and each shape's moved triangles
 /// posed by it alone ([`RestHierarchy::alone`]), in mesh coordinates: the occlusion test
-/// takes the latter into view coordinates ([`PosedTriangles::mapped`]) instead of cutting
-/// each from the whole mesh again (the cuts took about a third of the occlusion test on a
-/// 26k head).
+/// takes the latter over into view coordinates ([`RestHierarchy::take_alone`],
+/// [`PosedTriangles::mapped`]) instead of cutting each from the whole mesh again (the cuts
+/// took about a third of the occlusion test on a 26k head), releasing the copy here.
 pub struct RestHierarchy<'a> {
     rig: &'a RigView<'a>,
     regions: &'a [MovingRegion],
     bvh: OnceLock<TriangleBvh>,
     rest: OnceLock<PosedTriangles>,
-    alone: Vec<OnceLock<PosedTriangles>>,
+    alone: Vec<Mutex<Option<Arc<PosedTriangles>>>>,
 }
 
 /// The hierarchy over the mesh at rest that [`RestHierarchy::get`] builds.
@@ -179,7 +179,7 @@ impl<'a> RestHierarchy<'a> {
     /// [`Self::new`] with the hierarchy given when it is already built ([`rest_bvh`]): the
     /// packing builds it on one core while the other finds the regions.
     pub fn with(rig: &'a RigView<'a>, regions: &'a [MovingRegion], built: Option<TriangleBvh>) -> Self {
-        let (alone, bvh) = ((0..regions.len()).map(|_| OnceLock::new()).collect(), OnceLock::new());
+        let (alone, bvh) = ((0..regions.len()).map(|_| Mutex::new(None)).collect(), OnceLock::new());
         if let Some(built) = built {
             let _ = bvh.set(built);
         }
@@ -199,13 +199,25 @@ impl<'a> RestHierarchy<'a> {
     }
 
     /// The triangles shape k moves, posed by k alone, in mesh coordinates: cut from
-    /// [`Self::rest`] once.
-    pub fn alone(&self, k: usize) -> &PosedTriangles {
-        self.alone[k].get_or_init(|| {
-            let (rig, region) = (self.rig, &self.regions[k]);
-            let pose = Pose::of(rig, self.regions, &[k]);
-            self.rest().subset(|t| region.contains(t), |t| rig.triangles[t as usize].map(|v| pose.at(v)))
-        })
+    /// [`Self::rest`] once, kept until [`Self::take_alone`] hands it over.
+    pub fn alone(&self, k: usize) -> Arc<PosedTriangles> {
+        let mut slot = self.alone[k].lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        slot.get_or_insert_with(|| Arc::new(self.cut(k))).clone()
+    }
+
+    /// [`Self::alone`] for its last user, which takes it into its own frame: the copy here is
+    /// released, so each shape's moved triangles are held once, not once per frame (on the
+    /// 77k-vertex, 150-key head the two copies made most of the packing's peak memory).
+    /// Cut afresh when it was never cut or is still in use elsewhere.
+    pub fn take_alone(&self, k: usize) -> PosedTriangles {
+        let taken = self.alone[k].lock().unwrap_or_else(|poisoned| poisoned.into_inner()).take();
+        taken.and_then(|shared| Arc::try_unwrap(shared).ok()).unwrap_or_else(|| self.cut(k))
+    }
+
+    fn cut(&self, k: usize) -> PosedTriangles {
+        let (rig, region) = (self.rig, &self.regions[k]);
+        let pose = Pose::of(rig, self.regions, &[k]);
+        self.rest().subset(|t| region.contains(t), |t| rig.triangles[t as usize].map(|v| pose.at(v)))
     }
 }
 
