@@ -2,16 +2,22 @@
 //!
 //! A shape may keep the crossings its target's neutral has (skin resting through the teeth)
 //! and those its template's shape makes that the template's neutral does not (the artist's:
-//! lips rolled through each other), each by triangle index. Skin resting through the teeth
-//! slides over them in a shape, onto triangles next to those it crossed: a pair of triangles
-//! may cross when each lies within one ring (shares a corner with) a pair that crossed.
+//! lips rolled through each other), each by triangle index. The criterion counts curve, per
+//! part (inside one piece, between two): a crossing the template's shape makes where that part's
+//! curve grows licenses the triangles within one ring of it too (the target's copy crosses a
+//! triangle over); where the part's curve does not grow, the template only slid its own
+//! crossings, and the target may cross there exactly as the template does, no wider.
 //!
-//! The barrier must agree with that. A point-triangle or edge-edge pair is exempt when a
-//! triangle holding its first primitive and one holding its second crossed; a pair of
-//! triangles that newly crosses first touches through one of its primitive pairs, each of
-//! whose holders lies within one ring of the two triangles, so every crossing the barrier
-//! lets happen is one the triangle rule allows. Pairs close in the template's shape keep a
-//! barrier that starts below half the template's distance: pressed lips may press as close.
+//! The barrier must agree with that. A point-triangle or edge-edge pair carries none when a
+//! triangle holding each primitive crossed in a widened part, or when every pair of triangles
+//! holding them (sharing no vertex) may cross exactly. A pair of triangles that newly crosses
+//! first touches through one of its primitive pairs, whose holders include the two triangles
+//! and lie within one ring of them, so every crossing the barrier lets happen is one the
+//! triangle rule allows. A crossing of the target's rest is so held where it is: the edge that
+//! pierces a triangle leaves it only through a contact with another triangle's primitives,
+//! which the barrier keeps apart, yet it may retract through pairs whose holders all crossed.
+//! Pairs close in the template's shape keep a barrier that starts below half the template's
+//! distance: pressed lips may press as close.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -80,39 +86,62 @@ pub struct TemplatePose {
 }
 
 /// What one shape may leave crossing ([`Crossed`] at the neutral's rest and in the template's
-/// shape) and the template's pose its pressed pairs are read in.
+/// shape, and the template's crossings in the parts whose curve it grows) and the template's
+/// pose its pressed pairs are read in.
 #[derive(Clone)]
 pub struct Exemptions {
     topology: Arc<Topology>,
     rest: Arc<Crossed>,
     shape: Crossed,
+    widened: Crossed,
     template: Option<TemplatePose>,
 }
 
 impl Exemptions {
-    pub fn new(topology: Arc<Topology>, rest: Arc<Crossed>, shape: Crossed, template: Option<TemplatePose>) -> Self {
-        Self { topology, rest, shape, template }
+    /// `widened`: the pairs of `shape` that license their ring.
+    pub fn new(topology: Arc<Topology>, rest: Arc<Crossed>, shape: Crossed, widened: Crossed, template: Option<TemplatePose>) -> Self {
+        Self { topology, rest, shape, widened, template }
     }
 
+    /// Whether triangles `a` and `b` crossed at rest or in the template's shape.
     fn crossed(&self, a: u32, b: u32) -> bool {
         self.rest.partners(a).contains(&b) || self.shape.partners(a).contains(&b)
     }
 
-    /// Whether triangles `a` and `b` may cross: each within one ring of a pair that crossed.
+    /// Whether triangles `a` and `b` may cross: they crossed, or each lies within one ring of a
+    /// widened pair.
     pub fn triangles(&self, a: u32, b: u32) -> bool {
+        if self.crossed(a, b) {
+            return true;
+        }
+        if self.widened.is_empty() {
+            return false;
+        }
         let near_b = self.topology.around(b);
-        self.topology.around(a).into_iter().any(|x| {
-            self.rest.partners(x).iter().chain(self.shape.partners(x)).any(|y| near_b.binary_search(y).is_ok())
-        })
+        self.topology.around(a).into_iter().any(|x| self.widened.partners(x).iter().any(|y| near_b.binary_search(y).is_ok()))
     }
 
     /// Whether the primitives `first` and `second` (vertex lists) may touch or cross: a
-    /// triangle holding each crossed.
+    /// triangle holding each crossed in a widened part, or every two holding them that share
+    /// no vertex crossed.
     pub fn primitives(&self, first: &[u32], second: &[u32]) -> bool {
         if self.rest.is_empty() && self.shape.is_empty() {
             return false;
         }
-        self.topology.holding(first).any(|x| self.topology.holding(second).any(|y| self.crossed(x, y)))
+        if !self.widened.is_empty() && self.topology.holding(first).any(|x| self.topology.holding(second).any(|y| self.widened.partners(x).contains(&y))) {
+            return true;
+        }
+        let corners = |t: u32| self.topology.triangles[t as usize];
+        let mut holders = 0;
+        for x in self.topology.holding(first) {
+            for y in self.topology.holding(second).filter(|&y| !corners(x).iter().any(|v| corners(y).contains(v))) {
+                if !self.crossed(x, y) {
+                    return false;
+                }
+                holders += 1;
+            }
+        }
+        holders > 0
     }
 
     /// The squared distance of the pair `vertices` (of `kind`) in the template's shape, in the
