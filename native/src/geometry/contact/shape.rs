@@ -36,6 +36,8 @@ pub struct ContactScene {
     /// Triangle pairs crossing at rest.
     rest_crossing: Arc<Crossed>,
     rest_pairs: HashSet<(u32, u32)>,
+    rest_swept: Vec<(u32, u32, f64)>,
+    piece: Vec<u32>,
     bvh: TriangleBvh,
 }
 
@@ -66,7 +68,8 @@ impl ContactScene {
         let adjacency = Adjacency::from_triangles(rest.len(), triangles);
         let d_hat = adjacency.mean_edge_lengths(rest).into_iter().map(|l| distance * l).collect();
         let bvh = TriangleBvh::build(rest, triangles);
-        let rest_pairs: HashSet<(u32, u32)> = crossings(rest, triangles, &bvh, None).into_iter().map(|(a, b, _)| (a, b)).collect();
+        let rest_swept = crossings(rest, triangles, &bvh, None);
+        let rest_pairs: HashSet<(u32, u32)> = rest_swept.iter().map(|&(a, b, _)| (a, b)).collect();
         Self {
             topology: Arc::new(Topology::new(rest.len(), triangles)),
             edges: unique_edges(triangles),
@@ -75,6 +78,8 @@ impl ContactScene {
             adjacency,
             rest_crossing: Arc::new(Crossed::from_pairs(rest_pairs.iter().copied())),
             rest_pairs,
+            rest_swept,
+            piece: crate::geometry::penetration::triangle_pieces(rest.len(), triangles),
             bvh,
         }
     }
@@ -102,16 +107,29 @@ impl ContactScene {
     /// other does not license the target's to cross) ([`Exemptions`]).
     pub fn exemptions(&self, template: Option<TemplateShape>) -> Exemptions {
         let Some(template) = template else {
-            return Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::default(), None);
+            return Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::default(), Crossed::default(), None);
         };
         let moved: Vec<bool> = self.triangles().iter().map(|t| t.iter().any(|&v| template.moving[v as usize])).collect();
         let bvh = template.scene.bvh.refitted(template.positions, self.triangles());
-        let shape = crossings(template.positions, self.triangles(), &bvh, Some(&moved))
+        let swept = crossings(template.positions, self.triangles(), &bvh, Some(&moved));
+        // The curve the template's shape adds per part (inside one piece, between two): its
+        // swept pairs less the rest pairs of its moved triangles (an unmoved pair crosses as at rest).
+        let part = |a: u32, b: u32| usize::from(self.piece[a as usize] != self.piece[b as usize]);
+        let mut added = [0.0f64; 2];
+        for &(a, b, l) in &swept {
+            added[part(a, b)] += l;
+        }
+        for &(a, b, l) in template.scene.rest_swept.iter().filter(|&&(a, b, _)| moved[a as usize] || moved[b as usize]) {
+            added[part(a, b)] -= l;
+        }
+        let shape: Vec<(u32, u32)> = swept
             .into_iter()
             .filter(|&(a, b, _)| !template.scene.rest_crosses(a, b) || self.rest_crosses(a, b))
-            .map(|(a, b, _)| (a, b));
+            .map(|(a, b, _)| (a, b))
+            .collect();
+        let widened = shape.iter().copied().filter(|&(a, b)| added[part(a, b)] > 0.0);
         let pose = TemplatePose { positions: template.positions.to_vec(), scale: template.scale };
-        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape), Some(pose))
+        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), Some(pose))
     }
 
     /// The crossing triangle pairs of `swept` (as [`crossings`] lists them) a shape adds: not
