@@ -11,7 +11,7 @@ use std::collections::HashSet;
 use std::sync::Arc;
 
 use super::exemptions::{Crossed, Exemptions, TemplatePose, Topology};
-use super::newton::{solve, ContactMesh, NewtonParams, NewtonResult};
+use super::newton::{solve, ContactMesh, KnownPairs, NewtonParams, NewtonResult, SolveBroadPhase};
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::penetration::crossings;
@@ -25,6 +25,12 @@ const REGION_RINGS: usize = 3;
 /// Newton's screening `mu` (a fraction of each vertex's diagonal): a piece floating free inside
 /// the region keeps a finite stiffness; the minimiser is unchanged.
 const SCREENING: f64 = 1e-3;
+
+/// A pair closer than this fraction of its barrier's range at the start is touching: its
+/// barrier's Hessian is then beyond `1e8` times its size at the range, more than a
+/// factorisation in double precision resolves (a start whose region's rest met the solved
+/// shape around it at `1e-15` of a pair's range was refused as not positive definite).
+const TOUCHING: f64 = 1e-4;
 
 /// One neutral as the contact solve sees it: its surface, rest crossings and `d_hat`.
 pub struct ContactScene {
@@ -146,7 +152,8 @@ impl ContactScene {
     /// minimiser of the quadratic energy whose rows are `rows`): projected Newton with the
     /// barrier over the `movable` vertices of the added crossings and [`REGION_RINGS`] rings,
     /// started at this neutral's rest there and at `minimiser` elsewhere; the region grows by a
-    /// ring around any added crossing the start still has, so the start is clean. Positions
+    /// ring around any added crossing or touching pair ([`TOUCHING`]) the start still has, so
+    /// the start is clean. Positions
     /// outside the region are returned as given.
     pub fn resolve(
         &self,
@@ -172,10 +179,12 @@ impl ContactScene {
             let touched: Vec<bool> = self.triangles().iter().map(|t| t.iter().any(|&v| in_region[v as usize])).collect();
             let bvh = self.bvh.refitted(&start, self.triangles());
             let still = self.added_crossings(&crossings(&start, self.triangles(), &bvh, Some(&touched)), exempt);
-            if still.is_empty() {
+            let touching = self.touching(&start, &in_region, exempt);
+            if still.is_empty() && touching.is_empty() {
                 break (start, 0);
             }
-            let corners: Vec<u32> = still.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize])).collect();
+            let crossing_corners = still.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize]));
+            let corners: Vec<u32> = crossing_corners.chain(touching).collect();
             let new = self.take_movable(&corners, movable, &mut in_region);
             if self.grow(&new.iter().chain(&corners).copied().collect::<Vec<_>>(), movable, &mut in_region).is_empty() && new.is_empty() {
                 break (start, still.len());
@@ -185,6 +194,17 @@ impl ContactScene {
         let screening = vec![SCREENING; n];
         let newton = solve(&self.mesh(exempt), rows, minimiser, &screening, &region, start, params)?;
         Ok(Resolved { newton, region, unclean_start })
+    }
+
+    /// The vertices of the pairs with a vertex in the region that `start` brings within
+    /// [`TOUCHING`] of their barrier's range (the region's rest meeting the solved shape
+    /// held around it).
+    fn touching(&self, start: &[[f64; 3]], in_region: &[bool], exempt: &Exemptions) -> Vec<u32> {
+        let mesh = self.mesh(exempt);
+        let broad = SolveBroadPhase::new(&mesh, start, in_region);
+        let zero = vec![[0.0; 3]; start.len()];
+        let candidates = mesh.candidates(&broad, start, &zero, &mut KnownPairs::default());
+        candidates.into_iter().filter(|c| c.distance < TOUCHING * c.pair.s_hat.sqrt()).flat_map(|c| c.pair.vertices).collect()
     }
 
     /// Marks the `movable` vertices of `vertices` not yet in the region; returns them.
@@ -240,5 +260,40 @@ mod tests {
         let lowest = x[(w * w) as usize..].iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
         assert!(lowest > 0.0 && lowest < 0.05, "{lowest}");
         assert!(x[..(w * w) as usize] == rest[..(w * w) as usize]);
+    }
+
+    /// The same sheets and pull, with a free triangle far from them (no ring reaches it) whose
+    /// solved place puts a corner on an inner vertex of the upper sheet's rest. Started from
+    /// the rest there, that pair would touch at distance zero; the region takes the triangle
+    /// in, so the start is clean and the result has no added crossing.
+    #[test]
+    fn a_start_touching_the_solved_shape_around_the_region_is_cleaned() {
+        let w = 6u32;
+        let sheet = |z: f64| -> Vec<[f64; 3]> { (0..w * w).map(|v| [f64::from(v % w) * 0.2, f64::from(v / w) * 0.2, z]).collect() };
+        let inner = |v: u32| (1..w - 1).contains(&(v % w)) && (1..w - 1).contains(&(v / w));
+        let touched = 2 * w + 2;
+        let far = [[5.0, 5.0, 5.0], [5.2, 5.0, 5.0], [5.0, 5.2, 5.0]];
+        let rest = [sheet(0.0), sheet(0.1), far.to_vec()].concat();
+        let mut triangles = grid_triangles(w, w, 0);
+        triangles.extend(grid_triangles(w, w, w * w));
+        let first_far = 2 * w * w;
+        triangles.push([first_far, first_far + 1, first_far + 2]);
+        let n = rest.len();
+        let scene = ContactScene::new(&rest, &triangles, 0.25);
+        let pulled: Vec<[f64; 3]> = sheet(0.1).into_iter().enumerate().map(|(v, p)| if inner(v as u32) { [p[0], p[1], -0.05] } else { p }).collect();
+        let on_rest = rest[(w * w + touched) as usize];
+        let moved_far = [on_rest, [on_rest[0] + 0.2, on_rest[1], on_rest[2] + 0.3], [on_rest[0], on_rest[1] + 0.2, on_rest[2] + 0.3]];
+        let minimiser = [sheet(0.0), pulled, moved_far.to_vec()].concat();
+        let movable: Vec<bool> = (0..n).map(|v| v >= (w * w) as usize).collect();
+        let identity = SymmetricMatrix::from_triplets(n, (0..n).map(|v| (v, v, 1.0)).collect());
+        let exempt = scene.exemptions(None);
+        let added = scene.added_crossings(&crossings(&minimiser, &triangles, &TriangleBvh::build(&minimiser, &triangles), None), &exempt);
+        let far_triangle = (triangles.len() - 1) as u32;
+        assert!(!added.is_empty() && added.iter().all(|&(a, b)| a != far_triangle && b != far_triangle), "only the sheets should cross");
+        let resolved = scene.resolve(&identity.rows(), &minimiser, &movable, &added, &exempt, &NewtonParams::default()).unwrap();
+        assert!(resolved.region.contains(&(first_far as usize)), "the free triangle should join the region");
+        let x = &resolved.newton.positions;
+        assert!(crossings(x, &triangles, &TriangleBvh::build(x, &triangles), None).is_empty());
+        assert!(x.iter().flatten().all(|c| c.is_finite()));
     }
 }
