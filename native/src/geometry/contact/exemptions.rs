@@ -67,6 +67,11 @@ impl Crossed {
         self.0.get(&t).map_or(&[], Vec::as_slice)
     }
 
+    /// Whether triangles `a` and `b` crossed.
+    pub fn contains(&self, a: u32, b: u32) -> bool {
+        self.partners(a).contains(&b)
+    }
+
     pub fn len(&self) -> usize {
         self.0.values().map(Vec::len).sum::<usize>() / 2
     }
@@ -103,7 +108,7 @@ impl Exemptions {
 
     /// Whether triangles `a` and `b` crossed at rest or in the template's shape.
     fn crossed(&self, a: u32, b: u32) -> bool {
-        self.rest.partners(a).contains(&b) || self.shape.partners(a).contains(&b)
+        self.rest.contains(a, b) || self.shape.contains(a, b)
     }
 
     /// Whether triangles `a` and `b` may cross: they crossed, or each lies within one ring of a

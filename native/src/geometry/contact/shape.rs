@@ -7,7 +7,6 @@
 //! rings around them, the rest held as solved, started where the target's neutral is there:
 //! from a start with no added crossing the continuous collision check keeps every iterate so.
 
-use std::collections::HashSet;
 use std::sync::Arc;
 
 use super::exemptions::{Crossed, Exemptions, TemplatePose, Topology};
@@ -41,7 +40,6 @@ pub struct ContactScene {
     adjacency: Adjacency,
     /// Triangle pairs crossing at rest.
     rest_crossing: Arc<Crossed>,
-    rest_pairs: HashSet<(u32, u32)>,
     rest_swept: Vec<(u32, u32, f64)>,
     piece: Vec<u32>,
     bvh: TriangleBvh,
@@ -75,15 +73,13 @@ impl ContactScene {
         let d_hat = adjacency.mean_edge_lengths(rest).into_iter().map(|l| distance * l).collect();
         let bvh = TriangleBvh::build(rest, triangles);
         let rest_swept = crossings(rest, triangles, &bvh, None);
-        let rest_pairs: HashSet<(u32, u32)> = rest_swept.iter().map(|&(a, b, _)| (a, b)).collect();
         Self {
             topology: Arc::new(Topology::new(rest.len(), triangles)),
             edges: unique_edges(triangles),
             rest: rest.to_vec(),
             d_hat,
             adjacency,
-            rest_crossing: Arc::new(Crossed::from_pairs(rest_pairs.iter().copied())),
-            rest_pairs,
+            rest_crossing: Arc::new(Crossed::from_pairs(rest_swept.iter().map(|&(a, b, _)| (a, b)))),
             rest_swept,
             piece: crate::geometry::penetration::triangle_pieces(rest.len(), triangles),
             bvh,
@@ -96,7 +92,7 @@ impl ContactScene {
 
     /// Whether triangles `a` and `b` cross at rest.
     pub fn rest_crosses(&self, a: u32, b: u32) -> bool {
-        self.rest_pairs.contains(&(a.min(b), a.max(b)))
+        self.rest_crossing.contains(a, b)
     }
 
     fn triangles(&self) -> &[[u32; 3]] {
