@@ -87,7 +87,7 @@ def test_a_blink_that_does_not_move_leaves_the_eyes_open_and_says_so(sample, sha
 
 
 @pytest.mark.xfail(strict=True, reason="the carry's collision pass reopens the blink 28-30% of the open eye on the stylised characters "
-                   "(the truth closes it, gap 0%) and the halved copy's jawOpen opens 1.27x the template's (truth 1.06x): "
+                   "(the truth closes it, gap 0%, yet the pass's curve judge calls the truth's blink worse) and the halved copy's jawOpen opens 1.27x the template's (truth 1.06x): "
                    "docs/wrap.md, 'Where riggers look first'")
 def test_the_wrap_onto_a_stylised_character_closes_the_eyes_and_opens_the_mouth(sample, shapesmith):
     template = bpy.data.objects["Template"]

@@ -14,9 +14,14 @@
 //! the pairs crossing at rest on both neutrals and the pieces. When DIR holds
 //! `truth.f32` (the true target shapes' deltas, as `scripts/bench_personalise.py`'s warp
 //! ground truth makes them), it also prints the warp error, mean over shapes of the mean
-//! error on each shape's active vertices / diagonal, with virtual edges and with the pass.
+//! error on each shape's active vertices / diagonal, with virtual edges and with the pass, and
+//! how many shapes each judge calls worse: the truth by the criterion, and the truth, virtual
+//! edges and the pass by the contact solve's rule (crossing pairs beyond its exemptions).
 
-use shapesmith_native::transfer::{measure_rig_penetration, ContactParams, transfer_shapes, AddedCurve, TransferShapesParams};
+use shapesmith_native::transfer::{measure_rig_penetration, AddedCurve, ContactParams, PenetrationBaseline, TransferShapesParams, transfer_shapes};
+use shapesmith_native::geometry::bvh::TriangleBvh;
+use shapesmith_native::geometry::contact::{ContactScene, TemplateShape};
+use shapesmith_native::geometry::penetration::crossings;
 use shapesmith_native::NoProgress;
 
 #[path = "common/arrays.rs"]
@@ -89,6 +94,37 @@ fn main() {
     let error = |predicted: &[[f32; 3]]| warp_error(predicted, &truth, source.len(), diagonal);
     let (a, b) = (error(&without), error(&with));
     println!("  warp: virtual edges {a:.4e}, with the pass {b:.4e} ({:+.1}%)", 100.0 * (b / a - 1.0));
+    // The truth judged by the same criterion: a faithful judge never calls it worse.
+    let baseline = PenetrationBaseline::new(&target, &triangles);
+    let neutral = baseline.neutral();
+    let mut truth_worse = Vec::new();
+    for (row, shape) in report.penetration.iter().zip(truth.chunks(source.len())) {
+        let AddedCurve { inside, between } = AddedCurve::from_penetrations(&baseline.shape(shape), &neutral).excess_parts(&row.allowed);
+        if inside + between > 1e-3 * diagonal {
+            truth_worse.push(format!("{} {:+.2}/{:+.2}cm", row.name, 100.0 * inside, 100.0 * between));
+        }
+    }
+    println!("  the truth worse by the criterion: {} ({})", truth_worse.len(), truth_worse.join(", "));
+    // And by the contact solve's rule: crossing pairs beyond its exemptions.
+    let f64s = |p: &[[f32; 3]]| -> Vec<[f64; 3]> { p.iter().map(|q| q.map(f64::from)).collect() };
+    let (source64, target64) = (f64s(&source), f64s(&target));
+    let scene = ContactScene::new(&target64, &triangles, 0.25);
+    let template_scene = ContactScene::new(&source64, &triangles, 0.25);
+    let tree = TriangleBvh::build(&target64, &triangles);
+    let n = source.len();
+    let added = |k: usize, shape: &[[f32; 3]]| -> usize {
+        let delta = &deltas[k * n..(k + 1) * n];
+        let moving: Vec<bool> = delta.iter().map(|d| *d != [0.0; 3]).collect();
+        let positions: Vec<[f64; 3]> = source64.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| p[a] + f64::from(d[a]))).collect();
+        let exempt = scene.exemptions(Some(TemplateShape { scene: &template_scene, positions: &positions, moving: &moving, scale: 1.0 }));
+        let posed: Vec<[f64; 3]> = target64.iter().zip(shape).map(|(p, d)| [0, 1, 2].map(|a| p[a] + f64::from(d[a]))).collect();
+        let swept = crossings(&posed, &triangles, &tree.refitted(&posed, &triangles), None);
+        scene.added_crossings(&swept, &exempt).len()
+    };
+    for (label, shapes) in [("truth", &truth), ("virtual edges", &without), ("contact", &with)] {
+        let counts: Vec<(usize, usize)> = (0..count).map(|k| (k, added(k, &shapes[k * n..(k + 1) * n]))).filter(|c| c.1 > 0).collect();
+        println!("  {label}: shapes adding crossings beyond the exemptions {} {:?}", counts.len(), counts);
+    }
 }
 
 /// Mean over shapes of the mean error on the shape's active vertices (moving at least 0.3 of
