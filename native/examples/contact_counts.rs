@@ -44,9 +44,15 @@ fn main() {
     let mut params = TransferShapesParams { measure_penetration: true, compare_plain: true, ..Default::default() };
     params.transfer.contact = Some(ContactParams::default());
     let started = std::time::Instant::now();
-    let (_, report) =
+    let (with, report) =
         transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress).expect("transfer");
     let wall = started.elapsed().as_secs_f64();
+    let mut plain_params = params;
+    plain_params.transfer.contact = None;
+    plain_params.measure_penetration = false;
+    plain_params.compare_plain = false;
+    let (without, _) =
+        transfer_shapes(&source, &deltas, &target, &triangles, &names, None, None, &plain_params, &NoProgress).expect("transfer");
     let diagonal = shapesmith_native::rig::bbox_diagonal(&target);
     let mut line = Vec::new();
     let mut worse_after = Vec::new();
@@ -78,19 +84,29 @@ fn main() {
         rest(report.neutral_penetration)
     );
     println!("  still worse: {}", worse_after.join(", "));
+    // How far the solve moves each shape it acts on from the virtual-edge solve: its largest
+    // change over the shape's largest motion.
+    let n = source.len();
+    let norm = |d: [f32; 3]| d.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt();
+    let mut changes: Vec<(f64, String)> = (0..count)
+        .filter(|&k| report.penetration[k].contact.is_some_and(|c| c.applied))
+        .map(|k| {
+            let (a, b) = (&with[k * n..(k + 1) * n], &without[k * n..(k + 1) * n]);
+            let largest = b.iter().map(|&d| norm(d)).fold(0.0, f64::max);
+            let change = a.iter().zip(b).map(|(p, q)| norm([p[0] - q[0], p[1] - q[1], p[2] - q[2]])).fold(0.0, f64::max);
+            let tangled = if report.penetration[k].contact.is_some_and(|c| c.untangled) { "" } else { " (at rest)" };
+            (change / largest.max(f64::MIN_POSITIVE), format!("{}{tangled}", names[k]))
+        })
+        .collect();
+    changes.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let median = changes.get(changes.len() / 2).map_or(0.0, |c| c.0);
+    let largest: Vec<String> = changes.iter().take(8).map(|(c, name)| format!("{name} {:.0}%", 100.0 * c)).collect();
+    println!("  change against virtual edges on the {} shapes solved: median {:.0}%; largest {}", changes.len(), 100.0 * median, largest.join(", "));
     let truth_path = format!("{dir}/truth.f32");
     if !std::path::Path::new(&truth_path).exists() {
         return;
     }
     let truth = points(&truth_path);
-    let mut plain_params = params;
-    plain_params.transfer.contact = None;
-    plain_params.measure_penetration = false;
-    plain_params.compare_plain = false;
-    let (without, _) =
-        transfer_shapes(&source, &deltas, &target, &triangles, &names, None, None, &plain_params, &NoProgress).expect("transfer");
-    let (with, _) = transfer_shapes(&source, &deltas, &target, &triangles, &names, None, Some(&template), &params, &NoProgress)
-        .expect("transfer");
     let error = |predicted: &[[f32; 3]]| warp_error(predicted, &truth, source.len(), diagonal);
     let (a, b) = (error(&without), error(&with));
     println!("  warp: virtual edges {a:.4e}, with the pass {b:.4e} ({:+.1}%)", 100.0 * (b / a - 1.0));
@@ -111,7 +127,6 @@ fn main() {
     let scene = ContactScene::new(&target64, &triangles, 0.25);
     let template_scene = ContactScene::new(&source64, &triangles, 0.25);
     let tree = TriangleBvh::build(&target64, &triangles);
-    let n = source.len();
     let added = |k: usize, shape: &[[f32; 3]]| -> usize {
         let delta = &deltas[k * n..(k + 1) * n];
         let moving: Vec<bool> = delta.iter().map(|d| *d != [0.0; 3]).collect();

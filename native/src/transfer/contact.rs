@@ -46,6 +46,9 @@ pub struct ContactOutcome {
     pub region_vertices: usize,
     /// Newton iterations.
     pub iterations: usize,
+    /// Whether the solve started from the plain solve untangled ([`crate::geometry::contact::untangle`]);
+    /// when not, around what the untangling left it started at the neutral.
+    pub untangled: bool,
     /// Pairs within `d_hat` at the end: the contacts the barrier holds.
     pub contacts: usize,
     pub converged: bool,
@@ -129,6 +132,7 @@ impl DeformationTransfer {
             remaining_pairs: guard.target.added_crossings(&swept, &exempt).len(),
             region_vertices: resolved.region.len(),
             iterations: resolved.newton.iterations,
+            untangled: resolved.untangled,
             contacts: resolved.newton.contacts,
             converged: resolved.newton.converged,
             applied: true,

@@ -45,6 +45,16 @@ fn added_crossings(target: &[[f32; 3]], delta: &[[f32; 3]], tris: &[[u32; 3]]) -
     crossing_pairs(&posed(target, delta), tris).into_iter().filter(|p| !rest.contains(p)).collect()
 }
 
+/// [`added_crossings`] less the pairs that slid on from a rest crossing: each triangle is, or
+/// shares a corner with, one of a pair crossing at rest (skin resting through the teeth slides
+/// over them onto the next triangles; method, section 3), by brute force.
+fn added_beyond_slid(target: &[[f32; 3]], delta: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<(usize, usize)> {
+    let rest = crossing_pairs(target, tris);
+    let near = |a: usize, x: usize| tris[a].iter().any(|v| tris[x].contains(v));
+    let slid = |a: usize, b: usize| rest.iter().any(|&(x, y)| (near(a, x) && near(b, y)) || (near(a, y) && near(b, x)));
+    added_crossings(target, delta, tris).into_iter().filter(|&(a, b)| !slid(a, b)).collect()
+}
+
 fn with_contact() -> TransferParams {
     TransferParams { contact: Some(ContactParams::default()), ..plain() }
 }
@@ -233,7 +243,7 @@ fn contact_keeps_a_warped_target_within_two_percent_of_plain_transfers_error() {
 }
 
 #[test]
-fn skin_resting_through_a_static_piece_keeps_its_rest_crossings_and_adds_none() {
+fn skin_resting_through_a_static_piece_slides_through_it_and_adds_no_other_crossing() {
     let (source, target, tris, deltas) = skin_rising_over_teeth();
     let n = source.len();
     let names = vec!["lipRise".to_string(), "cheekBump".to_string()];
@@ -242,7 +252,7 @@ fn skin_resting_through_a_static_piece_keeps_its_rest_crossings_and_adds_none() 
     let without = DeformationTransfer::new(&source, &target, &tris, &plain()).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
     assert!(!added_crossings(&target, &without.deltas[..n], &tris).is_empty(), "plain transfer should poke through the top");
     let with = DeformationTransfer::new(&source, &target, &tris, &with_contact()).unwrap().transfer(&deltas, &names, &NoProgress).unwrap();
-    assert_eq!(added_crossings(&target, &with.deltas[..n], &tris), vec![]);
+    assert_eq!(added_beyond_slid(&target, &with.deltas[..n], &tris), vec![]);
     // The skin over the teeth's top stays below it, and the teeth did not move.
     for p in &posed(&target, &with.deltas[..n])[..15 * 15] {
         if (0.32..=0.68).contains(&p[0]) && (0.32..=0.68).contains(&p[1]) {

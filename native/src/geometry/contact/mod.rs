@@ -11,6 +11,7 @@
 //! | broad phase on swept boxes grown by `d_hat` (here half of it each) | [`broad`], [`newton::SolveBroadPhase`] |
 //! | additive CCD (Li, Kaufman, Jiang 2021), the line search's largest safe step | [`ccd::additive_ccd`] |
 //! | `kappa` (barrier stiffness) | the energy's mean diagonal over the region / `d_hat^2` |
+//! | an intersection-free start | the solved shape untangled (Volino and Magnenat-Thalmann 2006's contour minimisation), [`untangle`] |
 //!
 //! Deviations from the paper: a static solve (no inertia term); `kappa` is fixed per solve
 //! from the energy's own scale instead of adapted (the CCD keeps every iterate apart whatever
@@ -26,6 +27,7 @@ pub mod dual;
 pub mod exemptions;
 pub mod newton;
 pub mod shape;
+pub mod untangle;
 
 pub use exemptions::{Crossed, Exemptions, TemplatePose, Topology};
 pub use newton::{solve, ContactMesh, NewtonParams, NewtonResult, Pair, SolveBroadPhase};

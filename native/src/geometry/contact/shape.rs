@@ -4,13 +4,15 @@
 //! A shape may keep the crossings its target's neutral has and those the template's own shape
 //! makes ([`super::exemptions`]); a shape adding no other crossing is returned as it is. Otherwise [`ContactScene::resolve`] minimises the caller's quadratic energy plus the
 //! IPC barrier ([`super::newton::solve`]) over the vertices of the added crossings and a few
-//! rings around them, the rest held as solved, started where the target's neutral is there:
-//! from a start with no added crossing the continuous collision check keeps every iterate so.
+//! rings around them, the rest held as solved, started from the solved shape untangled
+//! ([`super::untangle`]; at the target's neutral around what that leaves): from a start with no
+//! added crossing the continuous collision check keeps every iterate so.
 
 use std::sync::Arc;
 
 use super::exemptions::{Crossed, Exemptions, TemplatePose, Topology};
 use super::newton::{solve, ContactMesh, KnownPairs, NewtonParams, NewtonResult, SolveBroadPhase};
+use super::untangle::untangle;
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::penetration::crossings;
@@ -42,7 +44,7 @@ pub struct ContactScene {
     rest_crossing: Arc<Crossed>,
     rest_swept: Vec<(u32, u32, f64)>,
     piece: Vec<u32>,
-    bvh: TriangleBvh,
+    pub(super) bvh: TriangleBvh,
 }
 
 /// A template's shape: its neutral's scene, its positions, the vertices it moves and the
@@ -61,9 +63,12 @@ pub struct Resolved {
     pub newton: NewtonResult,
     /// The vertices solved for.
     pub region: Vec<usize>,
-    /// Added crossings left at the start once the region covered every movable vertex of
-    /// theirs (0 unless the neutral itself is not a clean start).
+    /// Added crossings and touching pairs left at the start once the region covered every
+    /// movable vertex of theirs, at rest (0 unless the neutral itself is not a clean start).
     pub unclean_start: usize,
+    /// Whether the flow untangled the whole region ([`super::untangle`]); when not, the
+    /// region starts at rest around what it left.
+    pub untangled: bool,
 }
 
 impl ContactScene {
@@ -95,11 +100,11 @@ impl ContactScene {
         self.rest_crossing.contains(a, b)
     }
 
-    fn triangles(&self) -> &[[u32; 3]] {
+    pub(super) fn triangles(&self) -> &[[u32; 3]] {
         &self.topology.triangles
     }
 
-    fn mesh<'a>(&'a self, exempt: &'a Exemptions) -> ContactMesh<'a> {
+    pub(super) fn mesh<'a>(&'a self, exempt: &'a Exemptions) -> ContactMesh<'a> {
         ContactMesh { triangles: self.triangles(), edges: &self.edges, rest: &self.rest, d_hat: &self.d_hat, exempt }
     }
 
@@ -147,10 +152,10 @@ impl ContactScene {
     /// Removes the crossings `added` from the solved positions `minimiser` (all N, the
     /// minimiser of the quadratic energy whose rows are `rows`): projected Newton with the
     /// barrier over the `movable` vertices of the added crossings and [`REGION_RINGS`] rings,
-    /// started at this neutral's rest there and at `minimiser` elsewhere; the region grows by a
-    /// ring around any added crossing or touching pair ([`TOUCHING`]) the start still has, so
-    /// the start is clean. Positions
-    /// outside the region are returned as given.
+    /// started at `minimiser` untangled there ([`untangle`]) and as given elsewhere; around any
+    /// added crossing or touching pair ([`TOUCHING`]) the start still has, the region starts at
+    /// this neutral's rest and grows by a ring, so the start is clean. Positions outside the
+    /// region are returned as given.
     pub fn resolve(
         &self,
         rows: &MatrixRows,
@@ -167,10 +172,16 @@ impl ContactScene {
         for _ in 0..REGION_RINGS {
             frontier = self.grow(&frontier, movable, &mut in_region);
         }
+        let first_region: Vec<usize> = (0..n).filter(|&v| in_region[v]).collect();
+        let mesh = self.mesh(exempt);
+        let untangled = untangle(self, &mesh, exempt, rows, minimiser, &first_region, SCREENING)?;
+        // Each region vertex starts where the flow left it, except around a crossing or a
+        // touching pair the start still has: there it starts at rest, and the region grows.
+        let mut at_rest = vec![false; n];
         let (start, unclean_start) = loop {
             let mut start = minimiser.to_vec();
             for v in (0..n).filter(|&v| in_region[v]) {
-                start[v] = self.rest[v];
+                start[v] = if at_rest[v] { self.rest[v] } else { untangled.positions[v] };
             }
             let touched: Vec<bool> = self.triangles().iter().map(|t| t.iter().any(|&v| in_region[v as usize])).collect();
             let bvh = self.bvh.refitted(&start, self.triangles());
@@ -180,16 +191,25 @@ impl ContactScene {
                 break (start, 0);
             }
             let crossing_corners = still.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize]));
-            let corners: Vec<u32> = crossing_corners.chain(touching).collect();
+            let corners: Vec<u32> = crossing_corners.chain(touching.iter().copied()).collect();
             let new = self.take_movable(&corners, movable, &mut in_region);
-            if self.grow(&new.iter().chain(&corners).copied().collect::<Vec<_>>(), movable, &mut in_region).is_empty() && new.is_empty() {
-                break (start, still.len());
+            let grown = self.grow(&new.iter().chain(&corners).copied().collect::<Vec<_>>(), movable, &mut in_region);
+            let around: Vec<u32> = corners.iter().flat_map(|&v| self.adjacency.neighbours(v as usize).iter().copied().chain([v])).collect();
+            let mut reset = 0;
+            for v in around.into_iter().chain(new.iter().copied()).chain(grown.iter().copied()).map(|v| v as usize) {
+                if in_region[v] && !at_rest[v] {
+                    at_rest[v] = true;
+                    reset += 1;
+                }
+            }
+            if grown.is_empty() && new.is_empty() && reset == 0 {
+                break (start, still.len() + touching.len());
             }
         };
         let region: Vec<usize> = (0..n).filter(|&v| in_region[v]).collect();
         let screening = vec![SCREENING; n];
-        let newton = solve(&self.mesh(exempt), rows, minimiser, &screening, &region, start, params)?;
-        Ok(Resolved { newton, region, unclean_start })
+        let newton = solve(&mesh, rows, minimiser, &screening, &region, start, params)?;
+        Ok(Resolved { newton, region, unclean_start, untangled: untangled.clean })
     }
 
     /// The vertices of the pairs with a vertex in the region that `start` brings within
@@ -259,15 +279,16 @@ mod tests {
     }
 
     /// The same sheets and pull, with a free triangle far from them (no ring reaches it) whose
-    /// solved place puts a corner on an inner vertex of the upper sheet's rest. Started from
-    /// the rest there, that pair would touch at distance zero; the region takes the triangle
-    /// in, so the start is clean and the result has no added crossing.
+    /// solved place puts a corner on a border vertex of the upper sheet, which the pull does
+    /// not move: the start, at rest or untangled, would have that pair touch at distance zero.
+    /// The start is cleaned of it (the triangle joins the region, or the border vertex is
+    /// pushed off), and the result has no crossing and keeps the pair apart.
     #[test]
     fn a_start_touching_the_solved_shape_around_the_region_is_cleaned() {
         let w = 6u32;
         let sheet = |z: f64| -> Vec<[f64; 3]> { (0..w * w).map(|v| [f64::from(v % w) * 0.2, f64::from(v / w) * 0.2, z]).collect() };
         let inner = |v: u32| (1..w - 1).contains(&(v % w)) && (1..w - 1).contains(&(v / w));
-        let touched = 2 * w + 2;
+        let touched = 2 * w;
         let far = [[5.0, 5.0, 5.0], [5.2, 5.0, 5.0], [5.0, 5.2, 5.0]];
         let rest = [sheet(0.0), sheet(0.1), far.to_vec()].concat();
         let mut triangles = grid_triangles(w, w, 0);
@@ -287,9 +308,11 @@ mod tests {
         let far_triangle = (triangles.len() - 1) as u32;
         assert!(!added.is_empty() && added.iter().all(|&(a, b)| a != far_triangle && b != far_triangle), "only the sheets should cross");
         let resolved = scene.resolve(&identity.rows(), &minimiser, &movable, &added, &exempt, &NewtonParams::default()).unwrap();
-        assert!(resolved.region.contains(&(first_far as usize)), "the free triangle should join the region");
+        assert!(resolved.region.contains(&((w * w + touched) as usize)), "the border vertex should be in the region");
         let x = &resolved.newton.positions;
         assert!(crossings(x, &triangles, &TriangleBvh::build(x, &triangles), None).is_empty());
         assert!(x.iter().flatten().all(|c| c.is_finite()));
+        let apart = (0..3).map(|c| (x[first_far as usize][c] - x[(w * w + touched) as usize][c]).powi(2)).sum::<f64>().sqrt();
+        assert!(apart > 0.0, "the free corner still touches the border vertex");
     }
 }

@@ -1,0 +1,204 @@
+//! The contact solve's start on the minimiser's side of what lies between it and the neutral
+//! (method, section 3). A key's straight path from the neutral is not a way a surface can go:
+//! a closing lid passes through the bulge of a coarse eyeball on the way though neither its
+//! rest nor its closed place does, and the minimisation started at the neutral stops against
+//! that bulge. So the solve starts from the minimiser itself, untangled: intersection contour
+//! minimisation (Volino and Magnenat-Thalmann 2006), the length of the added crossings'
+//! intersection curve shortened by a gradient flow, and pairs closer than [`NEAR`] of their
+//! barrier's range pushed apart, until neither is left or [`STEPS`] steps have run.
+//!
+//! The flow moves the region in the shape energy's own metric: each step solves
+//! `(A_RR + mu D) p = g` (`g` the gradient of the curve's length and of the near pairs'
+//! closeness, `A_RR` the energy's block over the region, `mu D` the solve's screening), so a
+//! crossing is undone by bending the surface around it as the energy bends it, not by dragging
+//! the crossing triangles' corners alone (a plain gradient step folds a lid's margin).
+
+use super::barrier::pair_squared;
+use super::exemptions::Exemptions;
+use super::newton::{ContactMesh, KnownPairs, Pair, SolveBroadPhase};
+use super::shape::ContactScene;
+use crate::error::ShapesmithResult;
+use crate::geometry::penetration::{crossings, intersection_length};
+use crate::sparse::{MatrixRows, SymmetricMatrix};
+
+/// Steps of the flow at most; a shape whose curve is not gone by then starts at rest around
+/// what is left ([`ContactScene::resolve`]).
+const STEPS: usize = 200;
+
+/// A pair closer than this fraction of its barrier's range is pushed apart: from closer, the
+/// barrier's first Newton steps crawl.
+pub(super) const NEAR: f64 = 1e-2;
+
+/// The farthest vertex of the first step moves this many of its `d_hat`; the reach grows by
+/// half while the curve shortens, up to [`LONGEST_REACH`], and halves when it does not.
+const FIRST_REACH: f64 = 0.25;
+const LONGEST_REACH: f64 = 2.0;
+
+/// Central differences of the curve's length and of a pair's distance, at this fraction of a
+/// vertex's `d_hat`.
+const DIFFERENCE: f64 = 1e-3;
+
+/// What the flow reached: all N positions (the minimiser outside the region) and whether
+/// the region is untangled (no added crossing and no pair nearer than [`NEAR`]).
+pub(super) struct Untangled {
+    pub positions: Vec<[f64; 3]>,
+    pub clean: bool,
+}
+
+/// The minimiser's region untangled by the flow (module docs). `screening` is the solve's
+/// `mu` (a fraction of each vertex's diagonal).
+pub(super) fn untangle(
+    scene: &ContactScene,
+    mesh: &ContactMesh,
+    exempt: &Exemptions,
+    rows: &MatrixRows,
+    minimiser: &[[f64; 3]],
+    region: &[usize],
+    screening: f64,
+) -> ShapesmithResult<Untangled> {
+    let n = minimiser.len();
+    let mut slot = vec![usize::MAX; n];
+    for (s, &v) in region.iter().enumerate() {
+        slot[v] = s;
+    }
+    let in_region: Vec<bool> = slot.iter().map(|&s| s != usize::MAX).collect();
+    let metric = region_metric(rows, region, &slot, screening);
+    let factor = metric.factor(&metric.fill_reducing_order()?)?;
+    let touched: Vec<bool> = scene.triangles().iter().map(|t| t.iter().any(|&v| in_region[v as usize])).collect();
+    let d_hat = |v: usize| mesh.d_hat[v];
+    let sweep = |x: &[[f64; 3]]| crossings(x, scene.triangles(), &scene.bvh.refitted(x, scene.triangles()), Some(&touched));
+    let mut x = minimiser.to_vec();
+    let (mut reach, mut last_curve) = (FIRST_REACH, f64::INFINITY);
+    for _ in 0..STEPS {
+        let swept = sweep(&x);
+        let near = near_pairs(mesh, &x, &in_region);
+        let added = scene.added_crossings(&swept, exempt);
+        if added.is_empty() && near.is_empty() {
+            return Ok(Untangled { positions: x, clean: true });
+        }
+        let mut gradient = vec![[0.0f64; 3]; region.len()];
+        let mut curve = 0.0;
+        for &(a, b) in &added {
+            let corners = [scene.triangles()[a as usize], scene.triangles()[b as usize]];
+            let mut points = corners.map(|t| t.map(|v| x[v as usize]));
+            curve += intersection_length(points[0], points[1]).unwrap_or(0.0);
+            for (side, corner) in (0..2).flat_map(|side| (0..3).map(move |corner| (side, corner))) {
+                let v = corners[side][corner] as usize;
+                if !in_region[v] {
+                    continue;
+                }
+                let h = DIFFERENCE * d_hat(v);
+                for c in 0..3 {
+                    let held = points[side][corner][c];
+                    let mut length_at = |offset: f64| {
+                        points[side][corner][c] = held + offset;
+                        intersection_length(points[0], points[1]).unwrap_or(0.0)
+                    };
+                    let slope = (length_at(h) - length_at(-h)) / (2.0 * h);
+                    points[side][corner][c] = held;
+                    gradient[slot[v]][c] += slope;
+                }
+            }
+        }
+        for pair in &near {
+            let mut points = pair.points(&x);
+            for (i, &v) in pair.vertices.iter().enumerate() {
+                let v = v as usize;
+                if !in_region[v] {
+                    continue;
+                }
+                let h = DIFFERENCE * d_hat(v);
+                for c in 0..3 {
+                    let held = points[i][c];
+                    let mut distance_at = |offset: f64| {
+                        points[i][c] = held + offset;
+                        pair_squared(pair.kind, &points).sqrt()
+                    };
+                    // Closeness counts as curve: its descent pushes the pair apart.
+                    let slope = (distance_at(h) - distance_at(-h)) / (2.0 * h);
+                    points[i][c] = held;
+                    gradient[slot[v]][c] -= slope;
+                }
+            }
+        }
+        let direction = factor.solve_points(&gradient);
+        let farthest = region.iter().zip(&direction).map(|(&v, p)| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() / d_hat(v)).fold(0.0, f64::max);
+        if farthest == 0.0 {
+            break;
+        }
+        reach = if curve < last_curve { (1.5 * reach).min(LONGEST_REACH) } else { 0.5 * reach };
+        last_curve = curve;
+        let step = reach / farthest;
+        for (&v, p) in region.iter().zip(&direction) {
+            for c in 0..3 {
+                x[v][c] -= step * p[c];
+            }
+        }
+    }
+    Ok(Untangled { positions: x, clean: false })
+}
+
+/// `A_RR + mu D`: the energy's rows restricted to the region, its diagonal screened.
+fn region_metric(rows: &MatrixRows, region: &[usize], slot: &[usize], screening: f64) -> SymmetricMatrix {
+    let mut entries = Vec::new();
+    for (s, &v) in region.iter().enumerate() {
+        for &(u, a) in rows.row(v) {
+            if slot[u] != usize::MAX && slot[u] <= s {
+                entries.push((s, slot[u], if u == v { (1.0 + screening) * a } else { a }));
+            }
+        }
+    }
+    SymmetricMatrix::from_triplets(region.len(), entries)
+}
+
+/// The pairs with a vertex in the region closer than [`NEAR`] of their barrier's range at `x`.
+pub(super) fn near_pairs(mesh: &ContactMesh, x: &[[f64; 3]], in_region: &[bool]) -> Vec<Pair> {
+    let broad = SolveBroadPhase::new(mesh, x, in_region);
+    let still = vec![[0.0; 3]; x.len()];
+    let candidates = mesh.candidates(&broad, x, &still, &mut KnownPairs::default());
+    candidates.into_iter().filter(|c| c.distance < NEAR * c.pair.s_hat.sqrt()).map(|c| c.pair).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::NewtonParams;
+    use super::*;
+    use crate::geometry::bvh::TriangleBvh;
+    use crate::geometry::topology::grid_triangles;
+    use crate::sparse::SymmetricMatrix;
+
+    /// A plate whose solved place lies beyond a static wall, where a static spike pokes up
+    /// through it (a closing lid beyond the bulge of an eyeball, a lash through it). The way
+    /// from its rest to there goes through the wall, which no iterate may cross: started at
+    /// rest the solve stays behind the wall. Untangled, the plate starts beyond it, off the
+    /// spike's tip, and ends there with no crossing.
+    #[test]
+    fn a_plate_whose_solved_place_lies_beyond_a_wall_ends_there_apart() {
+        let w = 3u32;
+        let plate = |dx: f64| -> Vec<[f64; 3]> { (0..w * w).map(|v| [dx + f64::from(v % w) * 0.2, f64::from(v / w) * 0.2, 0.5]).collect() };
+        let wall: Vec<[f64; 3]> = (0..16u32).map(|v| [1.0, -0.5 + f64::from(v % 4) * 0.5, f64::from(v / 4) / 3.0]).collect();
+        let spike = [[2.15, 0.1, 0.3], [2.25, 0.1, 0.3], [2.2, 0.1, 0.6]];
+        let rest = [plate(0.0), wall, spike.to_vec()].concat();
+        let mut triangles = grid_triangles(w, w, 0);
+        triangles.extend(grid_triangles(4, 4, w * w));
+        let first_spike = w * w + 16;
+        triangles.push([first_spike, first_spike + 1, first_spike + 2]);
+        let n = rest.len();
+        let minimiser = [plate(2.0), rest[(w * w) as usize..].to_vec()].concat();
+        let movable: Vec<bool> = (0..n).map(|v| v < (w * w) as usize).collect();
+        let identity = SymmetricMatrix::from_triplets(n, (0..n).map(|v| (v, v, 1.0)).collect());
+        let scene = ContactScene::new(&rest, &triangles, 0.25);
+        let exempt = scene.exemptions(None);
+        let added = scene.added_crossings(&crossings(&minimiser, &triangles, &TriangleBvh::build(&minimiser, &triangles), None), &exempt);
+        assert!(!added.is_empty(), "the spike should pierce the solved plate");
+        let resolved = scene.resolve(&identity.rows(), &minimiser, &movable, &added, &exempt, &NewtonParams::default()).unwrap();
+        let x = &resolved.newton.positions;
+        assert!(crossings(x, &triangles, &TriangleBvh::build(x, &triangles), None).is_empty());
+        assert!(x[..(w * w) as usize].iter().all(|p| p[0] > 1.5), "the plate stayed behind the wall: {:?}", &x[..(w * w) as usize]);
+        // Off the spike: the plate's vertex over it is lifted above the tip.
+        let over = x[..(w * w) as usize].iter().filter(|p| (p[0] - 2.2).abs() < 0.05).map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max);
+        assert!(over > 0.6, "{over}");
+        assert_eq!(&x[(w * w) as usize..], &rest[(w * w) as usize..]);
+        assert!(resolved.untangled);
+    }
+}
