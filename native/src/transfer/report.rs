@@ -523,7 +523,7 @@ mod tests {
         let (template_rest, template_shape) = (template.neutral, template.shapes[0]);
         assert!(template_rest.length > 0.0 && template_shape.length > template_rest.length, "{template:?}");
         let (out, report) = judged(&clean, Some(ContactParams::default()));
-        let (without, without_report) = judged(&clean, None);
+        let (_, without_report) = judged(&clean, None);
         let row = &without_report.penetration[0];
         assert_eq!(report.neutral_penetration.map(|p| p.pairs), Some(0));
         // The copy crosses less than the template's shape, but adds more than the template's

@@ -11,8 +11,8 @@
 use std::sync::Arc;
 
 use super::exemptions::{Crossed, Exemptions, TemplatePose, Topology};
-use super::newton::{solve, ContactMesh, KnownPairs, NewtonParams, NewtonResult, SolveBroadPhase};
-use super::untangle::untangle;
+use super::newton::{solve, ContactMesh, NewtonParams, NewtonResult};
+use super::untangle::{pairs_nearer, untangle};
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::penetration::crossings;
@@ -191,7 +191,7 @@ impl ContactScene {
                 break (start, 0);
             }
             let crossing_corners = still.iter().flat_map(|&(a, b)| self.triangles()[a as usize].into_iter().chain(self.triangles()[b as usize]));
-            let corners: Vec<u32> = crossing_corners.chain(touching.iter().copied()).collect();
+            let corners: Vec<u32> = crossing_corners.chain(touching.iter().flatten().copied()).collect();
             let new = self.take_movable(&corners, movable, &mut in_region);
             let grown = self.grow(&new.iter().chain(&corners).copied().collect::<Vec<_>>(), movable, &mut in_region);
             let around: Vec<u32> = corners.iter().flat_map(|&v| self.adjacency.neighbours(v as usize).iter().copied().chain([v])).collect();
@@ -212,15 +212,11 @@ impl ContactScene {
         Ok(Resolved { newton, region, unclean_start, untangled: untangled.clean })
     }
 
-    /// The vertices of the pairs with a vertex in the region that `start` brings within
+    /// The pairs (their vertices) with a vertex in the region that `start` brings within
     /// [`TOUCHING`] of their barrier's range (the region's rest meeting the solved shape
     /// held around it).
-    fn touching(&self, start: &[[f64; 3]], in_region: &[bool], exempt: &Exemptions) -> Vec<u32> {
-        let mesh = self.mesh(exempt);
-        let broad = SolveBroadPhase::new(&mesh, start, in_region);
-        let zero = vec![[0.0; 3]; start.len()];
-        let candidates = mesh.candidates(&broad, start, &zero, &mut KnownPairs::default());
-        candidates.into_iter().filter(|c| c.distance < TOUCHING * c.pair.s_hat.sqrt()).flat_map(|c| c.pair.vertices).collect()
+    fn touching(&self, start: &[[f64; 3]], in_region: &[bool], exempt: &Exemptions) -> Vec<[u32; 4]> {
+        pairs_nearer(&self.mesh(exempt), start, in_region, TOUCHING).into_iter().map(|pair| pair.vertices).collect()
     }
 
     /// Marks the `movable` vertices of `vertices` not yet in the region; returns them.

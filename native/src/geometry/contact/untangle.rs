@@ -27,7 +27,7 @@ const STEPS: usize = 200;
 
 /// A pair closer than this fraction of its barrier's range is pushed apart: from closer, the
 /// barrier's first Newton steps crawl.
-pub(super) const NEAR: f64 = 1e-2;
+const NEAR: f64 = 1e-2;
 
 /// The farthest vertex of the first step moves this many of its `d_hat`; the reach grows by
 /// half while the curve shortens, up to [`LONGEST_REACH`], and halves when it does not.
@@ -71,7 +71,7 @@ pub(super) fn untangle(
     let (mut reach, mut last_curve) = (FIRST_REACH, f64::INFINITY);
     for _ in 0..STEPS {
         let swept = sweep(&x);
-        let near = near_pairs(mesh, &x, &in_region);
+        let near = pairs_nearer(mesh, &x, &in_region, NEAR);
         let added = scene.added_crossings(&swept, exempt);
         if added.is_empty() && near.is_empty() {
             return Ok(Untangled { positions: x, clean: true });
@@ -151,12 +151,12 @@ fn region_metric(rows: &MatrixRows, region: &[usize], slot: &[usize], screening:
     SymmetricMatrix::from_triplets(region.len(), entries)
 }
 
-/// The pairs with a vertex in the region closer than [`NEAR`] of their barrier's range at `x`.
-pub(super) fn near_pairs(mesh: &ContactMesh, x: &[[f64; 3]], in_region: &[bool]) -> Vec<Pair> {
+/// The pairs with a vertex in the region closer than `fraction` of their barrier's range at `x`.
+pub(super) fn pairs_nearer(mesh: &ContactMesh, x: &[[f64; 3]], in_region: &[bool], fraction: f64) -> Vec<Pair> {
     let broad = SolveBroadPhase::new(mesh, x, in_region);
     let still = vec![[0.0; 3]; x.len()];
     let candidates = mesh.candidates(&broad, x, &still, &mut KnownPairs::default());
-    candidates.into_iter().filter(|c| c.distance < NEAR * c.pair.s_hat.sqrt()).map(|c| c.pair).collect()
+    candidates.into_iter().filter(|c| c.distance < fraction * c.pair.s_hat.sqrt()).map(|c| c.pair).collect()
 }
 
 #[cfg(test)]
