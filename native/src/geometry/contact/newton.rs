@@ -254,6 +254,17 @@ pub struct NewtonResult {
     pub converged: bool,
 }
 
+/// Each of `n` vertices' place among the unknowns `region` (`usize::MAX` outside it), and
+/// whether it is one.
+pub(super) fn region_slots(n: usize, region: &[usize]) -> (Vec<usize>, Vec<bool>) {
+    let mut slot = vec![usize::MAX; n];
+    for (s, &v) in region.iter().enumerate() {
+        slot[v] = s;
+    }
+    let in_region = slot.iter().map(|&s| s != usize::MAX).collect();
+    (slot, in_region)
+}
+
 /// Minimises `E` (module docs) over the vertices `region` from `start` (all N positions; the
 /// rest held there), `rows` the rows of `A`, `minimiser` `x*` (all N), `screening` `mu` per
 /// vertex (a fraction of its diagonal).
@@ -267,11 +278,7 @@ pub fn solve(
     params: &NewtonParams,
 ) -> ShapesmithResult<NewtonResult> {
     let n = start.len();
-    let mut slot = vec![usize::MAX; n];
-    for (s, &v) in region.iter().enumerate() {
-        slot[v] = s;
-    }
-    let in_region: Vec<bool> = slot.iter().map(|&s| s != usize::MAX).collect();
+    let (slot, in_region) = region_slots(n, region);
     let mut x = start;
     if region.is_empty() {
         return Ok(NewtonResult { positions: x, converged: true, ..Default::default() });

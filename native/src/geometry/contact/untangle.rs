@@ -15,7 +15,7 @@
 
 use super::barrier::pair_squared;
 use super::exemptions::Exemptions;
-use super::newton::{ContactMesh, KnownPairs, Pair, SolveBroadPhase};
+use super::newton::{region_slots, ContactMesh, KnownPairs, Pair, SolveBroadPhase};
 use super::shape::ContactScene;
 use crate::error::ShapesmithResult;
 use crate::geometry::penetration::{crossings, intersection_length};
@@ -56,12 +56,7 @@ pub(super) fn untangle(
     region: &[usize],
     screening: f64,
 ) -> ShapesmithResult<Untangled> {
-    let n = minimiser.len();
-    let mut slot = vec![usize::MAX; n];
-    for (s, &v) in region.iter().enumerate() {
-        slot[v] = s;
-    }
-    let in_region: Vec<bool> = slot.iter().map(|&s| s != usize::MAX).collect();
+    let (slot, in_region) = region_slots(minimiser.len(), region);
     let metric = region_metric(rows, region, &slot, screening);
     let factor = metric.factor(&metric.fill_reducing_order()?)?;
     let touched: Vec<bool> = scene.triangles().iter().map(|t| t.iter().any(|&v| in_region[v as usize])).collect();
