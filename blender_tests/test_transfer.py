@@ -482,13 +482,11 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
             assert 0.0 <= row["between_pieces"] <= row["length"] + 1e-9
             assert 0.0 <= row["template_between_pieces"] <= row["template_length"] + 1e-9
         assert 0.0 < target["neutral_penetration"]["between_pieces"] <= target["neutral_penetration"]["length"]
-        # The native report's excess over the template (the criterion of method, section 3, read by the
-        # add-on) is that of the lengths it reports, part by part, before and after the pass:
-        # beyond the more of the template shape's added curve and its own curve (the two
-        # allowances the report gives) over the target's rest.
-        rest, template_rest = target["neutral_penetration"], target["template_neutral_penetration"]
-        rest_between = rest["between_pieces"]
-        rest_inside = rest["length"] - rest_between
+        # The template's curve the wrap judges its carried keys by, per part, at the target's
+        # size; and the criterion the add-on reads (`excess`: the curve of the pairs the shape
+        # crosses that neither the target's neutral nor the template's shape crosses), part by
+        # part no more than the shape's own curve.
+        template_rest = target["template_neutral_penetration"]
         for row in target["penetrations"]:
             template_between = row["template_between_pieces"] - template_rest["between_pieces"]
             template_inside = row["template_length"] - template_rest["length"] - template_between
@@ -496,14 +494,9 @@ def test_batch_transfers_onto_every_target_and_reports(sample_path, tmp_path):
             crossing = row["template_crossing"]
             assert crossing["between"] == pytest.approx(row["template_between_pieces"], abs=1e-9)
             assert crossing["inside"] == pytest.approx(row["template_length"] - row["template_between_pieces"], abs=1e-9)
-            allowed_inside = max(template_inside, 0.0, crossing["inside"] - rest_inside)
-            allowed_between = max(template_between, 0.0, crossing["between"] - rest_between)
-            for key in ("length",):  # no before_contact_* rows: keeping surfaces apart is off
-                between = row[key.replace("length", "between_pieces")] - rest_between
-                inside = row[key] - rest["length"] - between
-                excess = row[key.replace("length", "excess")]
-                assert excess["inside"] == pytest.approx(max(inside - allowed_inside, 0.0), abs=1e-9)
-                assert excess["between"] == pytest.approx(max(between - allowed_between, 0.0), abs=1e-9)
+            excess = row["excess"]
+            assert 0.0 <= excess["inside"] <= row["length"] - row["between_pieces"] + 1e-9
+            assert 0.0 <= excess["between"] <= row["between_pieces"] + 1e-9
         excess = {row["name"]: sum(row["excess"].values()) for row in target["penetrations"]}
         assert all(excess[name] > 0.0 for name in target["worse_than_template"])
     bpy.ops.wm.open_mainfile(filepath=str(out_blend))
@@ -559,7 +552,11 @@ def test_batch_contact_flags(sample_path, tmp_path):
     target = report["targets"][0]
     row = target["penetrations"][0]
     assert {"before_contact_length", "before_contact_pairs", "contact"} <= set(row)
-    assert len(target["worse_before_contact"]) >= len(target["worse_than_template"])
+    # Virtual edges alone pass the mouth through the teeth and the lips through each other
+    # where the template's shapes do not; the contact solve takes every such pair apart, so
+    # the judge finds nothing after it.
+    assert sorted(target["worse_before_contact"]) == ["cheekPuff", "mouthClose"]
+    assert target["worse_than_template"] == []
 
 
 @pytest.mark.parametrize(

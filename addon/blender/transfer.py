@@ -419,23 +419,21 @@ def contact_traced(report):
 
 
 def added_beyond_template(report, row, key="length"):
-    """How much more intersection curve the shape adds to the target's neutral than the
-    template's shape allows, split into (inside one piece: lips or lids through each other,
-    between pieces: skin through a separate eyeball, lashes or teeth), each part zero or more:
-    the criterion of method, section 3, as the native report computes it (`excess`: per part, the shape may
-    add what the template's adds to its neutral, a removal allowing none, or cross as much as
-    the template's shape does, `template_added` and `template_crossing`; removing in one part
-    does not pay for adding in the other). `key="plain_length"` reads plain transfer's,
+    """The intersection curve of what the shape passes through that neither the target's
+    neutral nor the template's shape does, split into (inside one piece: lips or lids through
+    each other, between pieces: skin through a separate eyeball, lashes or teeth), each zero
+    or more, as the native report computes it (`excess`): after a transfer, the crossings
+    Keep Surfaces Apart takes apart; after a wrap, the curve its keys add on the character
+    beyond what the template's shapes add. `key="plain_length"` reads plain transfer's,
     `key="before_contact_length"` the result's before the contact solve."""
     excess = row[key.replace("length", "excess")]
     return excess["inside"], excess["between"]
 
 
 def worse_than_template(report, key="length", tolerance=1e-3):
-    """Names of shapes that add more intersection curve to the target's neutral than they add
-    to the template's (`added_beyond_template`, both parts together beyond `tolerance` x the
-    bbox diagonal); `key="plain_length"` judges plain transfer, `key="before_contact_length"`
-    the result before the contact solve."""
+    """Names of shapes that pass through more than the template's (`added_beyond_template`,
+    both parts together beyond `tolerance` x the bbox diagonal); `key="plain_length"` judges
+    plain transfer, `key="before_contact_length"` the result before the contact solve."""
     margin = tolerance * report["diagonal"]
     return [row["name"] for row in report["penetration"] if sum(added_beyond_template(report, row, key)) > margin]
 

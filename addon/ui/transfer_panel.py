@@ -79,8 +79,9 @@ class SHAPESMITH_PT_transfer(ShapesmithPanel, bpy.types.Panel):
         if not worse:
             col.label(text="No shape passes through itself more than the template's: good", icon="CHECKMARK")
             return
-        col.label(text=f"Passing through more than the template's: {len(worse)} (sculpt or re-run)", icon="ERROR")
-        col.label(text="Extra length of the crossing line, and where:")
+        fix = "sculpt or re-run" if result.contact or result.carried else "Advanced > Keep Surfaces Apart takes them apart"
+        col.label(text=f"Passing through more than the template's: {len(worse)} ({fix})", icon="ERROR")
+        col.label(text="Crossing line beyond the template's, and where:")
         for shape in sorted(worse, key=lambda s: -s.added)[:12]:
             row = col.row(align=True)
             row.label(text=f"  {shape.name}: {scene_length(context, shape.added)}, {WHERE_WORDS.get(shape.where, shape.where)}")

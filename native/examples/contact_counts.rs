@@ -1,24 +1,26 @@
-//! Counts the shapes worse than the template by the criterion of method, section 3, plain, with virtual
-//! edges before the contact solve and after it, on the arrays
+//! Counts the shapes worse than the template by the report's criterion (method, section 3),
+//! plain, with virtual edges before the contact solve and after it, on the arrays
 //! `scripts/save_contact_arrays.py -- DIR` writes (or `scripts/bench_transfer.py --
 //! --save-arrays DIR`, or `scripts/production_heads.py DIR` from those):
 //!
 //!     cargo run --release --example contact_counts -- DIR/<head> [DIR/names.txt]
 //!
-//! The criterion as the native report computes it (`excess`, read by the add-on): per
-//! part (inside one piece, between pieces), the curve the shape adds to the target's neutral
-//! beyond what the template's shape allows (the more of what it adds to its own neutral, a
-//! removal counting as zero, and its own curve beyond the target neutral's), each clamped at
-//! zero, summed; worse when beyond 1e-3 of the target's bounding-box diagonal. NAMES, a file
-//! of one shape name per line, names the shapes still worse after the pass. It also prints
-//! the pairs crossing at rest on both neutrals and the pieces. When DIR holds
-//! `truth.f32` (the true target shapes' deltas, as `scripts/bench_personalise.py`'s warp
-//! ground truth makes them), it also prints the warp error, mean over shapes of the mean
-//! error on each shape's active vertices / diagonal, with virtual edges and with the pass, and
-//! the shapes the criterion calls worse among the true ones. Per shape the solve acts on, its
-//! largest change against the virtual-edge solve over its largest motion, "(at rest)" where the
-//! untangling left a crossing; and the shapes adding crossing pairs beyond the solve's
-//! exemptions (the contact solve's own rule) with virtual edges and with the pass (and the truth).
+//! The criterion as the native report computes it (`excess`, read by the add-on): the
+//! intersection curve of the triangle pairs a shape crosses that neither the target's neutral
+//! nor the template's shape crosses (one ring wider where skin slides along a rest crossing),
+//! per part (inside one piece, between pieces); worse when beyond 1e-3 of the target's
+//! bounding-box diagonal. NAMES, a file of one shape name per line, names the shapes still
+//! worse after the solve. It also prints the pairs crossing at rest on both neutrals and the
+//! pieces. When DIR holds `truth.f32` (the true target shapes' deltas, as
+//! `scripts/bench_personalise.py`'s warp ground truth makes them), it also prints the warp
+//! error, mean over shapes of the mean error on each shape's active vertices / diagonal, with
+//! virtual edges and with the solve, and the true shapes judged both by the criterion and by
+//! curve length (the shape's added curve against the template's allowance,
+//! [`AddedCurve::excess_parts`]: the judge the wrap keeps for keys carried onto another mesh).
+//! Per shape the solve acts on, its largest change against the virtual-edge solve over its
+//! largest motion, "(at rest)" where the untangling left a crossing; and, counted outside the
+//! report through the contact module's own exemptions, the shapes adding crossing pairs
+//! beyond them with virtual edges and with the solve (and the truth).
 
 use shapesmith_native::transfer::{measure_rig_penetration, AddedCurve, ContactParams, PenetrationBaseline, TransferShapesParams, transfer_shapes};
 use shapesmith_native::geometry::bvh::TriangleBvh;
@@ -61,7 +63,7 @@ fn main() {
     for label in ["plain", "virtual edges", "pass"] {
         let (mut worse, mut added) = (0, 0.0);
         for row in &report.penetration {
-            // The report's own criterion (`AddedCurve::excess_parts`), as the add-on reads it.
+            // The report's own criterion, as the add-on reads it.
             let AddedCurve { inside, between } = match label {
                 "plain" => row.plain_excess.expect("compare_plain"),
                 "virtual edges" => row.before_contact_excess.unwrap_or(row.excess),
@@ -133,7 +135,7 @@ fn main() {
     let error = |predicted: &[[f32; 3]]| warp_error(predicted, &truth, source.len(), diagonal);
     let (a, b) = (error(&without), error(&with));
     println!("  warp: virtual edges {a:.4e}, with the pass {b:.4e} ({:+.1}%)", 100.0 * (b / a - 1.0));
-    // The truth judged by the same criterion: a faithful judge never calls it worse.
+    // The truth judged by curve length: the judge a faithful shape should pass.
     let baseline = PenetrationBaseline::new(&target, &triangles);
     let neutral = baseline.neutral();
     let mut truth_worse = Vec::new();
@@ -143,7 +145,7 @@ fn main() {
             truth_worse.push(format!("{} {:+.2}/{:+.2}cm", row.name, 100.0 * inside, 100.0 * between));
         }
     }
-    println!("  the truth worse by the criterion: {} ({})", truth_worse.len(), truth_worse.join(", "));
+    println!("  the truth worse by curve length: {} ({})", truth_worse.len(), truth_worse.join(", "));
     println!("  truth: shapes adding crossings beyond the exemptions {}", beyond(&truth));
 }
 

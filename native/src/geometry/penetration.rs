@@ -193,6 +193,12 @@ impl<'a> PenetrationBaseline<'a> {
     /// The penetration of `neutral + delta` (N rows). A vertex moves when its delta is not
     /// exactly zero.
     pub fn shape(&self, delta: &[[f32; 3]]) -> Penetration {
+        self.shape_swept(delta).1
+    }
+
+    /// [`Self::shape`] with the crossing pairs `(a, b, length)` of the triangles the shape
+    /// moves (every other pair crosses as at rest).
+    pub fn shape_swept(&self, delta: &[[f32; 3]]) -> (Vec<(u32, u32, f64)>, Penetration) {
         let points: Vec<Vec3> =
             self.neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| (p[a] + d[a]) as f64)).collect();
         let moved: Vec<bool> =
@@ -204,7 +210,8 @@ impl<'a> PenetrationBaseline<'a> {
         let mut bvh = self.bvh.clone();
         bvh.refit_listed(&self.links, &points, self.triangles, &listed);
         let swept = crossings(&points, self.triangles, &bvh, Some(&moved));
-        shape_penetration(&swept, &self.rest, &moved, &self.piece)
+        let penetration = shape_penetration(&swept, &self.rest, &moved, &self.piece);
+        (swept, penetration)
     }
 }
 

@@ -16,8 +16,8 @@ use super::deformation::DeformationTransfer;
 use super::gradients::{add, sub, to_f64, Vec3};
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::contact::{ContactScene, NewtonParams, TemplateShape};
-use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, Penetration};
+use crate::geometry::contact::{ContactScene, Exemptions, NewtonParams, TemplateShape};
+use crate::geometry::penetration::{crossings, shape_penetration, triangle_pieces, AddedCurve, Penetration};
 
 /// Knobs of the contact solve, defaults from method, section 3.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -61,13 +61,48 @@ pub struct ContactOutcome {
     pub penetration: Option<Penetration>,
     #[serde(skip)]
     pub plain_penetration: Option<Penetration>,
+    /// The curve the result and the plain solve add beyond the exemptions, per part
+    /// ([`CrossingJudge::added_curve`]): the report's criterion, taken from here.
+    #[serde(skip)]
+    pub added: Option<AddedCurve>,
+    #[serde(skip)]
+    pub plain_added: Option<AddedCurve>,
+}
+
+/// What a shape is judged by (method, section 3): the two neutrals (working frame) as the
+/// contact solve sees them, whose exemptions (the crossings of the target's rest and of the
+/// template's shape, by triangle) decide which crossings a shape adds. The report counts
+/// exactly the crossings the contact solve removes.
+pub(super) struct CrossingJudge {
+    target: ContactScene,
+    template: ContactScene,
+}
+
+impl CrossingJudge {
+    /// `distance`: the contact solve's `d_hat` ([`ContactParams::distance`]); the judgement
+    /// itself does not depend on it.
+    pub(super) fn new(source: &[Vec3], target: &[Vec3], triangles: &[[u32; 3]], distance: f64) -> Self {
+        let (target, template) = rayon::join(|| ContactScene::new(target, triangles, distance), || ContactScene::new(source, triangles, distance));
+        Self { target, template }
+    }
+
+    /// What a target shape transferred from the template's shape `delta` (moving vertices
+    /// `moving`) may leave crossing.
+    pub(super) fn exemptions(&self, dt: &DeformationTransfer, delta: &[[f32; 3]], moving: &[bool]) -> Exemptions {
+        let template_positions: Vec<Vec3> = dt.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let template = TemplateShape { scene: &self.template, positions: &template_positions, moving, scale: dt.template_to_target };
+        self.target.exemptions(Some(template))
+    }
+
+    /// The curve of the crossings of `swept` beyond `exempt`, per part.
+    pub(super) fn added_curve(&self, swept: &[(u32, u32, f64)], exempt: &Exemptions) -> AddedCurve {
+        self.target.added_curve(swept, exempt)
+    }
 }
 
 /// What the contact solve needs of the two neutrals, computed once per transfer.
 pub(super) struct ContactGuard {
-    /// The target's neutral in the working frame, and the template's.
-    target: ContactScene,
-    template: ContactScene,
+    pub(super) judge: CrossingJudge,
     /// The target's neutral as written (its own frame, f32), its hierarchy and rest crossings.
     written_neutral: Vec<[f32; 3]>,
     written_bvh: TriangleBvh,
@@ -79,8 +114,8 @@ pub(super) struct ContactGuard {
 impl ContactGuard {
     /// `source` and `target` in the working frame, `written_neutral` as given.
     pub(super) fn new(source: &[Vec3], target: &[Vec3], written_neutral: &[[f32; 3]], triangles: &[[u32; 3]], params: ContactParams) -> Self {
-        let ((target_scene, template), (written_bvh, rest_swept)) = rayon::join(
-            || rayon::join(|| ContactScene::new(target, triangles, params.distance), || ContactScene::new(source, triangles, params.distance)),
+        let (judge, (written_bvh, rest_swept)) = rayon::join(
+            || CrossingJudge::new(source, target, triangles, params.distance),
             || {
                 let written: Vec<Vec3> = written_neutral.iter().map(to_f64).collect();
                 let bvh = TriangleBvh::build(&written, triangles);
@@ -90,7 +125,7 @@ impl ContactGuard {
         );
         let triangle_piece = triangle_pieces(target.len(), triangles);
         let rest_penetration = shape_penetration(&[], &rest_swept, &vec![false; triangles.len()], &triangle_piece);
-        Self { target: target_scene, template, written_neutral: written_neutral.to_vec(), written_bvh, rest_swept, triangle_piece, rest_penetration }
+        Self { judge, written_neutral: written_neutral.to_vec(), written_bvh, rest_swept, triangle_piece, rest_penetration }
     }
 
     /// The crossings of the shape whose working-frame deltas are `deltas`, swept where they
@@ -110,26 +145,29 @@ impl DeformationTransfer {
     /// `delta`, whose moving vertices are `moving`.
     pub(super) fn contact_solve(&self, guard: &ContactGuard, delta: &[[f32; 3]], moving: &[bool], out: &mut [Vec3]) -> ShapesmithResult<ContactOutcome> {
         let (swept, plain) = guard.sweep(self, out);
-        let mut outcome = ContactOutcome { penetration: Some(plain), plain_penetration: Some(plain), ..Default::default() };
-        if swept.iter().all(|&(a, b, _)| guard.target.rest_crosses(a, b)) {
+        let none = Some(AddedCurve::default());
+        let mut outcome =
+            ContactOutcome { penetration: Some(plain), plain_penetration: Some(plain), added: none, plain_added: none, ..Default::default() };
+        let (scene, judge) = (&guard.judge.target, &guard.judge);
+        if swept.iter().all(|&(a, b, _)| scene.rest_crosses(a, b)) {
             return Ok(outcome);
         }
-        let template_positions: Vec<Vec3> = self.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
-        let template = TemplateShape { scene: &guard.template, positions: &template_positions, moving, scale: self.template_to_target };
-        let exempt = guard.target.exemptions(Some(template));
-        let added = guard.target.added_crossings(&swept, &exempt);
+        let exempt = judge.exemptions(self, delta, moving);
+        let added = scene.added_crossings(&swept, &exempt);
         outcome.added_pairs = added.len();
         if added.is_empty() {
             return Ok(outcome);
         }
+        outcome.plain_added = Some(judge.added_curve(&swept, &exempt));
         let minimiser: Vec<Vec3> = self.target_neutral.iter().zip(out.iter()).map(|(p, d)| add(*p, *d)).collect();
-        let resolved = guard.target.resolve(self.matrix.rows(), &minimiser, moving, &added, &exempt, &NewtonParams::default())?;
+        let resolved = scene.resolve(self.matrix.rows(), &minimiser, moving, &added, &exempt, &NewtonParams::default())?;
         for &v in &resolved.region {
             out[v] = sub(resolved.newton.positions[v], self.target_neutral[v]);
         }
         let (swept, result) = guard.sweep(self, out);
         Ok(ContactOutcome {
-            remaining_pairs: guard.target.added_crossings(&swept, &exempt).len(),
+            remaining_pairs: scene.added_crossings(&swept, &exempt).len(),
+            added: Some(judge.added_curve(&swept, &exempt)),
             region_vertices: resolved.region.len(),
             iterations: resolved.newton.iterations,
             untangled: resolved.untangled,

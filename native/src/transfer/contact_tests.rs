@@ -6,7 +6,7 @@
 
 use super::tests::{head, lip_closing, lips, max_error, plain, Mesh};
 use super::*;
-use crate::geometry::penetration::intersection_length;
+use crate::geometry::penetration::{intersection_length, AddedCurve};
 use crate::geometry::topology::grid_triangles;
 use crate::NoProgress;
 
@@ -118,7 +118,8 @@ fn skin_pressed_onto_static_teeth_stays_outside_and_other_shapes_are_untouched()
     assert_eq!(with.deltas[n..], without.deltas[n..]);
     let outcomes = with.contact.unwrap();
     assert!(outcomes[0].applied && outcomes[0].remaining_pairs == 0);
-    assert_eq!(ContactOutcome { penetration: None, plain_penetration: None, ..outcomes[1] }, ContactOutcome::default());
+    let nothing = Some(AddedCurve::default());
+    assert_eq!(ContactOutcome { penetration: None, plain_penetration: None, ..outcomes[1] }, ContactOutcome { added: nothing, plain_added: nothing, ..Default::default() });
     assert!(with.before_contact[1].is_none());
 }
 

@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::alignment::{best_rotation, centroid};
-use super::contact::{ContactGuard, ContactOutcome};
+use super::contact::{ContactGuard, ContactOutcome, CrossingJudge};
 use super::gradients::{
     add, corners, delta_gradient, dot, edge_frame, inverse, length, mat_add_scaled, mat_mul, mat_vec, scale, sub, to_f64, transpose, Mat3,
     HatGradients, Vec3, IDENTITY, ZERO,
@@ -202,6 +202,11 @@ impl DeformationTransfer {
     /// The target neutral's own penetration, when the contact solve swept it.
     pub(super) fn rest_penetration(&self) -> Option<crate::geometry::penetration::Penetration> {
         self.contact.as_ref().map(|guard| guard.rest_penetration)
+    }
+
+    /// The contact solve's judge of which crossings a shape adds, when the solve is on.
+    pub(super) fn crossing_judge(&self) -> Option<&CrossingJudge> {
+        self.contact.as_ref().map(|guard| &guard.judge)
     }
 
     /// The virtual edges `(i, j)` used by the solve (empty for plain transfer).

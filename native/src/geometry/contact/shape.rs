@@ -15,7 +15,7 @@ use super::newton::{solve, ContactMesh, NewtonParams, NewtonResult};
 use super::untangle::{pairs_nearer, untangle};
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::penetration::crossings;
+use crate::geometry::penetration::{crossings, AddedCurve};
 use crate::geometry::topology::{unique_edges, Adjacency};
 use crate::sparse::MatrixRows;
 
@@ -147,6 +147,19 @@ impl ContactScene {
             .filter(|&&(a, b, _)| !exempt.triangles(a, b))
             .map(|&(a, b, _)| (a, b))
             .collect()
+    }
+
+    /// The intersection curve of the crossings of `swept` a shape adds beyond `exempt`
+    /// ([`Self::added_crossings`]), per part (inside one piece, between two): the criterion
+    /// of method, section 3, as the report gives it. A faithful copy of the template's shape
+    /// adds none (every pair it crosses, the template's shape or the neutral crosses too).
+    pub fn added_curve(&self, swept: &[(u32, u32, f64)], exempt: &Exemptions) -> AddedCurve {
+        let mut curve = AddedCurve::default();
+        for &(a, b, length) in swept.iter().filter(|&&(a, b, _)| !exempt.triangles(a, b)) {
+            let part = if self.piece[a as usize] == self.piece[b as usize] { &mut curve.inside } else { &mut curve.between };
+            *part += length;
+        }
+        curve
     }
 
     /// Removes the crossings `added` from the solved positions `minimiser` (all N, the
