@@ -166,7 +166,7 @@ impl TemplateCurve {
 pub struct PenetrationBaseline<'a> {
     neutral: &'a [[f32; 3]],
     triangles: &'a [[u32; 3]],
-    /// `(a, b, length)` with `a < b`, in order of `a`.
+    /// `(a, b, length)` with `a < b`, sorted by `(a, b)`.
     rest: Vec<(u32, u32, f64)>,
     /// Built on the rest pose; a copy is refitted to each shape where it moves.
     bvh: TriangleBvh,
@@ -183,6 +183,11 @@ impl<'a> PenetrationBaseline<'a> {
         let rest = crossings(&points, triangles, &bvh, None);
         let links = bvh.refit_links();
         Self { neutral, triangles, rest, bvh, links, piece: triangle_pieces(neutral.len(), triangles) }
+    }
+
+    /// Whether triangles `a < b` cross at rest.
+    pub fn rest_crosses(&self, a: u32, b: u32) -> bool {
+        self.rest.binary_search_by_key(&(a, b), |&(x, y, _)| (x, y)).is_ok()
     }
 
     /// The rest mesh's own penetration.

@@ -94,6 +94,20 @@ impl CrossingJudge {
         self.target.exemptions(Some(template))
     }
 
+    /// [`Self::exemptions`] enough to judge the pairs `asked` ([`ContactScene::exemptions_near`]):
+    /// `added`, the curve the template's shape adds to its neutral, per part.
+    pub(super) fn exemptions_near(&self, dt: &DeformationTransfer, delta: &[[f32; 3]], moving: &[bool], added: AddedCurve, asked: &[(u32, u32)]) -> Exemptions {
+        let template_positions: Vec<Vec3> = dt.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
+        let template = TemplateShape { scene: &self.template, positions: &template_positions, moving, scale: dt.template_to_target };
+        self.target.exemptions_near(template, added, asked)
+    }
+
+    /// The pairs of `swept` not crossing at the target's rest: all the judge needs to ask of
+    /// the template's shape.
+    pub(super) fn asked(&self, swept: &[(u32, u32, f64)]) -> Vec<(u32, u32)> {
+        swept.iter().filter(|&&(a, b, _)| !self.target.rest_crosses(a, b)).map(|&(a, b, _)| (a, b)).collect()
+    }
+
     /// The curve of the crossings of `swept` beyond `exempt`, per part.
     pub(super) fn added_curve(&self, swept: &[(u32, u32, f64)], exempt: &Exemptions) -> AddedCurve {
         self.target.added_curve(swept, exempt)

@@ -405,3 +405,31 @@ fn self_transfer_of_a_head_of_many_pieces_crossing_at_rest_comes_back_as_it_is()
         assert!(row.contact.is_some_and(|c| !c.applied), "{}: {:?}", row.name, row.contact);
     }
 }
+
+/// The report's judge tests the template's shape only near the pairs it is asked about; it
+/// must judge those pairs as the whole sweep's exemptions do, bit for bit: the naive copy of
+/// each template shape onto thinner lips and onto skin rising over teeth.
+#[test]
+fn the_judge_near_the_asked_pairs_agrees_with_the_whole_sweep() {
+    let (thick, lip_tris) = lips(0.08);
+    let closing = lip_closing(&thick, 0.08, 0.036);
+    let (source, target, tris, deltas) = skin_rising_over_teeth();
+    let mut judged = 0;
+    for (source, target, tris, deltas) in [(&thick, &lips(0.04).0, &lip_tris, &closing), (&source, &target, &tris, &deltas)] {
+        let n = source.len();
+        let dt = DeformationTransfer::new(source, target, tris, &with_contact()).unwrap();
+        let judge = dt.crossing_judge().expect("contact on");
+        let rest = measure_penetration(source, tris);
+        for delta in deltas.chunks(n) {
+            let copy: Vec<[f64; 3]> = dt.target_neutral.iter().zip(delta).map(|(p, d)| [0, 1, 2].map(|a| p[a] + f64::from(d[a]))).collect();
+            let swept = crate::geometry::penetration::crossings(&copy, tris, &crate::geometry::bvh::TriangleBvh::build(&copy, tris), None);
+            let moving = dt.moving_vertices(delta);
+            let added = AddedCurve::from_penetrations(&measure_penetration(&posed(source, delta), tris), &rest);
+            let whole = judge.added_curve(&swept, &judge.exemptions(&dt, delta, &moving));
+            let near = judge.added_curve(&swept, &judge.exemptions_near(&dt, delta, &moving, added, &judge.asked(&swept)));
+            assert_eq!(near, whole);
+            judged += usize::from(whole.total() > 0.0);
+        }
+    }
+    assert!(judged >= 2, "the copies should add crossings beyond the exemptions on both meshes");
+}

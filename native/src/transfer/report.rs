@@ -293,8 +293,9 @@ fn transfer_welded(
                 .map(|k| {
                     let rows = k * n..(k + 1) * n;
                     let template_delta = &source_deltas[rows.clone()];
-                    let exempt = OnceLock::new();
-                    let exempt = || exempt.get_or_init(|| judge().exemptions(&dt, template_delta, &dt.moving_vertices(template_delta)));
+                    let template_moving = OnceLock::new();
+                    let template_moving = || template_moving.get_or_init(|| dt.moving_vertices(template_delta));
+                    let template_added = AddedCurve::from_penetrations(&template.shapes[k], &template.neutral);
                     // A shape's penetration and the curve it adds beyond what its neutral and the
                     // template's shape cross.
                     let measure = |d: &[[f32; 3]]| {
@@ -302,7 +303,14 @@ fn transfer_welded(
                             return (neutral, AddedCurve::default());
                         }
                         let (swept, penetration) = on_target().shape_swept(d);
-                        (penetration, judge().added_curve(&swept, exempt()))
+                        // A shape crossing only where its neutral does adds nothing: no need
+                        // to sweep the template's shape for what it licenses.
+                        if swept.iter().all(|&(a, b, _)| on_target().rest_crosses(a, b)) {
+                            return (penetration, AddedCurve::default());
+                        }
+                        let judge = judge();
+                        let exempt = judge.exemptions_near(&dt, template_delta, template_moving(), template_added, &judge.asked(&swept));
+                        (penetration, judge.added_curve(&swept, &exempt))
                     };
                     let outcome = contact.as_ref().map(|c| c[k]);
                     let (result, added) = match outcome.and_then(|c| c.penetration.zip(c.added)) {

@@ -41,7 +41,7 @@ impl Topology {
     }
 
     /// Triangle `t` and the triangles sharing a corner with it.
-    fn around(&self, t: u32) -> Vec<u32> {
+    pub(super) fn around(&self, t: u32) -> Vec<u32> {
         let mut near: Vec<u32> = self.triangles[t as usize].iter().flat_map(|&v| self.at_vertex.of(v as usize).iter().copied()).collect();
         near.sort_unstable();
         near.dedup();

@@ -15,7 +15,7 @@ use super::newton::{solve, ContactMesh, NewtonParams, NewtonResult};
 use super::untangle::{pairs_nearer, untangle};
 use crate::error::ShapesmithResult;
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::penetration::{crossings, AddedCurve};
+use crate::geometry::penetration::{crossings, intersection_length, AddedCurve};
 use crate::geometry::topology::{unique_edges, Adjacency};
 use crate::sparse::MatrixRows;
 
@@ -137,6 +137,40 @@ impl ContactScene {
         let widened = shape.iter().copied().filter(|&(a, b)| added[part(a, b)] > 0.0);
         let pose = TemplatePose { positions: template.positions.to_vec(), scale: template.scale };
         Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), Some(pose))
+    }
+
+    /// [`Self::exemptions`] enough to judge the pairs `asked` ([`Exemptions::triangles`]), the
+    /// template's shape tested only at the pairs within one ring of them instead of swept
+    /// whole: the judge reads no other pair of it. `added`: the curve the template's shape adds
+    /// to its neutral, per part (which of its crossings widen).
+    pub fn exemptions_near(&self, template: TemplateShape, added: AddedCurve, asked: &[(u32, u32)]) -> Exemptions {
+        let triangles = self.triangles();
+        let corners = |t: u32| triangles[t as usize].map(|v| template.positions[v as usize]);
+        let moved = |t: u32| triangles[t as usize].iter().any(|&v| template.moving[v as usize]);
+        let mut near: Vec<(u32, u32)> = Vec::new();
+        for &(a, b) in asked {
+            let around_b = self.topology.around(b);
+            for x in self.topology.around(a) {
+                for &y in &around_b {
+                    let (lo, hi) = (x.min(y), x.max(y));
+                    if lo != hi && !triangles[lo as usize].iter().any(|v| triangles[hi as usize].contains(v)) {
+                        near.push((lo, hi));
+                    }
+                }
+            }
+        }
+        near.sort_unstable();
+        near.dedup();
+        // As the whole sweep's: a pair with a moved triangle crossing in the template's shape,
+        // tested lower index first, not at the template's rest unless at this neutral's too.
+        let shape: Vec<(u32, u32)> = near
+            .into_iter()
+            .filter(|&(x, y)| (moved(x) || moved(y)) && intersection_length(corners(x), corners(y)).is_some())
+            .filter(|&(x, y)| !template.scene.rest_crosses(x, y) || self.rest_crosses(x, y))
+            .collect();
+        let grows = |x: u32, y: u32| if self.piece[x as usize] == self.piece[y as usize] { added.inside > 0.0 } else { added.between > 0.0 };
+        let widened = shape.iter().copied().filter(|&(x, y)| grows(x, y));
+        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), None)
     }
 
     /// The crossing triangle pairs of `swept` (as [`crossings`] lists them) a shape adds: not
