@@ -8,10 +8,14 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::perm::PermRef;
 use faer::reborrow::IntoConst;
 use faer::sparse::linalg::cholesky::simplicial::{
-    factorize_simplicial_numeric_llt_scratch, factorize_simplicial_numeric_llt_with_row_idx, prefactorize_symbolic_cholesky,
+    factorize_simplicial_numeric_llt_scratch, EliminationTreeRef, factorize_simplicial_numeric_llt_with_row_idx, prefactorize_symbolic_cholesky,
     prefactorize_symbolic_cholesky_scratch,
 };
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::supernodal::{
+    factorize_supernodal_numeric_llt, factorize_supernodal_numeric_llt_scratch, factorize_supernodal_symbolic_cholesky,
+    factorize_supernodal_symbolic_cholesky_scratch, SupernodalLltRef, SymbolicSupernodalCholesky,
+};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymmetricOrdering};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::utils::permute_self_adjoint_to_unsorted;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -319,8 +323,8 @@ enum Factor {
     /// A simplicial factor computed in one pass (`forward`: elimination slot -> unknown; `L`
     /// in compressed columns, rows sorted, the diagonal first).
     Simplicial { forward: Vec<usize>, col_ptr: Vec<usize>, row_idx: Vec<usize>, values: Vec<f64> },
-    /// A supernodal factor through faer's general path.
-    General { symbolic: SymbolicCholesky<usize>, values: Vec<f64> },
+    /// A supernodal factor by faer's supernodal kernels (`forward` as above).
+    Supernodal { forward: Vec<usize>, symbolic: SymbolicSupernodalCholesky<usize>, values: Vec<f64> },
 }
 
 /// faer 0.24's `CHOLESKY_SUPERNODAL_RATIO_FACTOR` (private): above `40 *` the default
@@ -335,10 +339,10 @@ impl Cholesky {
     /// permuted upper triangle is built once, the elimination tree and column counts are
     /// computed on it, and `factorize_simplicial_numeric_llt_with_row_idx` fills the rows and
     /// values of `L` together. Same permuted matrix (same row order, hence the same reach
-    /// order and sums), same arithmetic: the same factor to the bit. Otherwise (supernodal)
-    /// faer's general path. Measured with callgrind on `time_transfer Target_Boy 1`: the
-    /// factorisations' instructions 411 M -> 296 M, the whole run 3209 M -> 3005 M (with
-    /// [`Self::solve_points`]'s own triangular solves) at the same checksum bits.
+    /// order and sums), same arithmetic: the same factor to the bit. Measured with callgrind
+    /// on `time_transfer Target_Boy 1`: the factorisations' instructions 411 M -> 296 M, the
+    /// whole run 3209 M -> 3005 M (with [`Self::solve_points`]'s own triangular solves) at
+    /// the same checksum bits. Otherwise (supernodal) see [`Self::factor_supernodal`].
     fn factor(n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64], order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
         let structure = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
         let matrix = SparseColMatRef::new(structure, values);
@@ -361,7 +365,7 @@ impl Cholesky {
         let factor_nnz: usize = col_counts.iter().sum();
         let (divisions, updates) = col_counts.iter().fold((0u128, 0u128), |(d, u), &c| (d + c as u128, u + c as u128 * (c as u128 + 1) / 2));
         if (divisions as f64 + updates as f64) / factor_nnz as f64 > SupernodalThreshold::AUTO.0 * SUPERNODAL_RATIO_FACTOR {
-            return Self::factor_general(matrix, order);
+            return Self::factor_supernodal(matrix, order, upper.symbolic(), tree, &col_counts);
         }
         let mut factor_col_ptr = Vec::with_capacity(n + 1);
         factor_col_ptr.push(0usize);
@@ -375,17 +379,42 @@ impl Cholesky {
         Ok(Self(Factor::Simplicial { forward, col_ptr: factor_col_ptr, row_idx: factor_row_idx, values: factor_values }))
     }
 
-    /// faer's general path: symbolic analysis, then numeric factorisation.
-    fn factor_general(matrix: SparseColMatRef<'_, usize, f64>, order: PermRef<'_, usize>) -> ShapesmithResult<Self> {
-        let symbolic = factorize_symbolic_cholesky(matrix.symbolic(), Side::Lower, SymmetricOrdering::Custom(order), Default::default())
+    /// faer's general path (`factorize_symbolic_cholesky` then `factorize_numeric_llt`) from
+    /// its parts: the supernodal structure from the permuted upper triangle, elimination tree
+    /// and column counts [`Self::factor`] has computed, where the general path permutes the
+    /// matrix and computes the tree and counts again; then the matrix permuted to its lower
+    /// triangle as the general path's numeric step permutes it, and the same supernodal
+    /// kernel with the same (default) parameters: the same factor to the bit.
+    fn factor_supernodal(
+        matrix: SparseColMatRef<'_, usize, f64>,
+        order: PermRef<'_, usize>,
+        upper: SymbolicSparseColMatRef<'_, usize>,
+        tree: EliminationTreeRef<'_, usize>,
+        col_counts: &[usize],
+    ) -> ShapesmithResult<Self> {
+        let (n, nnz) = (matrix.nrows(), matrix.row_idx().len());
+        let mut buffer = MemBuffer::try_new(StackReq::any_of(&[factorize_supernodal_symbolic_cholesky_scratch::<usize>(n), StackReq::new::<usize>(n + 1)]))
+            .map_err(|e| factorisation_failed("memory", &e))?;
+        let symbolic = factorize_supernodal_symbolic_cholesky(upper, tree, col_counts, MemStack::new(&mut buffer), Default::default())
             .map_err(|e| factorisation_failed("symbolic", &e))?;
+        let (mut lower_col_ptr, mut lower_row_idx, mut lower_values) = (vec![0usize; n + 1], vec![0usize; nnz], vec![0.0; nnz]);
+        let lower = permute_self_adjoint_to_unsorted(
+            &mut lower_values,
+            &mut lower_col_ptr,
+            &mut lower_row_idx,
+            matrix,
+            order,
+            Side::Lower,
+            Side::Lower,
+            MemStack::new(&mut buffer),
+        )
+        .into_const();
         let mut factor_values = vec![0.0; symbolic.len_val()];
-        let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
-        let mut buffer = MemBuffer::try_new(StackReq::any_of(&[scratch])).map_err(|e| factorisation_failed("memory", &e))?;
-        symbolic
-            .factorize_numeric_llt(&mut factor_values, matrix, Side::Lower, Default::default(), Par::Seq, MemStack::new(&mut buffer), Default::default())
+        let scratch = factorize_supernodal_numeric_llt_scratch::<usize, f64>(&symbolic, Par::Seq, Default::default());
+        let mut buffer = MemBuffer::try_new(scratch).map_err(|e| factorisation_failed("memory", &e))?;
+        factorize_supernodal_numeric_llt(&mut factor_values, lower, Default::default(), &symbolic, Par::Seq, MemStack::new(&mut buffer), Default::default())
             .map_err(|e| factorisation_failed("not positive definite", &e))?;
-        Ok(Self(Factor::General { symbolic, values: factor_values }))
+        Ok(Self(Factor::Supernodal { forward: order.arrays().0.to_vec(), symbolic, values: factor_values }))
     }
 
     /// Solves for three columns given per unknown. The simplicial factor's solve is faer's
@@ -429,11 +458,17 @@ impl Cholesky {
                 }
                 out
             }
-            Factor::General { symbolic, values } => {
-                let mut b = Mat::<f64>::from_fn(rhs.len(), 3, |r, c| rhs[r][c]);
+            // faer's `LltRef::solve_in_place_with_conj`: the right-hand side permuted into a
+            // column-major copy, the supernodal solve, permuted back.
+            Factor::Supernodal { forward, symbolic, values } => {
+                let mut b = Mat::<f64>::from_fn(rhs.len(), 3, |s, c| rhs[forward[s]][c]);
                 let mut buffer = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
-                LltRef::new(symbolic, values).solve_in_place_with_conj(Conj::No, b.as_mut(), Par::Seq, MemStack::new(&mut buffer));
-                (0..rhs.len()).map(|r| [b[(r, 0)], b[(r, 1)], b[(r, 2)]]).collect()
+                SupernodalLltRef::new(symbolic, values).solve_in_place_with_conj(Conj::No, b.as_mut(), Par::Seq, MemStack::new(&mut buffer));
+                let mut out = vec![[0.0; 3]; rhs.len()];
+                for (s, &v) in forward.iter().enumerate() {
+                    out[v] = [b[(s, 0)], b[(s, 1)], b[(s, 2)]];
+                }
+                out
             }
         }
     }
