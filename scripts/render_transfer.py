@@ -3,7 +3,7 @@
     python scripts/render_transfer.py [-- --target Target_Boy --shape mouthLeft --output docs/transfer_mouthLeft.png]
 
 The template's keys are transferred onto three copies of the target: plain deformation
-transfer, with virtual edges, and with virtual edges and the collision pass (the default);
+transfer, with virtual edges (the default), and with virtual edges and Keep Surfaces Apart;
 each is posed at the shape and rendered (Workbench, orthographic close-up of the region the
 shape moves, the skin half transparent) side by side in that order, every triangle that passes
 through another one (and did not at rest) painted red, so what each variant pushes through
