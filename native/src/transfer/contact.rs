@@ -89,16 +89,15 @@ impl CrossingJudge {
     /// What a target shape transferred from the template's shape `delta` (moving vertices
     /// `moving`) may leave crossing.
     pub(super) fn exemptions(&self, dt: &DeformationTransfer, delta: &[[f32; 3]], moving: &[bool]) -> Exemptions {
-        let template_positions: Vec<Vec3> = dt.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
-        let template = TemplateShape { scene: &self.template, positions: &template_positions, moving, scale: dt.template_to_target };
-        self.target.exemptions(Some(template))
+        let positions = template_positions(dt, delta);
+        self.target.exemptions(Some(TemplateShape { scene: &self.template, positions: &positions, moving, scale: dt.template_to_target }))
     }
 
     /// [`Self::exemptions`] enough to judge the pairs `asked` ([`ContactScene::exemptions_near`]):
     /// `added`, the curve the template's shape adds to its neutral, per part.
     pub(super) fn exemptions_near(&self, dt: &DeformationTransfer, delta: &[[f32; 3]], moving: &[bool], added: AddedCurve, asked: &[(u32, u32)]) -> Exemptions {
-        let template_positions: Vec<Vec3> = dt.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect();
-        let template = TemplateShape { scene: &self.template, positions: &template_positions, moving, scale: dt.template_to_target };
+        let positions = template_positions(dt, delta);
+        let template = TemplateShape { scene: &self.template, positions: &positions, moving, scale: dt.template_to_target };
         self.target.exemptions_near(template, added, asked)
     }
 
@@ -112,6 +111,11 @@ impl CrossingJudge {
     pub(super) fn added_curve(&self, swept: &[(u32, u32, f64)], exempt: &Exemptions) -> AddedCurve {
         self.target.added_curve(swept, exempt)
     }
+}
+
+/// The template's shape `delta` posed on its neutral, in the working frame.
+fn template_positions(dt: &DeformationTransfer, delta: &[[f32; 3]]) -> Vec<Vec3> {
+    dt.source_neutral.iter().zip(delta).map(|(p, d)| add(*p, to_f64(d))).collect()
 }
 
 /// What the contact solve needs of the two neutrals, computed once per transfer.

@@ -25,18 +25,27 @@ fn lip_gaps(points: &[[f32; 3]]) -> Vec<f32> {
         .collect()
 }
 
-/// Every pair of triangles sharing no vertex that crosses at `points`, by testing all pairs.
-fn crossing_pairs(points: &[[f32; 3]], tris: &[[u32; 3]]) -> std::collections::BTreeSet<(usize, usize)> {
+/// Every pair of triangles sharing no vertex that crosses at `points`, `(a, b, length)` with
+/// `a < b`, by testing all pairs.
+pub(super) fn crossing_lengths(points: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<(u32, u32, f64)> {
     let corners = |t: &[u32; 3]| t.map(|v| points[v as usize].map(f64::from));
-    let mut found = std::collections::BTreeSet::new();
+    let mut found = Vec::new();
     for a in 0..tris.len() {
         for b in a + 1..tris.len() {
-            if !tris[a].iter().any(|v| tris[b].contains(v)) && intersection_length(corners(&tris[a]), corners(&tris[b])).is_some() {
-                found.insert((a, b));
+            if tris[a].iter().any(|v| tris[b].contains(v)) {
+                continue;
+            }
+            if let Some(length) = intersection_length(corners(&tris[a]), corners(&tris[b])) {
+                found.push((a as u32, b as u32, length));
             }
         }
     }
     found
+}
+
+/// [`crossing_lengths`]' pairs.
+fn crossing_pairs(points: &[[f32; 3]], tris: &[[u32; 3]]) -> std::collections::BTreeSet<(usize, usize)> {
+    crossing_lengths(points, tris).into_iter().map(|(a, b, _)| (a as usize, b as usize)).collect()
 }
 
 /// The pairs crossing in `target + delta` that do not cross in `target`, by brute force.

@@ -327,8 +327,8 @@ fn transfer_welded(
                     // The template shape's curve at the target's size (its units and proportions).
                     let template_curve = TemplateCurve::from_penetrations(&template_shape, &template.neutral).scaled(dt.template_to_target);
                     let allowed = template_curve.allowed(&AddedCurve::crossing(&neutral));
-                    let (before, before_added) = (before.map(|b| b.0), before.map(|b| b.1));
-                    let (plain, plain_added) = (plain.map(|p| p.0), plain.map(|p| p.1));
+                    let (before, before_added) = before.unzip();
+                    let (plain, plain_added) = plain.unzip();
                     let row = ShapePenetration {
                         name: names[k].clone(),
                         length: result.length,
@@ -407,7 +407,7 @@ pub fn measure_rig_penetration(neutral: &[[f32; 3]], deltas: &[[f32; 3]], triang
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transfer::contact_tests::{posed, skin_rising_over_teeth};
+    use crate::transfer::contact_tests::{crossing_lengths, posed, skin_rising_over_teeth};
     use crate::transfer::tests::{lip_closing, lips};
     use crate::transfer::{measure_penetration, ContactParams, VirtualEdgeParams};
     use crate::NoProgress;
@@ -424,24 +424,6 @@ mod tests {
         let n = points.len() as f64;
         let c = [0, 1, 2].map(|a| points.iter().map(|p| f64::from(p[a])).sum::<f64>() / n);
         (points.iter().map(|p| (0..3).map(|a| (f64::from(p[a]) - c[a]).powi(2)).sum::<f64>()).sum::<f64>() / n).sqrt()
-    }
-
-    /// Every pair of triangles sharing no vertex that crosses, `(a, b, length)` with `a < b`,
-    /// tested one by one.
-    fn crossing_pairs(points: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<(u32, u32, f64)> {
-        let corners = |t: usize| tris[t].map(|v| points[v as usize].map(f64::from));
-        let mut pairs = Vec::new();
-        for a in 0..tris.len() {
-            for b in a + 1..tris.len() {
-                if tris[a].iter().any(|v| tris[b].contains(v)) {
-                    continue;
-                }
-                if let Some(length) = crate::geometry::penetration::intersection_length(corners(a), corners(b)) {
-                    pairs.push((a as u32, b as u32, length));
-                }
-            }
-        }
-        pairs
     }
 
     /// Runs `transfer_shapes` with and without the contact solve and checks every number the
@@ -498,14 +480,14 @@ mod tests {
             // The criterion, by brute force: the curve of the pairs the shape crosses that
             // neither the target's rest nor the template's shape crosses counts, at least where
             // no such pair lies within one ring (the sliding the exemptions allow).
-            let (rest_pairs, template_pairs) = (crossing_pairs(target, tris), crossing_pairs(&posed(source, &deltas[rows.clone()]), tris));
+            let (rest_pairs, template_pairs) = (crossing_lengths(target, tris), crossing_lengths(&posed(source, &deltas[rows.clone()]), tris));
             let exempt = |a: u32, b: u32| rest_pairs.iter().chain(&template_pairs).any(|&(x, y, _)| (x, y) == (a, b));
             let touches = |a: u32, x: u32| tris[a as usize].iter().any(|v| tris[x as usize].contains(v));
             let near_exempt = |a: u32, b: u32| {
                 rest_pairs.iter().chain(&template_pairs).any(|&(x, y, _)| (touches(a, x) && touches(b, y)) || (touches(a, y) && touches(b, x)))
             };
             let bounds = |d: &[[f32; 3]]| {
-                let pairs = crossing_pairs(&posed(target, d), tris);
+                let pairs = crossing_lengths(&posed(target, d), tris);
                 let sum = |keep: &dyn Fn(u32, u32) -> bool| pairs.iter().filter(|p| keep(p.0, p.1)).map(|p| p.2).sum::<f64>();
                 (sum(&|a, b| !near_exempt(a, b)), sum(&|a, b| !exempt(a, b)))
             };

@@ -129,14 +129,20 @@ impl ContactScene {
         for &(a, b, l) in template.scene.rest_swept.iter().filter(|&&(a, b, _)| moved[a as usize] || moved[b as usize]) {
             added[part(a, b)] -= l;
         }
-        let shape: Vec<(u32, u32)> = swept
-            .into_iter()
-            .filter(|&(a, b, _)| !template.scene.rest_crosses(a, b) || self.rest_crosses(a, b))
-            .map(|(a, b, _)| (a, b))
-            .collect();
-        let widened = shape.iter().copied().filter(|&(a, b)| added[part(a, b)] > 0.0);
+        let added = AddedCurve { inside: added[0], between: added[1] };
         let pose = TemplatePose { positions: template.positions.to_vec(), scale: template.scale };
-        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), Some(pose))
+        self.template_exemptions(&template, swept.into_iter().map(|(a, b, _)| (a, b)), added, Some(pose))
+    }
+
+    /// The exemptions of a template's shape whose crossing pairs with a moved triangle are
+    /// `crossing` and whose curve added to its neutral is `added`, per part: the pairs not
+    /// crossing at the template's rest (or crossing at this neutral's too), each widening its
+    /// ring in a part whose curve the shape grows.
+    fn template_exemptions(&self, template: &TemplateShape, crossing: impl Iterator<Item = (u32, u32)>, added: AddedCurve, pose: Option<TemplatePose>) -> Exemptions {
+        let shape: Vec<(u32, u32)> = crossing.filter(|&(a, b)| !template.scene.rest_crosses(a, b) || self.rest_crosses(a, b)).collect();
+        let grows = |a: u32, b: u32| if self.piece[a as usize] == self.piece[b as usize] { added.inside > 0.0 } else { added.between > 0.0 };
+        let widened = shape.iter().copied().filter(|&(a, b)| grows(a, b));
+        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), pose)
     }
 
     /// [`Self::exemptions`] enough to judge the pairs `asked` ([`Exemptions::triangles`]), the
@@ -161,16 +167,10 @@ impl ContactScene {
         }
         near.sort_unstable();
         near.dedup();
-        // As the whole sweep's: a pair with a moved triangle crossing in the template's shape,
-        // tested lower index first, not at the template's rest unless at this neutral's too.
-        let shape: Vec<(u32, u32)> = near
-            .into_iter()
-            .filter(|&(x, y)| (moved(x) || moved(y)) && intersection_length(corners(x), corners(y)).is_some())
-            .filter(|&(x, y)| !template.scene.rest_crosses(x, y) || self.rest_crosses(x, y))
-            .collect();
-        let grows = |x: u32, y: u32| if self.piece[x as usize] == self.piece[y as usize] { added.inside > 0.0 } else { added.between > 0.0 };
-        let widened = shape.iter().copied().filter(|&(x, y)| grows(x, y));
-        Exemptions::new(self.topology.clone(), self.rest_crossing.clone(), Crossed::from_pairs(shape.iter().copied()), Crossed::from_pairs(widened), None)
+        // As the whole sweep finds them: a pair with a moved triangle crossing in the template's
+        // shape, tested lower index first.
+        let crossing = near.into_iter().filter(|&(x, y)| (moved(x) || moved(y)) && intersection_length(corners(x), corners(y)).is_some());
+        self.template_exemptions(&template, crossing, added, None)
     }
 
     /// The crossing triangle pairs of `swept` (as [`crossings`] lists them) a shape adds: not
