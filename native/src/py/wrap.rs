@@ -239,7 +239,7 @@ fn bind_to_surface<'py>(
 ///              truth_deltas=None) -> dict
 ///
 /// Where riggers look first, per carried key ([`crate::wrap::looks`]): `shapes`, one row per
-/// name (`turned_over`, `roughness`, `copy_roughness`, `truth_roughness`; a blink's
+/// name (`turned_over` and `turned_over_share`, `roughness`, `copy_roughness`, `truth_roughness`; a blink's
 /// `eye_gap`, `eyes_close` and `lid_turning`; jawOpen's `mouth_opening` and `lip_turning`;
 /// mouthClose's `mouth_closing`; each beside the template's own as `template_*`), and the
 /// `openings` found on the template (margins as template vertices). `template_*`: the

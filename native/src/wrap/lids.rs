@@ -43,7 +43,7 @@ const FACING_DEGREES: f64 = 60.0;
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Eyeball {
     pub(super) centre: Vec3,
-    radius: f64,
+    pub(super) radius: f64,
     vertex: u32,
     vertices: usize,
 }

@@ -10,9 +10,15 @@
 //! - **An eye's margins**: the lids rest on the eyeball (a round piece, as the lid landmarks
 //!   find it: `lids`), so seen from the front along the face's front through the eyeball's
 //!   centre the lid margin is, in each of [`SECTORS`] directions around that axis, the skin
-//!   vertex in front of the centre nearest the axis. The half above the centre is the upper
-//!   margin, below the lower; the eye's middle is the margin's vertex straight above and
-//!   straight below the centre. The eyeball is the one nearest the skin the blink moves.
+//!   vertex in front of the centre nearest the axis that the eyeball does not hide: outside
+//!   the eyeball's sphere (a point in front of the centre and inside the sphere lies behind
+//!   the eyeball's front as seen along the axis). Whole lids fold back into a socket behind
+//!   the eyeball, and the socket's skin lies nearer the axis than the margin: read there, the
+//!   gap runs from the margin to a hidden point the fit shapes freely (nothing on the
+//!   character's surface sees it), and a blink that closes reads open. The half above the
+//!   centre is the upper margin, below the lower; the eye's middle is the margin's vertex
+//!   straight above and straight below the centre. The eyeball is the one nearest the skin
+//!   the blink moves.
 //! - **The lips' seam**: the lips touch at rest and jawOpen parts them, so a skin vertex is on
 //!   the seam when its nearest skin vertex within an edge of it at rest is moved apart by
 //!   jawOpen to more than [`SEAM_OPENING`] times their rest distance (a vertex and its own
@@ -35,7 +41,7 @@ use crate::rig::{validate_points, validate_triangle_indices, RigView};
 
 use super::carry::{bind, bind_facing_normals};
 use super::lids::eyeballs;
-use super::measures::{key_roughness, line_turning, opening_gap, turned_over};
+use super::measures::{key_roughness, line_turning, opening_gap, turned_over, turned_over_share};
 use super::skin_flags;
 
 /// Directions around an eye's axis the lid margin is sampled in.
@@ -71,8 +77,12 @@ pub struct Openings {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct ShapeLooks {
     pub name: String,
-    /// Character triangles turned over by the key ([`turned_over`]).
+    /// Character triangles turned over by the key ([`turned_over`]), and the share of the
+    /// skin the key moves they cover ([`turned_over_share`]); the template's own key's share
+    /// on the template (a closing lid folds some on any mesh).
     pub turned_over: usize,
+    pub turned_over_share: f64,
+    pub template_turned_over_share: f64,
     /// [`key_roughness`] of the carried key, of the wrapped template's key copied to the
     /// character's vertices (barycentric at the closest point: a plain copy), and of the
     /// truth when one is given.
@@ -137,7 +147,7 @@ pub fn find_openings(rig: &RigView) -> ShapesmithResult<Openings> {
         }
         let centre = scale(centre, 1.0 / weight);
         let Some(ball) = balls.iter().min_by(|a, b| length(sub(a.centre, centre)).total_cmp(&length(sub(b.centre, centre)))) else { continue };
-        if let Some(margins) = eye_margins(&points, &is_skin, ball.centre, f, up, across, &blink) {
+        if let Some(margins) = eye_margins(&points, &is_skin, (ball.centre, ball.radius), f, up, across, &blink) {
             openings.eyes.push((rig.names[k].clone(), margins));
         }
     }
@@ -152,13 +162,15 @@ pub fn find_openings(rig: &RigView) -> ShapesmithResult<Openings> {
     Ok(openings)
 }
 
-/// An eye's margins around the axis through the eyeball's `centre` along the front `f`.
-fn eye_margins(points: &[Vec3], is_skin: &[bool], centre: Vec3, f: Vec3, up: Vec3, across: Vec3, blink: &[Vec3]) -> Option<Margins> {
+/// An eye's margins around the axis through the eyeball's centre along the front `f`
+/// (`eyeball`: its centre and radius; skin inside its sphere is hidden behind it).
+fn eye_margins(points: &[Vec3], is_skin: &[bool], eyeball: (Vec3, f64), f: Vec3, up: Vec3, across: Vec3, blink: &[Vec3]) -> Option<Margins> {
+    let (centre, radius) = eyeball;
     let width = std::f64::consts::TAU / SECTORS as f64;
     let mut nearest: Vec<Option<(f64, u32)>> = vec![None; SECTORS];
     for v in (0..points.len()).filter(|&v| is_skin[v]) {
         let r = sub(points[v], centre);
-        if dot(r, f) <= 0.0 {
+        if dot(r, f) <= 0.0 || length(r) < radius {
             continue;
         }
         let (x, y) = (dot(r, across), dot(r, up));
@@ -376,6 +388,8 @@ pub fn look_at_keys(
             ShapeLooks {
                 name: template.names[s].clone(),
                 turned_over: turned_over(&rest, &posed, character_triangles),
+                turned_over_share: turned_over_share(&rest, &carried[s], character_triangles),
+                template_turned_over_share: turned_over_share(&template_rest, &template_keys[s], template.triangles),
                 roughness: key_roughness(&carried[s], &adjacency),
                 copy_roughness: key_roughness(&copy, &adjacency),
                 truth_roughness: truth.map(|t| key_roughness(&delta(t, nc, s), &adjacency)),
@@ -394,4 +408,48 @@ pub fn look_at_keys(
         })
         .collect();
     Ok(Looks { openings, shapes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An eye as whole lids make it (front +z, up +y, eyeball of radius 1 at the origin): a lid
+    /// margin ring of `n` vertices resting on the eyeball (1.05 radii from its centre, 0.5 from
+    /// the axis), and the lids' fold back into the socket, a ring nearer the axis inside the
+    /// eyeball's sphere (0.3 from the axis, 0.2 in front of the centre). The blink moves the
+    /// upper lid, margin and fold alike, down by the opening.
+    fn socketed_eye(n: usize) -> (Vec<Vec3>, Vec<Vec3>, std::ops::Range<usize>) {
+        let ring = |radius: f64, depth: f64| (0..n).map(move |i| {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            [radius * a.cos(), radius * a.sin(), depth]
+        });
+        let margin_depth = (1.05f64 * 1.05 - 0.25).sqrt();
+        let points: Vec<Vec3> = ring(0.5, margin_depth).chain(ring(0.3, 0.2)).collect();
+        let blink = points.iter().map(|p| if p[1] > 0.0 { [0.0, -1.0, 0.0] } else { [0.0; 3] }).collect();
+        (points, blink, 0..n)
+    }
+
+    #[test]
+    fn a_lid_margin_is_the_skin_the_eyeball_does_not_hide_and_a_closing_blink_reads_closed() {
+        let (points, blink, margin) = socketed_eye(32);
+        let is_skin = vec![true; points.len()];
+        let (f, up, across) = ([0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]);
+        let eye = eye_margins(&points, &is_skin, ([0.0; 3], 1.0), f, up, across, &blink).expect("the margins are found");
+        // Every margin vertex is on the visible ring, none in the socket behind the eyeball;
+        // the middle is the ring's top (moving) and bottom (resting).
+        assert!(eye.moving.iter().chain(&eye.resting).all(|&v| margin.contains(&(v as usize))), "{eye:?}");
+        assert_eq!(eye.middle, [8, 24]);
+        // The blink brings the upper margin down past the lower one: closed, as the template's.
+        let openings = Openings { eyes: vec![("eyeBlinkLeft".into(), eye)], mouth: None, face_size: None };
+        let names = ["eyeBlinkLeft".to_string()];
+        let reader = Reader::Template { rest: &points };
+        let zero = vec![[0.0; 3]; points.len()];
+        let gap = measure_openings(&openings, &names, &[blink.clone()], &reader, &zero)[0][0];
+        assert_eq!(gap, Some(0.0));
+        // Half a blink leaves half the opening.
+        let half: Vec<Vec3> = blink.iter().map(|d| scale(*d, 0.5)).collect();
+        let gap = measure_openings(&openings, &names, &[half], &reader, &zero)[0][0].unwrap();
+        assert!((gap - 0.5).abs() < 1e-9, "{gap}");
+    }
 }

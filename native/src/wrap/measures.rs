@@ -39,6 +39,28 @@ pub fn turned_over(rest: &[Vec3], posed: &[Vec3], triangles: &[[u32; 3]]) -> usi
         .count()
 }
 
+/// The share of the skin a key moves that it turns over: the rest area of the
+/// [`turned_over`] triangles over the rest area of the triangles with a corner moving over
+/// [`MOVING_FRACTION`] of the key's largest motion. A closing lid folds into the socket on any
+/// mesh (the bundled template's own blinks turn 58 triangles over), so a count alone cannot
+/// tell a carried key from its template; an area share can, whatever either mesh's
+/// resolution. 0 for a key that does not move.
+pub fn turned_over_share(rest: &[Vec3], deltas: &[Vec3], triangles: &[[u32; 3]]) -> f64 {
+    let largest = deltas.iter().map(|&d| length(d)).fold(0.0, f64::max);
+    let area = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|v| rest[v as usize]);
+        0.5 * length(cross(sub(b, a), sub(c, a)))
+    };
+    let moving: Vec<&[u32; 3]> = triangles.iter().filter(|t| t.iter().any(|&v| length(deltas[v as usize]) > MOVING_FRACTION * largest)).collect();
+    let moved_area: f64 = moving.iter().map(|t| area(t)).sum();
+    if largest == 0.0 || moved_area == 0.0 {
+        return 0.0;
+    }
+    let posed: Vec<Vec3> = rest.iter().zip(deltas).map(|(&p, &d)| crate::geometry::mat3::add(p, d)).collect();
+    let turned: f64 = moving.iter().filter(|t| turned_over(rest, &posed, std::slice::from_ref(**t)) == 1).map(|t| area(t)).sum();
+    turned / moved_area
+}
+
 /// A line's roughness: the summed second differences of its arc-length parametrisation,
 /// `sum_i |t_{i+1} - t_i|` over its unit segment directions `t_i` (each term `2 sin(theta/2)`
 /// for the turn `theta` at a point, so the sum is the line's total turning, about `∫|κ| ds`
@@ -113,6 +135,12 @@ mod tests {
         // A whole mirror image turns every triangle over.
         let mirrored: Vec<Vec3> = rest.iter().map(|p| [-p[0], p[1], p[2]]).collect();
         assert_eq!(turned_over(&rest, &mirrored, &triangles), 2);
+        // The share: with the first corner also moved (in its plane) both triangles move, and
+        // the folded one is half their area.
+        let mut deltas: Vec<Vec3> = rest.iter().zip(&folded).map(|(&r, &f)| sub(f, r)).collect();
+        deltas[0] = [-0.1, 0.0, 0.0];
+        assert!((turned_over_share(&rest, &deltas, &triangles) - 0.5).abs() < 1e-12);
+        assert_eq!(turned_over_share(&rest, &vec![[0.0; 3]; 4], &triangles), 0.0);
     }
 
     #[test]
