@@ -39,8 +39,8 @@ def look_lines(looks):
     for shape in shapes:
         if shape["turned_over"]:
             share, reference = shape["turned_over_share"], shape["template_turned_over_share"]
-            lines.append((f"{shape['name']}: {shape['turned_over']} triangle(s) turned over, {100 * share:.2f}% of the skin "
-                          f"it moves (template {100 * reference:.2f}%)", share <= ROUGHER * reference))
+            lines.append((f"{shape['name']}: {shape['turned_over']} triangle(s) turned over, {100 * share:.2g}% of the skin "
+                          f"it moves (template {100 * reference:.2g}%)", share <= ROUGHER * reference))
     rough = [(s["name"], s["roughness"] / s["copy_roughness"]) for s in shapes
              if s["copy_roughness"] > 0.0 and s["roughness"] > ROUGHER * s["copy_roughness"]]
     if rough:

@@ -57,7 +57,8 @@ pub fn turned_over_share(rest: &[Vec3], deltas: &[Vec3], triangles: &[[u32; 3]])
         return 0.0;
     }
     let posed: Vec<Vec3> = rest.iter().zip(deltas).map(|(&p, &d)| crate::geometry::mat3::add(p, d)).collect();
-    let turned: f64 = moving.iter().filter(|t| turned_over(rest, &posed, std::slice::from_ref(**t)) == 1).map(|t| area(t)).sum();
+    // A fold from +0.0: an empty f64 sum is -0.0, which would print as a negative share.
+    let turned = moving.iter().filter(|t| turned_over(rest, &posed, std::slice::from_ref(**t)) == 1).map(|t| area(t)).fold(0.0, |sum, a| sum + a);
     turned / moved_area
 }
 
@@ -141,6 +142,8 @@ mod tests {
         deltas[0] = [-0.1, 0.0, 0.0];
         assert!((turned_over_share(&rest, &deltas, &triangles) - 0.5).abs() < 1e-12);
         assert_eq!(turned_over_share(&rest, &vec![[0.0; 3]; 4], &triangles), 0.0);
+        let shifted: Vec<Vec3> = rest.iter().map(|_| [0.0, 0.0, 1.0]).collect();
+        assert!(turned_over_share(&rest, &shifted, &triangles).is_sign_positive());
     }
 
     #[test]
