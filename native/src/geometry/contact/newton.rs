@@ -5,9 +5,9 @@
 //! so without contact the solve returns `x*`; `mu diag A` screens it (the same minimiser, and
 //! a piece floating free inside the region keeps a finite stiffness). Each Newton step's
 //! matrix is `A` per coordinate plus each close pair's barrier Hessian projected to positive
-//! semi-definite, factorised sparse (faer, one fill-reducing order per solve); the step is cut
-//! to what the additive CCD finds safe for every candidate pair, then backtracked until the
-//! energy decreases (Armijo). The start must have no non-exempt pair touching; every iterate
+//! semi-definite, factorised sparse (faer, a fill-reducing order per step: the pairs change
+//! the pattern); the step is cut to what the additive CCD finds safe for every candidate
+//! pair, then backtracked until the energy decreases (Armijo). The start must have no non-exempt pair touching; every iterate
 //! then keeps every non-exempt pair apart.
 
 
@@ -108,18 +108,18 @@ impl ContactMesh<'_> {
 
     /// The non-exempt pairs with a vertex in the region whose boxes, swept from `x` to
     /// `x + step` and grown ([`ContactMesh::swept`]), meet: every pair that can come within
-    /// `d_hat` or touch along the step, each with its distance at `x` and the most the step
-    /// closes it ([`relative_motion`]). A pair's exemption, range and weight depend on its
+    /// `within` of its `d_hat` (at most 1) or touch along the step, each with its distance at
+    /// `x` and the most the step closes it ([`relative_motion`]). A pair's exemption, range and weight depend on its
     /// vertices alone: `known` keeps them across the calls of one solve.
-    pub fn candidates(&self, broad: &SolveBroadPhase, x: &[[f64; 3]], step: &[[f64; 3]], known: &mut KnownPairs) -> Vec<Candidate> {
+    pub fn candidates(&self, broad: &SolveBroadPhase, x: &[[f64; 3]], step: &[[f64; 3]], within: f64, known: &mut KnownPairs) -> Vec<Candidate> {
         let mut pairs = Vec::new();
-        broad.pairs(self, x, step, |kind, vertices| {
+        broad.pairs(self, x, step, within, |kind, vertices| {
             // Boxes meet far more often than primitives come close: a pair whose distance at
-            // `x`, less the most its step can close it, stays beyond `d_hat` is none.
+            // `x`, less the most its step can close it, stays beyond `within d_hat` is none.
             let d_hat = self.pair_d_hat(vertices);
             let (_, closing) = relative_motion(kind, &vertices.map(|v| step[v as usize]));
             let distance = pair_squared(kind, &vertices.map(|v| x[v as usize])).sqrt();
-            if distance - closing >= d_hat {
+            if distance - closing >= within * d_hat {
                 return;
             }
             let key = (matches!(kind, PairKind::EdgeEdge { .. }), vertices);
@@ -135,8 +135,8 @@ impl ContactMesh<'_> {
     /// somewhere on the step come within half the sum of theirs, so their boxes meet. Grown by
     /// the largest instead, the boxes met on pairs up to twice as far, and the candidates'
     /// distances were the broad phase's largest cost.
-    fn swept(&self, vertices: &[u32], x: &[[f64; 3]], step: &[[f64; 3]]) -> Box3 {
-        let grow = 0.5 * vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
+    fn swept(&self, vertices: &[u32], x: &[[f64; 3]], step: &[[f64; 3]], within: f64) -> Box3 {
+        let grow = 0.5 * within * vertices.iter().map(|&v| self.d_hat[v as usize]).fold(f64::INFINITY, f64::min);
         Box3::around(
             vertices.iter().flat_map(|&v| {
                 let (p, d) = (x[v as usize], step[v as usize]);
@@ -168,7 +168,7 @@ impl SolveBroadPhase {
         let zero = vec![[0.0; 3]; x.len()];
         let split = |count: usize, vertices: &dyn Fn(u32) -> Vec<u32>| {
             let (moving, fixed): (Vec<u32>, Vec<u32>) = (0..count as u32).partition(|&k| moves(&vertices(k)));
-            let tree = BoxTree::build(fixed.iter().map(|&k| mesh.swept(&vertices(k), x, &zero)).collect());
+            let tree = BoxTree::build(fixed.iter().map(|&k| mesh.swept(&vertices(k), x, &zero, 1.0)).collect());
             (moving, (tree, fixed))
         };
         let (points, fixed_points) = split(x.len(), &|v| vec![v]);
@@ -179,9 +179,11 @@ impl SolveBroadPhase {
 
     /// Every point-triangle and edge-edge pair with a vertex in the region whose boxes, swept
     /// from `x` to `x + step` and grown ([`ContactMesh::swept`]), meet, each once, passed to
-    /// `emit`.
-    fn pairs(&self, mesh: &ContactMesh, x: &[[f64; 3]], step: &[[f64; 3]], mut emit: impl FnMut(PairKind, [u32; 4])) {
-        let swept = |vs: &[u32]| mesh.swept(vs, x, step);
+    /// `emit`. The moving primitives' boxes grow by `within` of half their `d_hat`: a pair
+    /// that comes within `within` of its `d_hat` still has meeting boxes (the fixed ones are
+    /// grown by the whole half), and a search for pairs nearly touching meets far fewer.
+    fn pairs(&self, mesh: &ContactMesh, x: &[[f64; 3]], step: &[[f64; 3]], within: f64, mut emit: impl FnMut(PairKind, [u32; 4])) {
+        let swept = |vs: &[u32]| mesh.swept(vs, x, step, within);
         let triangle = |t: u32| mesh.triangles[t as usize];
         let edge = |e: u32| [mesh.edges[e as usize].0, mesh.edges[e as usize].1];
         // Point-triangle: moving points against every triangle, moving triangles against the
@@ -307,7 +309,6 @@ pub fn solve(
     };
     let energy = |x: &[[f64; 3]], pairs: &[Pair]| quadratic(x) + kappa * pairs.iter().map(|p| p.weight * pair_energy(p.kind, &p.points(x), p.s_hat)).sum::<f64>();
     let zero = vec![[0.0; 3]; n];
-    let mut order: Option<Vec<usize>> = None;
     let mut result = NewtonResult::default();
     let mut step = zero.clone();
     let mut known = KnownPairs::default();
@@ -316,7 +317,7 @@ pub fn solve(
     // way, so one broad phase per iteration serves both the line search and the next
     // derivatives).
     let broad = SolveBroadPhase::new(mesh, &x, &in_region);
-    let mut pairs: Vec<Pair> = mesh.candidates(&broad, &x, &zero, &mut known).into_iter().map(|c| c.pair).collect();
+    let mut pairs: Vec<Pair> = mesh.candidates(&broad, &x, &zero, 1.0, &mut known).into_iter().map(|c| c.pair).collect();
     // The stop (Boyd and Vandenberghe 9.5.1, the Newton decrement `lambda^2 = -g . p`, the
     // step's length in the Newton matrix's norm), against the same length of a step moving
     // each vertex by `tolerance d_hat` under the energy's diagonal. A step along which the
@@ -376,10 +377,11 @@ pub fn solve(
         }
         result.contacts = close;
         let matrix = SymmetricMatrix::from_triplets(3 * region.len(), entries);
-        if order.is_none() {
-            order = Some(matrix.fill_reducing_order()?);
-        }
-        let factor = matrix.factor(order.as_deref().unwrap_or(&[]))?;
+        // The pattern is the step's own (its pairs come and go): ordered once for the first
+        // step's pattern, a mouth's region (553 vertices, 1.4k pairs pressing the lips) filled
+        // in as pairs across the lips came in, and its factorisations took about 4x as long.
+        let order = matrix.fill_reducing_order()?;
+        let factor = matrix.factor(&order)?;
         let rhs: Vec<[f64; 3]> = gradient.iter().map(|&g| [-g, 0.0, 0.0]).collect();
         let direction = factor.solve_points(&rhs);
         for (s, &v) in region.iter().enumerate() {
@@ -402,7 +404,7 @@ pub fn solve(
         // The largest safe step along the direction: the additive CCD's first advance is
         // `eta d / l_p` ([`additive_ccd`]), so a pair whose bound is already beyond the step
         // found so far cannot shorten it, and the pairs are taken in the order of that bound.
-        let mut swept = mesh.candidates(&broad, &x, &step, &mut known);
+        let mut swept = mesh.candidates(&broad, &x, &step, 1.0, &mut known);
         let bound = |c: &Candidate| if c.closing > 0.0 { CONSERVATIVE_RESCALING * c.distance / c.closing } else { f64::INFINITY };
         swept.sort_unstable_by(|a, b| bound(a).total_cmp(&bound(b)));
         let mut alpha = 1.0f64;
